@@ -1,0 +1,1 @@
+"""Pure numerics of scm-calib: the SCM wheel simulator, SWT signals and Bayesian inference."""

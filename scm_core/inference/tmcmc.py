@@ -1,0 +1,256 @@
+"""TMCMC driver (Ching & Chen 2007; paper section 2 and 5): loops the pure stage functions.
+
+Parallelism is injected as a ``map`` callable (built-in ``map``, ``multiprocessing.Pool().map``,
+a Celery fan-out...) applied to batches of chains; the per-batch function is
+``functools.partial(run_chains, plan, log_likelihood_batch=f)``, so ``f`` must be picklable for
+process pools (a module-level function or a ``functools.partial`` of one, no lambdas).
+Results are bit-identical for a given seed whatever the map and batch size.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from functools import partial
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scm_core.inference.priors import JointPrior
+from scm_core.inference.tmcmc_stage import (
+    LogLikelihoodBatch,
+    StageState,
+    TMCMCSettings,
+    chain_batches,
+    initial_stage,
+    plan_stage,
+    reduce_stage,
+    run_chains,
+    stage_status,
+)
+
+__all__ = ["TMCMCResult", "tmcmc", "tmcmc_batched"]
+
+MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
+
+
+@dataclass(frozen=True, eq=False)
+class TMCMCResult:
+    """Outcome of a TMCMC run.
+
+    samples (n, d): final-stage samples (the posterior if status == "completed"), columns in
+    ``names`` order. log_evidence, log_evidence_se: log p(D) (natural log) and its delta-method
+    standard error. stages: every :class:`StageState` from stage 0. status: "completed",
+    "stalled" or "max_stages".
+    """
+
+    samples: NDArray[np.float64]
+    names: tuple[str, ...]
+    log_evidence: float
+    log_evidence_se: float
+    stages: tuple[StageState, ...]
+    status: str
+
+    @property
+    def final(self) -> StageState:
+        return self.stages[-1]
+
+    @property
+    def log_likelihood(self) -> NDArray[np.float64]:
+        return self.final.log_likelihood
+
+    @property
+    def log_prior(self) -> NDArray[np.float64]:
+        return self.final.log_prior
+
+    @property
+    def responses(self) -> NDArray[np.float64] | None:
+        return self.final.responses
+
+    @property
+    def exponents(self) -> NDArray[np.float64]:
+        return np.array([s.exponent for s in self.stages])
+
+    @property
+    def n_model_runs(self) -> int:
+        """Model runs of all stages, stage 0 included."""
+        return int(sum(s.model_runs for s in self.stages))
+
+    @property
+    def n_failed_runs(self) -> int:
+        return int(sum(s.failed_runs for s in self.stages))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict-JSON dict of names, status and every stage; :meth:`from_dict` is exact."""
+        return {
+            "names": list(self.names),
+            "status": self.status,
+            "stages": [s.to_dict() for s in self.stages],
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TMCMCResult:
+        stages = tuple(StageState.from_dict(d) for d in data["stages"])
+        final = stages[-1]
+        return cls(
+            samples=final.samples,
+            names=tuple(data["names"]),
+            log_evidence=float(final.log_evidence),
+            log_evidence_se=math.sqrt(final.log_evidence_var),
+            stages=stages,
+            status=str(data["status"]),
+        )
+
+    def diagnostics(self) -> list[dict[str, float | int]]:
+        """One row per stage: exponent, beta, acceptance, ESS, unique samples, runs, evidence."""
+        return [
+            {
+                "stage": s.stage,
+                "exponent": s.exponent,
+                "beta": s.beta,
+                "acceptance_rate": s.acceptance_rate,
+                "ess": s.ess,
+                "n_unique": s.n_unique,
+                "n_steps": s.n_steps,
+                "model_runs": s.model_runs,
+                "failed_runs": s.failed_runs,
+                "out_of_support": s.out_of_support,
+                "log_evidence": s.log_evidence,
+            }
+            for s in self.stages
+        ]
+
+
+def _evaluate_rows(log_likelihood: Callable[[NDArray[np.float64]], Any], X: NDArray[np.float64]):
+    """Batch adapter for a one-vector likelihood returning a float or (float, responses)."""
+    outs = [log_likelihood(x) for x in X]
+    if outs and isinstance(outs[0], tuple):
+        ll = np.array([float(o[0]) for o in outs])
+        resp = np.array([np.asarray(o[1], dtype=float).reshape(-1) for o in outs])
+        return ll, resp
+    return np.array([float(o) for o in outs])
+
+
+def _check_resume(stages: Sequence[StageState], prior: JointPrior, n: int, seed: int) -> None:
+    if not stages:
+        raise ValueError("'resume_from' must contain at least stage 0")
+    for i, s in enumerate(stages):
+        if s.stage != i:
+            raise ValueError(f"'resume_from' stage {i} has index {s.stage}")
+    last = stages[-1]
+    if last.seed != int(seed):
+        raise ValueError(f"'resume_from' was run with seed {last.seed}, not {seed}")
+    if last.n_samples != n or last.dim != prior.dim:
+        raise ValueError(
+            f"'resume_from' has {last.n_samples} samples of dimension {last.dim}, "
+            f"expected {n} of dimension {prior.dim}"
+        )
+
+
+def tmcmc_batched(
+    log_likelihood_batch: LogLikelihoodBatch,
+    prior: JointPrior,
+    n_samples: int = 2000,
+    seed: int = 0,
+    map: MapFn = map,
+    batch_size: int | None = None,
+    moves: str | None = None,
+    n_steps: int | None = None,
+    target_cov: float | None = None,
+    max_stages: int | None = None,
+    callback: Callable[[StageState], Any] | None = None,
+    resume_from: Sequence[StageState] | None = None,
+    settings: TMCMCSettings | None = None,
+) -> TMCMCResult:
+    """Sample the posterior prior(theta) L(theta) / Z with TMCMC and estimate log Z.
+
+    ``log_likelihood_batch(X)`` takes X (m, d) in ``prior.names`` order and returns log L (m,)
+    (-inf/NaN allowed: counted as failed runs) or (log L (m,), responses (m, k)). Chains of a
+    stage are split into batches of ``batch_size`` (None: one batch) and run through
+    ``map(func, batches)``. ``callback(state)`` runs after every finished stage, stage 0
+    included; passing the saved stages back as ``resume_from`` (with the same seed, n_samples and
+    settings; not called again for those stages) continues the run bit-identically.
+    ``moves``, ``n_steps``, ``target_cov`` and ``max_stages`` override, when not None, the
+    fields of ``settings`` (see :class:`TMCMCSettings`; defaults "resample-move", adaptive
+    n_steps, 1.0, 50).
+    """
+    overrides = {
+        "moves": moves,
+        "n_steps": n_steps,
+        "target_cov": target_cov,
+        "max_stages": max_stages,
+    }
+    base = settings or TMCMCSettings()
+    settings = TMCMCSettings(
+        **{**base.to_dict(), **{k: v for k, v in overrides.items() if v is not None}}
+    )
+    seed = int(seed)
+    if seed < 0:
+        raise ValueError(f"'seed' must be a non-negative integer, got {seed!r}")
+
+    if resume_from:
+        stages = list(resume_from)
+        _check_resume(stages, prior, n_samples, seed)
+    else:
+        stages = [
+            initial_stage(prior, n_samples, seed, log_likelihood_batch, map, batch_size, settings)
+        ]
+        if callback is not None:
+            callback(stages[0])
+
+    while (status := stage_status(stages[-1], settings)) is None:
+        plan = plan_stage(stages[-1], prior, settings)
+        func = partial(run_chains, plan, log_likelihood_batch=log_likelihood_batch)
+        results = list(map(func, chain_batches(plan.n_chains, batch_size)))
+        stages.append(reduce_stage(plan, results))
+        if callback is not None:
+            callback(stages[-1])
+
+    final = stages[-1]
+    return TMCMCResult(
+        samples=final.samples,
+        names=prior.names,
+        log_evidence=float(final.log_evidence),
+        log_evidence_se=math.sqrt(final.log_evidence_var),
+        stages=tuple(stages),
+        status=status,
+    )
+
+
+def tmcmc(
+    log_likelihood: Callable[[NDArray[np.float64]], float],
+    prior: JointPrior,
+    n_samples: int = 2000,
+    seed: int = 0,
+    map: MapFn = map,
+    batch_size: int | None = None,
+    moves: str | None = None,
+    n_steps: int | None = None,
+    target_cov: float | None = None,
+    max_stages: int | None = None,
+    callback: Callable[[StageState], Any] | None = None,
+    resume_from: Sequence[StageState] | None = None,
+    settings: TMCMCSettings | None = None,
+) -> TMCMCResult:
+    """As :func:`tmcmc_batched`, for ``log_likelihood(theta)`` of ONE parameter vector (d,).
+
+    It returns a float (-inf allowed) or (float, responses (k,)). Must be picklable when
+    ``map`` is a process pool's.
+    """
+    return tmcmc_batched(
+        partial(_evaluate_rows, log_likelihood),
+        prior,
+        n_samples=n_samples,
+        seed=seed,
+        map=map,
+        batch_size=batch_size,
+        moves=moves,
+        n_steps=n_steps,
+        target_cov=target_cov,
+        max_stages=max_stages,
+        callback=callback,
+        resume_from=resume_from,
+        settings=settings,
+    )

@@ -1,0 +1,281 @@
+"""Contact, footprint and stresses at a trial axle height (paper section 3.1, eq. (7)-(10)).
+
+Per step the DEM nodes under the wheel are grouped into *patches*: runs of consecutive nodes of one
+column (same x, neighbouring y) whose soil state is identical. Straight grousers make the wheel's
+surface the same across y, so identical nodes carry identical stresses and the Bekker power law of
+eq. (7) is evaluated once per patch instead of once per node (a column typically holds one interior
+run and two edge runs). Node state: reference level h0 (the undisturbed level, raised where soil is
+deposited), plastic sinkage sp, yield stress sy (largest stress carried), unloading stiffness ke
+and, for the displacement form of eq. (8), the accumulated shear path js.
+
+Elastic-plastic law per node (as in SCM / Chrono's SCMTerrain): with sinkage p = h0 - hit,
+the elastic trial stress is ke (p - sp); above the yield stress sy the node is on the Bekker curve
+sigma = (k_c / b_eff + k_phi) p^n and yields. Soil cannot pull: sigma >= 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .layout import (
+    P_C,
+    P_DSOIL,
+    P_DT,
+    P_J,
+    P_KC,
+    P_KPHI,
+    P_N,
+    P_OMEGA,
+    P_SHEARDISP,
+    P_TANPHI,
+    P_TAPER,
+    P_V,
+)
+
+# Nodes whose levels (reference, unloaded surface, elastic range, shear path) differ by less than
+# this [m] share one stress evaluation; each node's own state is still updated exactly. 0.1 um is a
+# stress difference of at most K * 1e-7 (5 Pa at the default K). Erosion works node by node and
+# leaves tiny differences across y that would otherwise split every column into single nodes.
+SAME_TOL = 1e-7
+
+# indices of the `res` vector filled by evaluate_contact
+R_FX = 0  # drawbar pull: horizontal soil force on the wheel, + forward [N]
+R_FZ = 1  # vertical soil force on the wheel, + up [N]
+R_T = 2  # driving torque the motor supplies [N m]
+R_DFZ = 3  # d(Fz)/d(axle height) [N/m]
+R_NCONTACT = 4  # loaded nodes
+R_BEFF = 5  # effective contact width b_eff = 2 A / L [m]
+R_TOP = 6  # highest axle height with any contact [m] (set by build_patches)
+N_RES = 8
+
+
+@njit(cache=True)
+def build_patches(
+    h0: np.ndarray,
+    sp: np.ndarray,
+    sy: np.ndarray,
+    ke: np.ndarray,
+    js: np.ndarray,
+    c0: int,
+    ncw: int,
+    jw0: int,
+    nyw: int,
+    e: np.ndarray,
+    z_low: float,
+    pc: np.ndarray,
+    pj0: np.ndarray,
+    pj1: np.ndarray,
+    pst: np.ndarray,
+) -> tuple[int, float]:
+    """Group the nodes under the wheel into patches of identical state.
+
+    Only columns that the wheel can touch with its axle at or above ``z_low`` (the free-fall
+    height of this step, a lower bound of the solution) are kept. Returns (number of patches,
+    highest axle height at which any node touches the wheel); pst[p] = (h0, sp, sy, ke, js).
+    """
+    npatch = 0
+    ztop = -np.inf
+    for k in range(ncw):
+        if not np.isfinite(e[k]):
+            continue
+        c = c0 + k
+        top = -np.inf
+        for j in range(jw0, jw0 + nyw):
+            top = max(top, h0[c, j] - sp[c, j])
+        if z_low + e[k] >= top:
+            continue  # the wheel stays above every node of this column
+        j = 0
+        while j < nyw:
+            a = h0[c, jw0 + j]
+            b = sp[c, jw0 + j]
+            s = sy[c, jw0 + j]
+            q = ke[c, jw0 + j]
+            w = js[c, jw0 + j]
+            j1 = j + 1
+            while j1 < nyw:
+                jj = jw0 + j1
+                # compare levels [m]: reference, unloaded surface, elastic range sy/ke
+                if (
+                    abs(h0[c, jj] - a) > SAME_TOL
+                    or abs(sp[c, jj] - b) > SAME_TOL
+                    or abs(sy[c, jj] / ke[c, jj] - s / q) > SAME_TOL
+                    or abs(js[c, jj] - w) > SAME_TOL
+                ):
+                    break
+                j1 += 1
+            pc[npatch] = k
+            pj0[npatch] = j
+            pj1[npatch] = j1
+            pst[npatch, 0] = a
+            pst[npatch, 1] = b
+            pst[npatch, 2] = s
+            pst[npatch, 3] = q
+            pst[npatch, 4] = w
+            top = a - b - e[k]
+            if top > ztop:
+                ztop = top
+            npatch += 1
+            j = j1
+    return npatch, ztop
+
+
+@njit(cache=True)
+def evaluate_contact(
+    zw: float,
+    vz: float,
+    prm: np.ndarray,
+    npatch: int,
+    pc: np.ndarray,
+    pj0: np.ndarray,
+    pj1: np.ndarray,
+    pst: np.ndarray,
+    xi: np.ndarray,
+    e: np.ndarray,
+    fx: np.ndarray,
+    fz: np.ndarray,
+    dx: float,
+    dy: float,
+    nyw: int,
+    gx: np.ndarray,
+    gyc: np.ndarray,
+    pflag: np.ndarray,
+    psig: np.ndarray,
+    res: np.ndarray,
+) -> None:
+    """Stresses and resultant soil forces for the axle at height zw moving down at -vz.
+
+    Fills ``res`` (see R_* indices), ``pflag`` (0 free, 1 elastic contact, 2 yielding) and ``psig``
+    (untapered stress of eq. (7) per patch, Pa). Footprint area A and contour length L (of the
+    footprint's bounding box) give b_eff = 2A/L; the border taper gamma_i (separable half sines over
+    the bounding box, normalised to mean one over the loaded nodes) is evaluated on this footprint.
+    eq. (9)-(10) with the node's cell area dA = dx dy.
+    """
+    for i in range(N_RES):
+        res[i] = 0.0
+    n_exp = prm[P_N]
+    tanphi = prm[P_TANPHI]
+    coh = prm[P_C]
+    dsoil = prm[P_DSOIL]
+    J = prm[P_J]
+    dt = prm[P_DT]
+    v = prm[P_V]
+    omega = prm[P_OMEGA]
+    disp_form = prm[P_SHEARDISP] > 0.5
+    # ---- pass 1: which patches touch, footprint extent
+    ncont = 0
+    cmin = 1 << 30
+    cmax = -1
+    jmin = 1 << 30
+    jmax = -1
+    for p in range(npatch):
+        k = pc[p]
+        hit = zw + e[k]
+        if hit < pst[p, 0] - pst[p, 1]:
+            pflag[p] = 1
+            ncont += pj1[p] - pj0[p]
+            cmin = min(cmin, k)
+            cmax = max(cmax, k)
+            jmin = min(jmin, pj0[p])
+            jmax = max(jmax, pj1[p] - 1)
+        else:
+            pflag[p] = 0
+            psig[p] = 0.0
+    if ncont == 0:
+        return
+    dA = dx * dy
+    area = ncont * dA
+    perim = 2.0 * ((cmax - cmin + 1) * dx + (jmax - jmin + 1) * dy)
+    beff = 2.0 * area / perim
+    kstar = prm[P_KC] / beff + prm[P_KPHI]
+    res[R_NCONTACT] = ncont
+    res[R_BEFF] = beff
+    # ---- border taper (separable), normalised over the loaded nodes
+    taper = prm[P_TAPER] > 0.5
+    norm = 1.0
+    if taper:
+        nxe = cmax - cmin + 1
+        nye = jmax - jmin + 1
+        for k in range(cmin, cmax + 1):
+            gx[k] = math.sin(math.pi * (k - cmin + 0.5) / nxe)
+        gyc[0] = 0.0
+        for j in range(nyw):
+            g = 0.0
+            if jmin <= j <= jmax:
+                g = math.sin(math.pi * (j - jmin + 0.5) / nye)
+            gyc[j + 1] = gyc[j] + g
+        ssum = 0.0
+        for p in range(npatch):
+            if pflag[p] > 0:
+                ssum += gx[pc[p]] * (gyc[pj1[p]] - gyc[pj0[p]])
+        norm = ncont / ssum
+    # ---- pass 2: stresses and forces (patches come column by column)
+    Fx = 0.0
+    Fz = 0.0
+    Ty = 0.0
+    dFz = 0.0
+    k_prev = -1
+    rx = rz = nx = nz = tx = tz = sd = dsd = fsh = vt = 0.0
+    for p in range(npatch):
+        if pflag[p] == 0:
+            continue
+        k = pc[p]
+        if k != k_prev:
+            # contact kinematics of this column: point r = (xi, e) from the axle,
+            # velocity v_axle + omega x r; normal n (soil force direction), slip direction t
+            k_prev = k
+            rx = xi[k]
+            rz = e[k]
+            nx = fx[k]
+            nz = fz[k]
+            vpx = v + omega * rz
+            vpz = vz - omega * rx
+            vn = vpx * nx + vpz * nz
+            pen = -vn  # rate of penetration into the soil [m/s]
+            sd = 0.0
+            dsd = 0.0
+            if dsoil > 0.0 and pen > 0.0:
+                sd = dsoil * pen
+                dsd = -dsoil * nz / dt
+            vtx = vpx - vn * nx
+            vtz = vpz - vn * nz
+            vt = math.sqrt(vtx * vtx + vtz * vtz)
+            tx = 0.0
+            tz = 0.0
+            if vt > 0.0:
+                tx = vtx / vt
+                tz = vtz / vt
+            fsh = 1.0 - math.exp(-vt / J)
+        if disp_form:
+            fsh = 1.0 - math.exp(-(pst[p, 4] + vt * dt) / J)
+        rows = pj1[p] - pj0[p]
+        sink = pst[p, 0] - (zw + e[k])
+        sel = pst[p, 3] * (sink - pst[p, 1])
+        if sel > pst[p, 2]:
+            pflag[p] = 2
+            if kstar > 0.0:
+                sb = kstar * sink**n_exp
+                dsb = n_exp * sb / sink
+            else:
+                sb = 0.0
+                dsb = 0.0
+        else:
+            sb = sel
+            dsb = pst[p, 3]
+        psig[p] = sb
+        gam = norm * gx[k] * (gyc[pj1[p]] - gyc[pj0[p]]) if taper else float(rows)
+        sig_sum = gam * sb + rows * sd  # sum over the patch's rows of eq. (7) [Pa]
+        tau_sum = fsh * (coh * rows + tanphi * sig_sum)  # eq. (8)
+        dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding
+        dfz = (sig_sum * nz - tau_sum * tz) * dA
+        Fx += dfx
+        Fz += dfz
+        Ty += rz * dfx - rx * dfz  # eq. (10), moment about the axle (y component)
+        dsig = -gam * dsb + rows * dsd  # d(sig_sum)/d(zw): sinkage falls as the axle rises
+        dFz += (dsig * nz - fsh * tanphi * dsig * tz) * dA
+    res[R_FX] = Fx
+    res[R_FZ] = Fz
+    res[R_T] = -Ty
+    res[R_DFZ] = dFz

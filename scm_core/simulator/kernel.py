@@ -1,0 +1,487 @@
+"""The SWT time loop (numba): z-buffer, implicit vertical step, deformation, outputs.
+
+Per step (DESIGN.md section 3): carriage and wheel angle advance by their imposed velocities; the
+z-buffer of the wheel is built; the axle height is found by a backward-Euler step of the vertical
+rig dynamics m z'' = Fz(z, z') - W, solved as a root of
+    G(z) = m (z - z_n - dt v_n) / dt^2 + W - Fz(z) = 0
+with the contact, footprint (b_eff) and border taper evaluated at the trial height (safeguarded
+Newton inside a bracket). At SWT speeds the soil acts on the vertical motion as a very stiff damper
+(elastic unloading modulus K times the footprint area), which an explicit step resolves only below a
+millisecond; the implicit step is stable at 10-20 ms. Then the nodes are updated and the soil flows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .contact import (
+    N_RES,
+    R_BEFF,
+    R_DFZ,
+    R_FX,
+    R_FZ,
+    R_NCONTACT,
+    R_T,
+    build_patches,
+    evaluate_contact,
+)
+from .deformation import commit_contact, flow_and_erode
+from .geometry import wheel_envelope
+from .layout import (
+    P_B,
+    P_BULLDOZE,
+    P_DT,
+    P_DURATION,
+    P_DX,
+    P_HG,
+    P_K,
+    P_KC,
+    P_KPHI,
+    P_MARGIN,
+    P_MASS,
+    P_MAXSINK,
+    P_NGROUSERS,
+    P_OFF_F,
+    P_OFF_T,
+    P_OFF_Z,
+    P_OMEGA,
+    P_OUTEVERY,
+    P_R,
+    P_TANREPOSE,
+    P_TG,
+    P_V,
+    P_W,
+    STATUS_BOTTOMED_OUT,
+    STATUS_NONPOSITIVE_STIFFNESS,
+    STATUS_OK,
+    STATUS_UNSTABLE,
+)
+
+# columns of the output series
+S_T = 0
+S_F = 1
+S_TORQUE = 2
+S_Z = 3
+S_FN = 4
+S_BEFF = 5
+N_SERIES = 6
+
+# diagnostics vector
+D_STEPS = 0
+D_NODE_STEPS = 1  # sum over steps of loaded nodes
+D_PATCH_STEPS = 2
+D_ITERATIONS = 3  # contact evaluations in the vertical solves
+D_COMPACTED = 4  # m^3
+D_VOLUME0 = 5  # m^3
+D_VOLUME1 = 6
+D_DY = 7
+D_X0 = 8
+D_JW0 = 9
+D_NYW = 10
+D_EROSION_VISITS = 11
+N_DIAG = 12
+
+Z_TOL = 1e-8  # m, convergence of the axle height
+MAX_ITER = 80
+G_TOL = 1e-4  # residual of the force balance, relative to W
+X_PAD = 0.02  # m of untouched soil before the start and after the end of the run
+
+
+@njit(cache=True)
+def grid_shape(prm: np.ndarray):
+    """(nx, ny, nyw, n_margin, dy, x0) of the DEM for these parameters."""
+    dx = prm[P_DX]
+    b = prm[P_B]
+    nyw = max(1, int(round(b / dx)))
+    dy = b / nyw
+    n_margin = int(math.ceil(prm[P_MARGIN] / dy))
+    ny = nyw + 2 * n_margin
+    r_out = prm[P_R] + prm[P_HG]
+    x0 = -(r_out + X_PAD)
+    x1 = prm[P_V] * prm[P_DURATION] + r_out + X_PAD
+    nx = int(math.ceil((x1 - x0) / dx)) + 2
+    return nx, ny, nyw, n_margin, dy, x0
+
+
+@njit(cache=True)
+def _solve_vertical(
+    zn,
+    vn,
+    prm,
+    npatch,
+    ztop,
+    pc,
+    pj0,
+    pj1,
+    pst,
+    xi,
+    e,
+    fx,
+    fz,
+    dx,
+    dy,
+    nyw,
+    gx,
+    gyc,
+    pflag,
+    psig,
+    res,
+    diag,
+):
+    """Backward-Euler axle height for this step; leaves ``res`` evaluated at the returned height."""
+    dt = prm[P_DT]
+    m = prm[P_MASS]
+    W = prm[P_W]
+    c_in = m / (dt * dt)
+    zpred = zn + dt * vn
+    z_free = zpred - W / c_in  # free fall: no soil force
+    if z_free >= ztop:  # the wheel touches nothing at the free-fall height
+        evaluate_contact(
+            z_free,
+            (z_free - zn) / dt,
+            prm,
+            npatch,
+            pc,
+            pj0,
+            pj1,
+            pst,
+            xi,
+            e,
+            fx,
+            fz,
+            dx,
+            dy,
+            nyw,
+            gx,
+            gyc,
+            pflag,
+            psig,
+            res,
+        )
+        return z_free, True
+    lo = z_free
+    g_lo = np.nan  # G(z_free) < 0, not evaluated: regula falsi waits until lo has a value
+    hi = max(ztop, z_free)
+    g_hi = c_in * (hi - zpred) + W  # no contact at ztop
+    z = min(max(zpred, lo), hi)
+    g_prev = np.inf
+    side = 0
+    width_2ago = np.inf
+    width_1ago = hi - lo
+    for _ in range(MAX_ITER):
+        evaluate_contact(
+            z,
+            (z - zn) / dt,
+            prm,
+            npatch,
+            pc,
+            pj0,
+            pj1,
+            pst,
+            xi,
+            e,
+            fx,
+            fz,
+            dx,
+            dy,
+            nyw,
+            gx,
+            gyc,
+            pflag,
+            psig,
+            res,
+        )
+        diag[D_ITERATIONS] += 1
+        g = c_in * (z - zpred) + W - res[R_FZ]
+        if abs(g) < G_TOL * W:
+            return z, True
+        z_evaluated = z
+        if g > 0.0:
+            hi = z
+            g_hi = g
+            if side == 1:
+                g_lo *= 0.5  # Illinois: keep regula falsi from stalling on one end
+            side = 1
+        else:
+            lo = z
+            g_lo = g
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+        if hi - lo < Z_TOL:
+            break
+        dg = c_in - res[R_DFZ]
+        z_new = z - g / dg if dg > 0.0 else lo - 1.0
+        if not (lo < z_new < hi) or abs(g) > 0.5 * abs(g_prev):
+            # Newton left the bracket or stalled at a kink: regula falsi step
+            z_new = lo - g_lo * (hi - lo) / (g_hi - g_lo)
+            if not (lo < z_new < hi):  # also when g_lo is still unknown (NaN)
+                z_new = 0.5 * (lo + hi)
+        if hi - lo > 0.5 * width_2ago:
+            z_new = 0.5 * (lo + hi)  # bracket not halving in two steps (a jump in G): bisect
+        width_2ago = width_1ago
+        width_1ago = hi - lo
+        g_prev = g
+        if abs(z_new - z) < Z_TOL:
+            z = z_new
+            break
+        z = z_new
+    else:
+        return z, False
+    if z == z_evaluated:
+        return z, True
+    evaluate_contact(
+        z,
+        (z - zn) / dt,
+        prm,
+        npatch,
+        pc,
+        pj0,
+        pj1,
+        pst,
+        xi,
+        e,
+        fx,
+        fz,
+        dx,
+        dy,
+        nyw,
+        gx,
+        gyc,
+        pflag,
+        psig,
+        res,
+    )
+    diag[D_ITERATIONS] += 1
+    return z, True
+
+
+@njit(cache=True)
+def _volume(h0: np.ndarray, sp: np.ndarray, dA: float) -> float:
+    total = 0.0
+    for c in range(h0.shape[0]):
+        for j in range(h0.shape[1]):
+            total += h0[c, j] - sp[c, j]
+    return total * dA
+
+
+@njit(cache=True)
+def run_swt(prm: np.ndarray):
+    """Simulate one SWT. Returns (series (n_out, N_SERIES), n_out, status, surface, diag).
+
+    Series columns: time [s], drawbar pull F [N], driving torque T [N m], sinkage z [m] (axle drop
+    from first contact with the undisturbed surface), normal force [N], b_eff [m]. A run that stops
+    early (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded
+    soil surface h0 - sp [m].
+    """
+    nx, ny, nyw, n_margin, dy, x0 = grid_shape(prm)
+    dx = prm[P_DX]
+    dt = prm[P_DT]
+    R = prm[P_R]
+    hg = prm[P_HG]
+    r_out = R + hg
+    ng = int(prm[P_NGROUSERS])
+    tg = prm[P_TG]
+    v = prm[P_V]
+    omega = prm[P_OMEGA]
+    n_steps = int(round(prm[P_DURATION] / dt))
+    out_every = int(prm[P_OUTEVERY])
+    n_out_max = n_steps // out_every
+    series = np.zeros((n_out_max, N_SERIES))
+    diag = np.zeros(N_DIAG)
+    diag[D_DY] = dy
+    diag[D_X0] = x0
+    diag[D_JW0] = n_margin
+    diag[D_NYW] = nyw
+    h0 = np.zeros((nx, ny))
+    sp = np.zeros((nx, ny))
+    sy = np.zeros((nx, ny))
+    ke = np.full((nx, ny), prm[P_K])
+    js = np.zeros((nx, ny))
+    dA = dx * dy
+    diag[D_VOLUME0] = 0.0
+    # largest possible footprint: k* must be positive there or the soil carries nothing
+    beff_max = 2.0 * r_out * prm[P_B] / (2.0 * r_out + prm[P_B])
+    if prm[P_KC] / beff_max + prm[P_KPHI] <= 0.0:
+        return series[:0], 0, STATUS_NONPOSITIVE_STIFFNESS, h0 - sp, diag
+    ncw_max = int(math.ceil(2.0 * r_out / dx)) + 4
+    xi = np.zeros(ncw_max)
+    e = np.zeros(ncw_max)
+    fx = np.zeros(ncw_max)
+    fz = np.zeros(ncw_max)
+    gx = np.zeros(ncw_max)
+    gyc = np.zeros(nyw + 1)
+    max_patch = ncw_max * nyw
+    pc = np.zeros(max_patch, np.int64)
+    pj0 = np.zeros(max_patch, np.int64)
+    pj1 = np.zeros(max_patch, np.int64)
+    pst = np.zeros((max_patch, 5))
+    pflag = np.zeros(max_patch, np.int64)
+    psig = np.zeros(max_patch)
+    res = np.zeros(N_RES)
+    cflag = np.zeros((ncw_max + 2, ny), np.int8)
+    queue = np.zeros(nx * ny, np.int64)
+    inq = np.zeros(nx * ny, np.int8)
+    bulldoze = prm[P_BULLDOZE] > 0.5
+    for k in range(ncw_max):
+        e[k] = np.inf
+    tan_repose = prm[P_TANREPOSE]
+    zw = r_out  # wheel resting on the undisturbed surface (level 0), a grouser straight down
+    vz = 0.0
+    status = STATUS_OK
+    n_out = 0
+    for step in range(n_steps):
+        t = (step + 1) * dt
+        xw = v * t
+        theta = omega * t
+        c0 = int(math.floor((xw - r_out - x0) / dx))
+        c1 = int(math.ceil((xw + r_out - x0) / dx))
+        c0 = max(c0, 0)
+        c1 = min(c1, nx - 1)
+        ncw = c1 - c0 + 1
+        for k in range(ncw):
+            xi[k] = x0 + (c0 + k) * dx - xw
+        wheel_envelope(xi[:ncw], dx, R, ng, hg, tg, theta, e, fx, fz)
+        z_low = zw + dt * vz - prm[P_W] * dt * dt / prm[P_MASS]  # free fall: lowest possible
+        npatch, ztop = build_patches(
+            h0, sp, sy, ke, js, c0, ncw, n_margin, nyw, e, z_low, pc, pj0, pj1, pst
+        )
+        diag[D_PATCH_STEPS] += npatch
+        z_new, ok = _solve_vertical(
+            zw,
+            vz,
+            prm,
+            npatch,
+            ztop,
+            pc,
+            pj0,
+            pj1,
+            pst,
+            xi,
+            e,
+            fx,
+            fz,
+            dx,
+            dy,
+            nyw,
+            gx,
+            gyc,
+            pflag,
+            psig,
+            res,
+            diag,
+        )
+        if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
+            status = STATUS_UNSTABLE
+            break
+        vz = (z_new - zw) / dt
+        zw = z_new
+        diag[D_NODE_STEPS] += res[R_NCONTACT]
+        flow = commit_contact(
+            zw,
+            vz,
+            prm,
+            npatch,
+            pc,
+            pj0,
+            pj1,
+            pflag,
+            psig,
+            xi,
+            e,
+            fx,
+            fz,
+            c0,
+            n_margin,
+            h0,
+            sp,
+            sy,
+            ke,
+            js,
+            cflag,
+        )
+        if bulldoze:
+            compacted, visits = flow_and_erode(
+                flow,
+                prm,
+                npatch,
+                pc,
+                pj0,
+                pj1,
+                pflag,
+                e,
+                c0,
+                ncw,
+                n_margin,
+                dx,
+                dy,
+                tan_repose,
+                h0,
+                sp,
+                cflag,
+                queue,
+                inq,
+            )
+            diag[D_COMPACTED] += compacted
+            diag[D_EROSION_VISITS] += visits
+        else:
+            diag[D_COMPACTED] += flow * dA  # without flow the displaced soil is compacted
+        for p in range(npatch):  # clear the loaded marks
+            if pflag[p] != 0:
+                for j in range(n_margin + pj0[p], n_margin + pj1[p]):
+                    cflag[pc[p] + 1, j] = 0
+        diag[D_STEPS] += 1
+        if (step + 1) % out_every == 0 and n_out < n_out_max:
+            series[n_out, S_T] = t
+            series[n_out, S_F] = res[R_FX]
+            series[n_out, S_TORQUE] = res[R_T]
+            series[n_out, S_Z] = r_out - zw
+            series[n_out, S_FN] = res[R_FZ]
+            series[n_out, S_BEFF] = res[R_BEFF]
+            n_out += 1
+        if r_out - zw > prm[P_MAXSINK]:
+            status = STATUS_BOTTOMED_OUT
+            break
+    diag[D_VOLUME1] = _volume(h0, sp, dA)
+    return series[:n_out], n_out, status, h0 - sp, diag
+
+
+@njit(cache=True)
+def steady_means(series: np.ndarray, prm: np.ndarray) -> np.ndarray:
+    """Means of F, T and z over t >= their offsets (paper section 4.3: 20 s, 20 s, 1 s)."""
+    out = np.full(3, np.nan)
+    offs = (prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z])
+    cols = (S_F, S_TORQUE, S_Z)
+    for q in range(3):
+        s = 0.0
+        n = 0
+        for i in range(series.shape[0]):
+            if series[i, S_T] >= offs[q] - 1e-9:
+                s += series[i, cols[q]]
+                n += 1
+        if n > 0:
+            out[q] = s / n
+    return out
+
+
+@njit(cache=True, parallel=True)
+def run_batch(prms: np.ndarray):
+    """Run many parameter vectors (rows of ``prms``) on all threads.
+
+    Returns (means (n, 3): F [N], T [N m], z [m]; status (n,); diagnostics (n, N_DIAG)).
+    Means of runs that did not finish are NaN.
+    """
+    n = prms.shape[0]
+    means = np.full((n, 3), np.nan)
+    status = np.zeros(n, np.int64)
+    diags = np.zeros((n, N_DIAG))
+    for i in prange(n):
+        series, _, st, _, diag = run_swt(prms[i])
+        status[i] = st
+        diags[i, :] = diag
+        if st == STATUS_OK:
+            means[i, :] = steady_means(series, prms[i])
+    return means, status, diags

@@ -1,0 +1,92 @@
+"""Packing of the three parameter types into the flat float64 vector the numba kernel reads."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .params import RigConfig, SoilParams, WheelGeometry
+
+# soil
+P_N = 0
+P_KC = 1
+P_KPHI = 2
+P_C = 3
+P_TANPHI = 4
+P_DSOIL = 5
+P_J = 6
+P_K = 7
+P_TANREPOSE = 8
+P_COMPACTION = 9
+P_FLOWDEPTH = 10
+P_SLIPFLOW = 11
+# wheel
+P_R = 12
+P_B = 13
+P_NGROUSERS = 14
+P_HG = 15
+P_TG = 16
+# rig and numerics
+P_W = 17
+P_MASS = 18
+P_V = 19
+P_OMEGA = 20
+P_DURATION = 21
+P_DT = 22
+P_DX = 23
+P_OUTEVERY = 24
+P_TAPER = 25
+P_BULLDOZE = 26
+P_SHEARDISP = 27
+P_MAXSINK = 28
+P_MARGIN = 29
+P_OFF_F = 30
+P_OFF_T = 31
+P_OFF_Z = 32
+N_PARAMS = 33
+
+STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
+STATUS_OK = 0
+STATUS_BOTTOMED_OUT = 1
+STATUS_NONPOSITIVE_STIFFNESS = 2
+STATUS_UNSTABLE = 3
+
+
+def pack(soil: SoilParams, wheel: WheelGeometry, rig: RigConfig) -> np.ndarray:
+    """Flat parameter vector for :func:`scm_core.simulator.kernel.run_swt`."""
+    p = np.zeros(N_PARAMS)
+    p[P_N] = soil.n
+    p[P_KC] = soil.k_c
+    p[P_KPHI] = soil.k_phi
+    p[P_C] = soil.c
+    p[P_TANPHI] = soil.tan_phi
+    p[P_DSOIL] = soil.D_soil
+    p[P_J] = soil.J
+    p[P_K] = soil.K
+    p[P_TANREPOSE] = math.tan(math.radians(soil.repose_angle))
+    p[P_COMPACTION] = soil.compaction
+    p[P_FLOWDEPTH] = (wheel.grouser_height if wheel.has_grousers else 0.0) + soil.shear_band
+    p[P_SLIPFLOW] = soil.slip_flow
+    p[P_R] = wheel.R
+    p[P_B] = wheel.b
+    p[P_NGROUSERS] = wheel.n_grousers if wheel.has_grousers else 0
+    p[P_HG] = wheel.grouser_height if wheel.has_grousers else 0.0
+    p[P_TG] = wheel.grouser_thickness
+    p[P_W] = rig.W
+    p[P_MASS] = rig.vertical_mass
+    p[P_V] = rig.carriage_speed
+    p[P_OMEGA] = rig.omega
+    p[P_DURATION] = rig.duration
+    p[P_DT] = rig.dt
+    p[P_DX] = rig.dx
+    p[P_OUTEVERY] = max(1, round(1.0 / (rig.output_rate * rig.dt)))
+    p[P_TAPER] = 1.0 if rig.border_taper else 0.0
+    p[P_BULLDOZE] = 1.0 if rig.bulldozing else 0.0
+    p[P_SHEARDISP] = 1.0 if rig.shear == "displacement" else 0.0
+    p[P_MAXSINK] = rig.max_sinkage
+    p[P_MARGIN] = rig.side_margin
+    p[P_OFF_F] = rig.offset_F
+    p[P_OFF_T] = rig.offset_T
+    p[P_OFF_Z] = rig.offset_z
+    return p

@@ -1,0 +1,156 @@
+"""Validated, immutable inputs of a single-wheel-test (SWT) simulation.
+
+Three types, each defaulting to the set-up of Gallina et al. (paper section 4.1, Table 1):
+
+* :class:`SoilParams`: the SCM soil parameters of Table 1 plus the elastic unloading modulus ``K``,
+  the angle of repose and the two plastic-flow constants of section 3.2;
+* :class:`WheelGeometry`: rigid rim with straight grousers;
+* :class:`RigConfig`: the test rig (load, imposed slip and angular velocity) and the numerics.
+
+All values are SI (m, N, s, Pa) except angles, which are in degrees.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+GRAVITY = 9.81  # m/s^2
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", validate_default=True)
+
+    def replace(self, **changes: Any):
+        """A validated copy with some fields changed."""
+        return type(self).model_validate({**self.model_dump(), **changes})
+
+
+class SoilParams(_Frozen):
+    """SCM soil parameters (paper Table 1, eq. (7)-(8)); defaults: WF34 quartz sand (sec. 4.1)."""
+
+    n: float = Field(1.1, gt=0.0, le=5.0, description="Exponent of sinkage n [-] (eq. 7)")
+    k_c: float = Field(0.0, description="Cohesive modulus k_c [N/m^(n+1)] (eq. 7)")
+    k_phi: float = Field(1.0e7, description="Frictional modulus k_phi [N/m^(n+2)] (eq. 7)")
+    c: float = Field(0.0, ge=0.0, description="Cohesion c [Pa] (eq. 8)")
+    phi: float = Field(
+        30.0, ge=0.0, lt=90.0, description="Angle of internal friction [deg] (eq. 8)"
+    )
+    D_soil: float = Field(
+        0.0, ge=0.0, description="Areal damping coefficient D_soil [N s/m^3] (eq. 7, compressive)"
+    )
+    J: float = Field(
+        0.001,
+        gt=0.0,
+        description="Janosi coefficient J: reference velocity [m/s] (eq. 8), or shear "
+        "displacement [m] when RigConfig.shear == 'displacement'",
+    )
+    K: float = Field(5.0e7, gt=0.0, description="Elastic unloading/reloading modulus K [Pa/m]")
+    repose_angle: float = Field(
+        30.0, gt=0.0, lt=90.0, description="Angle of repose kept by erosion [deg] (section 3.2)"
+    )
+    compaction: float = Field(
+        0.5,
+        ge=0.0,
+        le=1.0,
+        description="Fraction of plastically displaced volume lost to compaction [-]; the rest "
+        "flows out of the footprint (radial flow, section 3.2)",
+    )
+    shear_band: float = Field(
+        0.002,
+        ge=0.0,
+        description="Thickness of soil dragged by the slipping rim [m]; the layer carried by the "
+        "parallel flow is grouser_height + shear_band (section 3.2)",
+    )
+    slip_flow: float = Field(
+        1.0,
+        ge=0.0,
+        le=1.0,
+        description="Fraction of the rim's slip velocity at which that layer is carried [-]",
+    )
+
+    @property
+    def tan_phi(self) -> float:
+        return math.tan(math.radians(self.phi))
+
+
+class WheelGeometry(_Frozen):
+    """Rigid wheel: rim radius R, width b, straight grousers (paper section 4.1)."""
+
+    R: float = Field(0.125, gt=0.01, le=2.0, description="Rim radius R [m]")
+    b: float = Field(0.112, gt=0.005, le=2.0, description="Wheel width b [m]")
+    n_grousers: int = Field(12, ge=0, le=200, description="Number of straight grousers [-]")
+    grouser_height: float = Field(0.009, ge=0.0, description="Grouser height h_g [m]")
+    grouser_thickness: float = Field(0.002, gt=0.0, description="Grouser thickness [m]")
+
+    @model_validator(mode="after")
+    def _check(self) -> WheelGeometry:
+        if self.grouser_height > 0.5 * self.R:
+            raise ValueError("grouser_height must be at most half the rim radius R")
+        if self.n_grousers > 0 and self.grouser_thickness >= 2 * math.pi * self.R / self.n_grousers:
+            raise ValueError("grouser_thickness must be smaller than the grouser pitch 2*pi*R/N")
+        return self
+
+    @property
+    def has_grousers(self) -> bool:
+        return self.n_grousers > 0 and self.grouser_height > 0.0
+
+    @property
+    def outer_radius(self) -> float:
+        """Radius of the grouser tips (the rim radius for a smooth wheel) [m]."""
+        return self.R + (self.grouser_height if self.has_grousers else 0.0)
+
+
+class RigConfig(_Frozen):
+    """Single-wheel test rig and numerics.
+
+    The carriage moves at v = (1 - slip) * omega * slip_radius, the wheel turns at omega: slip is
+    imposed with respect to ``slip_radius`` (the lab's nominal radius, 0.125 m in the paper), not
+    the model's rigid radius R, so that an identified R (cases 2) changes the effective slip as a
+    flexible wheel would. The axle is free vertically and loaded by W through the mass m = W / g.
+    """
+
+    W: float = Field(315.0, gt=0.0, description="Normal load W [N]")
+    slip: float = Field(0.2, ge=-1.0, lt=1.0, description="Imposed slip ratio s [-]")
+    omega: float = Field(0.1, gt=0.0, description="Wheel angular velocity [rad/s]")
+    slip_radius: float = Field(0.125, gt=0.0, description="Radius defining slip [m]")
+    mass: float | None = Field(None, gt=0.0, description="Vertical mass [kg]; default W/g")
+    duration: float = Field(50.0, gt=0.0, description="Simulated time [s]")
+    dt: float = Field(0.02, gt=0.0, le=0.1, description="Time step [s] (implicit vertical step)")
+    dx: float = Field(0.005, ge=0.0005, le=0.05, description="DEM grid spacing [m]")
+    output_rate: float = Field(
+        100.0, gt=0.0, description="Output sample rate [Hz]; at most one sample per step"
+    )
+    offset_F: float = Field(20.0, ge=0.0, description="Averaging offset for drawbar pull [s]")
+    offset_T: float = Field(20.0, ge=0.0, description="Averaging offset for torque [s]")
+    offset_z: float = Field(1.0, ge=0.0, description="Averaging offset for sinkage [s]")
+    border_taper: bool = Field(True, description="Pressure border taper gamma_i of eq. (7)")
+    bulldozing: bool = Field(True, description="Plastic soil flow and erosion (section 3.2)")
+    shear: Literal["velocity", "displacement"] = Field(
+        "velocity", description="Janosi form of eq. (8): velocity (SCM) or displacement"
+    )
+    max_sinkage: float = Field(0.1, gt=0.0, description="Sinkage that counts as bottomed out [m]")
+    side_margin: float = Field(0.04, ge=0.0, description="Soil beside the wheel track [m]")
+
+    @model_validator(mode="after")
+    def _check(self) -> RigConfig:
+        longest = max(self.offset_F, self.offset_T, self.offset_z)
+        if self.duration <= longest:
+            raise ValueError(
+                f"duration {self.duration:g} s is not longer than the averaging offset "
+                f"{longest:g} s: the steady window would be empty"
+            )
+        if self.dt > self.duration / 10:
+            raise ValueError("dt must be at most a tenth of the duration")
+        return self
+
+    @property
+    def carriage_speed(self) -> float:
+        """Carriage speed v = (1 - s) omega r_slip [m/s]."""
+        return (1.0 - self.slip) * self.omega * self.slip_radius
+
+    @property
+    def vertical_mass(self) -> float:
+        return self.mass if self.mass is not None else self.W / GRAVITY

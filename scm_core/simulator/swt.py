@@ -1,0 +1,160 @@
+"""Public entry points: one SWT (:func:`simulate_swt`) and many (:func:`simulate_batch`)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import kernel
+from .layout import STATUS_NAMES, STATUS_OK, pack
+from .params import RigConfig, SoilParams, WheelGeometry
+
+
+@dataclass(frozen=True)
+class SteadyMeans:
+    """Steady means over the averaging windows (paper section 4.3)."""
+
+    F: float  # drawbar pull [N]
+    T: float  # driving torque [N m]
+    z: float  # sinkage [m]
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """Final DEM: x (nx,) and y (ny,) node coordinates [m], heights h (nx, ny) [m]."""
+
+    x: np.ndarray
+    y: np.ndarray
+    h: np.ndarray
+
+
+@dataclass(frozen=True)
+class SWTResult:
+    """Outcome of one simulated single-wheel test.
+
+    ``series`` has the keys t [s], F [N] (drawbar pull, + forward), T [N m] (driving torque),
+    z [m] (sinkage), normal_force [N], slip [-], b_eff [m]. ``means`` is None unless status == "ok".
+    """
+
+    status: str
+    series: dict[str, np.ndarray]
+    means: SteadyMeans | None
+    terrain: Terrain
+    wall_time_s: float
+    diagnostics: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+def simulate_swt(
+    soil: SoilParams | None = None,
+    wheel: WheelGeometry | None = None,
+    rig: RigConfig | None = None,
+) -> SWTResult:
+    """Simulate a single-wheel test with SCM (paper section 3); defaults give the paper's SWT."""
+    soil = soil or SoilParams()
+    wheel = wheel or WheelGeometry()
+    rig = rig or RigConfig()
+    prm = pack(soil, wheel, rig)
+    t0 = time.perf_counter()
+    series, n_out, status, h, diag = kernel.run_swt(prm)
+    means_arr = kernel.steady_means(series, prm)
+    wall = time.perf_counter() - t0
+    status_name = STATUS_NAMES[status]
+    means = SteadyMeans(*map(float, means_arr)) if status == STATUS_OK else None
+    d = {name: float(diag[i]) for i, name in enumerate(_DIAG_NAMES)}
+    dy = d["dy"]
+    ny = h.shape[1]
+    jw0 = int(d["jw0"])
+    y = (np.arange(ny) - jw0 - 0.5 * d["nyw"] + 0.5) * dy
+    x = d["x0"] + np.arange(h.shape[0]) * rig.dx
+    out = {
+        "t": series[:, kernel.S_T].copy(),
+        "F": series[:, kernel.S_F].copy(),
+        "T": series[:, kernel.S_TORQUE].copy(),
+        "z": series[:, kernel.S_Z].copy(),
+        "normal_force": series[:, kernel.S_FN].copy(),
+        "slip": np.full(n_out, rig.slip),
+        "b_eff": series[:, kernel.S_BEFF].copy(),
+    }
+    return SWTResult(
+        status=status_name,
+        series=out,
+        means=means,
+        terrain=Terrain(x=x, y=y, h=h),
+        wall_time_s=wall,
+        diagnostics=d,
+    )
+
+
+_DIAG_NAMES = (
+    "steps",
+    "node_steps",
+    "patch_steps",
+    "contact_evaluations",
+    "compacted_volume",
+    "volume_initial",
+    "volume_final",
+    "dy",
+    "x0",
+    "jw0",
+    "nyw",
+    "erosion_visits",
+)
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """Steady means (n, 3) = F [N], T [N m], z [m] (NaN where status != 'ok') and statuses."""
+
+    means: np.ndarray
+    status: list[str]
+    wall_time_s: float
+
+    @property
+    def ok(self) -> np.ndarray:
+        return np.array([s == "ok" for s in self.status])
+
+
+def pack_many(
+    soils: Sequence[SoilParams],
+    wheels: Sequence[WheelGeometry] | WheelGeometry | None = None,
+    rigs: Sequence[RigConfig] | RigConfig | None = None,
+) -> np.ndarray:
+    """Parameter matrix (one row per run); a single wheel or rig is shared by all runs."""
+    n = len(soils)
+    wheels = _broadcast(wheels if wheels is not None else WheelGeometry(), n, "wheels")
+    rigs = _broadcast(rigs if rigs is not None else RigConfig(), n, "rigs")
+    return np.stack([pack(s, w, r) for s, w, r in zip(soils, wheels, rigs, strict=True)])
+
+
+def simulate_batch(
+    soils: Sequence[SoilParams],
+    wheels: Sequence[WheelGeometry] | WheelGeometry | None = None,
+    rigs: Sequence[RigConfig] | RigConfig | None = None,
+) -> BatchResult:
+    """Run many SWTs in one call on all cores (numba threads; see ``numba.set_num_threads``)."""
+    prms = pack_many(soils, wheels, rigs)
+    return simulate_packed(prms)
+
+
+def simulate_packed(prms: np.ndarray) -> BatchResult:
+    """:func:`simulate_batch` on an already packed parameter matrix."""
+    t0 = time.perf_counter()
+    means, status, _ = kernel.run_batch(np.ascontiguousarray(prms, dtype=np.float64))
+    wall = time.perf_counter() - t0
+    return BatchResult(means=means, status=[STATUS_NAMES[s] for s in status], wall_time_s=wall)
+
+
+def _broadcast(item, n: int, name: str) -> list:
+    if isinstance(item, WheelGeometry | RigConfig):
+        return [item] * n
+    items = list(item)
+    if len(items) != n:
+        raise ValueError(f"{name}: expected {n} entries, got {len(items)}")
+    return items

@@ -1,0 +1,35 @@
+"""The ``scm-calib`` command line."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from .simulate import simulate
+
+
+class _Group(click.Group):
+    """Click group whose usage errors are one line on stderr with exit code 2."""
+
+    def main(self, *args, **kwargs):  # type: ignore[override]
+        kwargs.setdefault("standalone_mode", False)
+        try:
+            return super().main(*args, **kwargs)
+        except click.exceptions.Abort:
+            click.echo("aborted", err=True)
+            sys.exit(130)
+        except click.ClickException as exc:
+            click.echo(f"error: {exc.format_message()}", err=True)
+            sys.exit(exc.exit_code)
+        except click.exceptions.Exit as exc:
+            sys.exit(exc.exit_code)
+
+
+@click.group(cls=_Group)
+@click.version_option(package_name="scm-calib")
+def cli() -> None:
+    """Calibrate SCM wheel-soil contact models from single-wheel tests (Bayesian TMCMC)."""
+
+
+cli.add_command(simulate)

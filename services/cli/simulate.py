@@ -1,0 +1,107 @@
+"""``scm-calib simulate``: one SCM single-wheel test from the command line."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import click
+from rich.console import Console
+from rich.table import Table
+
+from scm_core.simulator import RigConfig, SWTResult, simulate_swt
+
+from .overrides import OverrideError, build_configs
+
+
+@click.command()
+@click.option(
+    "--set",
+    "overrides",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Change one soil, wheel or rig value (SI units, angles in degrees), e.g. --set phi=28.",
+)
+@click.option(
+    "--out", type=click.Path(dir_okay=False, path_type=Path), help="Write the series (CSV)."
+)
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Draw F, T, z (PNG).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of a table.")
+def simulate(
+    overrides: tuple[str, ...], out: Path | None, plot: Path | None, as_json: bool
+) -> None:
+    """Simulate a single-wheel test; the defaults are the paper's set-up (WF34, 315 N, s 0.2)."""
+    try:
+        soil, wheel, rig = build_configs(overrides)
+    except OverrideError as exc:
+        raise click.UsageError(str(exc)) from None
+    result = simulate_swt(soil, wheel, rig)
+    if out is not None:
+        write_series_csv(result, out)
+    if plot is not None:
+        from services.plots.swt import plot_swt
+
+        plot_swt(result, rig, plot)
+    summary = result_summary(result)
+    if as_json:
+        summary["config"] = {
+            "soil": soil.model_dump(),
+            "wheel": wheel.model_dump(),
+            "rig": rig.model_dump(),
+        }
+        click.echo(json.dumps(summary, indent=2))
+    else:
+        _print_table(summary, rig)
+    if not result.ok:
+        raise SystemExit(1)
+
+
+def result_summary(result: SWTResult) -> dict:
+    """JSON-ready means (F_mean N, T_mean N m, z_mean m), status and run statistics."""
+    m = result.means
+    d = result.diagnostics
+    return {
+        "status": result.status,
+        "F_mean": m.F if m else None,
+        "T_mean": m.T if m else None,
+        "z_mean": m.z if m else None,
+        "wall_time_s": result.wall_time_s,
+        "steps": int(d["steps"]),
+        "mean_loaded_nodes": d["node_steps"] / max(d["steps"], 1.0),
+        "compacted_volume_m3": d["compacted_volume"],
+    }
+
+
+def write_series_csv(result: SWTResult, path: Path) -> None:
+    """Series as CSV in the lab-log column convention (SI units in brackets)."""
+    cols = (
+        ("time [s]", "t"),
+        ("drawbar_pull [N]", "F"),
+        ("torque [Nm]", "T"),
+        ("sinkage [m]", "z"),
+        ("normal_force [N]", "normal_force"),
+        ("slip [-]", "slip"),
+    )
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow([c for c, _ in cols])
+        series = [result.series[k] for _, k in cols]
+        for row in zip(*series, strict=True):
+            writer.writerow([f"{v:.9g}" for v in row])
+
+
+def _print_table(summary: dict, rig: RigConfig) -> None:
+    table = Table(title=f"SCM single-wheel test: {summary['status']}")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_column("window")
+
+    def fmt(v, scale=1.0, unit=""):
+        return "-" if v is None else f"{v * scale:.4g} {unit}"
+
+    table.add_row("drawbar pull F", fmt(summary["F_mean"], unit="N"), f"t >= {rig.offset_F:g} s")
+    table.add_row("torque T", fmt(summary["T_mean"], unit="N m"), f"t >= {rig.offset_T:g} s")
+    table.add_row("sinkage z", fmt(summary["z_mean"], 1000.0, "mm"), f"t >= {rig.offset_z:g} s")
+    table.add_row("wall time", f"{summary['wall_time_s']:.3f} s", "")
+    Console().print(table)

@@ -1,0 +1,1 @@
+"""Figures (matplotlib, Agg backend): SWT signals, posteriors, sensitivity."""

@@ -1,0 +1,188 @@
+"""Unit tests of the TMCMC stage functions and of failure handling."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from scm_core.inference import JointPrior, TMCMCSettings, Uniform, tmcmc_batched
+from scm_core.inference.tmcmc_stage import (
+    adapt_beta,
+    next_exponent,
+    plausibility_weights,
+    steps_for_acceptance,
+    systematic_resample,
+    weighted_covariance,
+)
+
+
+def _cov(logl: np.ndarray, dp: float) -> float:
+    w = np.where(np.isfinite(logl), np.exp(dp * np.where(np.isfinite(logl), logl, 0.0)), 0.0)
+    return float(w.std() / w.mean())
+
+
+def test_next_exponent_hits_target_cov() -> None:
+    logl = np.random.default_rng(0).normal(-50.0, 10.0, size=2000)
+    p = next_exponent(logl, 0.0, target_cov=1.0)
+    assert 0.0 < p < 1.0
+    assert _cov(logl, p) == pytest.approx(1.0, rel=1e-6)
+    p2 = next_exponent(logl, p, target_cov=1.0)
+    assert p2 > p
+    assert _cov(logl, p2 - p) == pytest.approx(1.0, rel=1e-6)
+
+
+def test_next_exponent_caps_at_one_and_handles_huge_values() -> None:
+    assert next_exponent(np.full(100, -3.0), 0.2) == 1.0  # flat: CoV 0 everywhere
+    logl = np.linspace(-1e12, 0.0, 1000)  # would overflow exp() without log-space weights
+    p = next_exponent(logl, 0.0)
+    assert 0.0 < p < 1e-9
+    assert _cov(logl, p) == pytest.approx(1.0, rel=1e-5)
+
+
+def test_next_exponent_with_minus_inf_likelihoods() -> None:
+    logl = np.concatenate([np.full(30, -np.inf), np.random.default_rng(1).normal(0, 1, 70)])
+    p = next_exponent(logl, 0.0)
+    assert 0.0 < p <= 1.0
+    w, _ = plausibility_weights(logl, p)
+    assert np.all(w[:30] == 0.0) and w.sum() == pytest.approx(1.0)
+    # -inf samples make CoV(0+) = sqrt(100/70 - 1) = 0.65 < 1, so the step is a real one
+    assert p > 1e-3
+    # 60 % of failures already exceed the target CoV: a tiny step that only removes them
+    logl2 = np.concatenate([np.full(60, -np.inf), np.zeros(40)])
+    p2 = next_exponent(logl2, 0.3)
+    assert p2 == 1.0 or p2 > 0.3
+    _, log_s2 = plausibility_weights(logl2, p2 - 0.3)
+    assert log_s2 == pytest.approx(math.log(0.4))
+    with pytest.raises(ValueError):
+        next_exponent(np.full(5, -np.inf), 0.0)
+
+
+def test_systematic_resampling_counts() -> None:
+    w = np.array([0.5, 0.0, 0.25, 0.125, 0.125])
+    idx = systematic_resample(w, 8, np.random.default_rng(0))
+    counts = np.bincount(idx, minlength=5)
+    assert np.array_equal(counts, [4, 0, 2, 1, 1])  # exact for weights that are multiples of 1/n
+    w = np.random.default_rng(1).dirichlet(np.ones(50))
+    counts = np.bincount(systematic_resample(w, 1000, np.random.default_rng(2)), minlength=50)
+    assert np.all(np.abs(counts - 1000 * w) < 1.0 + 1e-9)
+
+
+def test_weighted_covariance_matches_numpy() -> None:
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(400, 3))
+    w = rng.random(400)
+    ref = np.cov(X, rowvar=False, aweights=w, bias=True)
+    assert np.allclose(weighted_covariance(X, w / w.sum()), ref, rtol=1e-12, atol=1e-14)
+
+
+def test_steps_for_acceptance_and_beta_adaptation() -> None:
+    assert steps_for_acceptance(0.234, 0.99, 1, 100) == math.ceil(math.log(0.01) / math.log(0.766))
+    assert steps_for_acceptance(0.0, 0.99, 5, 40) == 40
+    assert steps_for_acceptance(0.9, 0.99, 5, 40) == 5
+    s = TMCMCSettings()
+    assert adapt_beta(0.2, 0.8, s) > 0.2 > adapt_beta(0.2, 0.05, s)
+    assert adapt_beta(0.2, s.target_acceptance, s) == pytest.approx(0.2)
+    assert adapt_beta(s.beta_max, 1.0, s) == s.beta_max
+    assert adapt_beta(0.3, math.nan, s) == 0.3
+
+
+def test_settings_validation() -> None:
+    with pytest.raises(ValueError, match="moves"):
+        TMCMCSettings(moves="gibbs")
+    with pytest.raises(ValueError, match="n_steps"):
+        TMCMCSettings(n_steps=0)
+    with pytest.raises(ValueError, match="target_cov"):
+        TMCMCSettings(target_cov=0.0)
+    assert TMCMCSettings.from_dict(TMCMCSettings(n_steps=4).to_dict()) == TMCMCSettings(n_steps=4)
+
+
+# --- failures -------------------------------------------------------------------------------
+
+SD_F = 0.3
+
+
+def loglik_with_holes(X: np.ndarray) -> np.ndarray:
+    """Gaussian at the origin; NaN for x0 > 0.5, -inf for x1 < -0.5 (simulator failures)."""
+    r = (X[:, 0] / SD_F) ** 2 + (X[:, 1] / SD_F) ** 2
+    out = -0.5 * r - 2.0 * math.log(SD_F) - math.log(2 * math.pi)
+    out = np.where(X[:, 1] < -0.5, -np.inf, out)
+    return np.where(X[:, 0] > 0.5, np.nan, out)
+
+
+def test_failed_runs_are_counted_never_raised() -> None:
+    prior = JointPrior({"x0": Uniform(-1.0, 1.0), "x1": Uniform(-1.0, 1.0)})
+    res = tmcmc_batched(loglik_with_holes, prior, n_samples=2000, seed=0)
+    s0 = res.stages[0]
+    assert res.status == "completed"
+    assert s0.failed_runs == int(np.sum(~np.isfinite(s0.log_likelihood))) > 0
+    assert not np.isnan(s0.log_likelihood).any()  # NaN stored as -inf
+    assert sum(s.failed_runs for s in res.stages[1:]) > 0  # proposals into the holes
+    assert res.n_failed_runs == sum(s.failed_runs for s in res.stages)
+    assert np.all(res.samples[:, 0] <= 0.5) and np.all(res.samples[:, 1] >= -0.5)
+    assert np.isfinite(res.log_likelihood).all()
+    # exact evidence: prior density 1/4 times the Gaussian mass of the allowed rectangle
+    mass0 = stats.norm.cdf(0.5 / SD_F) - stats.norm.cdf(-1.0 / SD_F)
+    mass1 = stats.norm.cdf(1.0 / SD_F) - stats.norm.cdf(-0.5 / SD_F)
+    log_z = math.log(0.25 * mass0 * mass1)
+    assert abs(res.log_evidence - log_z) < 0.2  # 2-3 stages, measured se ~0.04
+
+
+def loglik_never(X: np.ndarray) -> np.ndarray:
+    return np.full(X.shape[0], np.nan)
+
+
+def test_all_failed_gives_stalled_status() -> None:
+    prior = JointPrior({"x": Uniform(0.0, 1.0)})
+    res = tmcmc_batched(loglik_never, prior, n_samples=100, seed=0)
+    assert res.status == "stalled"
+    assert len(res.stages) == 1
+    assert res.n_failed_runs == res.n_model_runs == 100
+
+
+def test_max_stages_status() -> None:
+    prior = JointPrior({"x": Uniform(-1.0, 1.0)})
+
+    def sharp(X: np.ndarray) -> np.ndarray:
+        return -0.5 * (X[:, 0] / 1e-4) ** 2
+
+    res = tmcmc_batched(sharp, prior, n_samples=200, seed=0, max_stages=2)
+    assert res.status == "max_stages"
+    assert [s.stage for s in res.stages] == [0, 1, 2]
+    assert res.stages[-1].exponent < 1.0
+
+
+def test_out_of_support_proposals_are_not_evaluated() -> None:
+    prior = JointPrior({"x": Uniform(0.0, 1.0)})
+    seen: list[np.ndarray] = []
+
+    def at_edge(X: np.ndarray) -> np.ndarray:
+        seen.append(X.copy())
+        return -0.5 * ((X[:, 0] - 1.0) / 0.05) ** 2
+
+    res = tmcmc_batched(at_edge, prior, n_samples=500, seed=1)
+    pts = np.concatenate(seen)
+    assert pts.min() >= 0.0 and pts.max() <= 1.0
+    assert sum(s.out_of_support for s in res.stages) > 0
+    assert res.n_model_runs == pts.shape[0]
+
+
+def test_stage_diagnostics_are_exposed() -> None:
+    prior = JointPrior({"x": Uniform(-1.0, 1.0), "y": Uniform(-1.0, 1.0)})
+
+    def gauss(X: np.ndarray) -> np.ndarray:
+        return -0.5 * ((X[:, 0] - 0.2) ** 2 + (X[:, 1] + 0.1) ** 2) / 0.05**2
+
+    res = tmcmc_batched(gauss, prior, n_samples=500, seed=0)
+    rows = res.diagnostics()
+    assert [r["stage"] for r in rows] == list(range(len(res.stages)))
+    assert np.all(np.diff(res.exponents) > 0) and res.exponents[-1] == 1.0
+    for s in res.stages[1:]:
+        assert 0.0 < s.acceptance_rate < 1.0
+        assert 1.0 <= s.ess <= 500.0
+        assert 1 <= s.n_unique <= 500
+        assert s.beta > 0.0
+        assert s.model_runs == s.proposals - s.out_of_support
+    assert res.log_evidence == res.stages[-1].log_evidence

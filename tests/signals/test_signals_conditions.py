@@ -1,0 +1,74 @@
+"""Test conditions: aliases, units in keys and values, merging, simulator keys."""
+
+import pytest
+
+from scm_core.signals import LogFormatError, TestConditions, merge_metadata
+
+
+def test_alias_normal_load_and_validation():
+    c = TestConditions(normal_load=315, slip=0.2)
+    assert c.W == 315.0
+    assert TestConditions(W=315, slip=-1.0).slip == -1.0
+    with pytest.raises(ValueError):
+        TestConditions(W=315, slip=1.0)
+    with pytest.raises(ValueError):
+        TestConditions(W=315, slip=0.2, R=0.0)
+    with pytest.raises(ValueError):
+        TestConditions(W=315, slip=0.2, unknown=1)
+    with pytest.raises(ValueError):
+        TestConditions(W=float("nan"), slip=0.2)
+
+
+def test_metadata_keys_units_and_provenance():
+    meta = merge_metadata(
+        [
+            (
+                "file",
+                {
+                    "Normal Load": "0.315 kN",
+                    "slip": "20 %",
+                    "wheel_radius [mm]": "125",
+                    "wheel-width": "0.112 m",
+                    "omega": "6 rpm",
+                    "h_g": "9 mm",
+                    "Grousers": "12",
+                    "Soil": "WF34",
+                    "Operator": "A. Tester",
+                },
+            )
+        ]
+    )
+    c = meta.conditions
+    assert pytest.approx(315.0) == c.W
+    assert c.slip == pytest.approx(0.2)
+    assert pytest.approx(0.125) == c.R and c.b == pytest.approx(0.112)
+    assert c.omega == pytest.approx(6 * 2 * 3.141592653589793 / 60)
+    assert c.grouser_height == pytest.approx(0.009) and c.n_grousers == 12
+    assert meta.provenance == {"soil": "WF34", "operator": "A. Tester"}
+
+
+def test_nested_sidecar_and_later_provenance_wins():
+    meta = merge_metadata(
+        [
+            ("file", {"slip": "0.2", "W": "315", "soil": "old"}),
+            ("sidecar", {"conditions": {"slip": 0.2}, "provenance": {"soil": "WF34"}}),
+        ]
+    )
+    assert meta.provenance == {"soil": "WF34"}
+    with pytest.raises(LogFormatError, match=r"'W' conflicts: 315\.0 in the file, 300\.0 in the x"):
+        merge_metadata([("file", {"slip": 0.2, "W": 315}), ("x", {"normal_load": 300})])
+
+
+def test_sim_config_derives_omega_from_carriage_speed():
+    c = TestConditions(W=315, slip=0.2, carriage_speed=0.01, R=0.125, n_grousers=12)
+    cfg = c.to_sim_config()
+    assert cfg["omega"] == pytest.approx(0.01 / (0.8 * 0.125))
+    assert cfg == {"W": 315.0, "slip": 0.2, "omega": cfg["omega"], "R": 0.125, "n_grousers": 12}
+    assert TestConditions(W=1, slip=0).to_sim_config() == {"W": 1.0, "slip": 0.0}
+
+
+def test_bad_metadata_values():
+    with pytest.raises(LogFormatError, match="metadata 'slip': expected a number, got True"):
+        merge_metadata([("metadata", {"slip": True, "W": 1})])
+    with pytest.raises(LogFormatError, match="not JSON-compatible"):
+        merge_metadata([("metadata", {"slip": 0.1, "W": 1, "when": object()})])
