@@ -48,8 +48,11 @@ R_T = 2  # driving torque the motor supplies [N m]
 R_DFZ = 3  # d(Fz)/d(axle height) [N/m]
 R_NCONTACT = 4  # loaded nodes
 R_BEFF = 5  # effective contact width b_eff = 2 A / L [m]
-R_TOP = 6  # highest axle height with any contact [m] (set by build_patches)
-N_RES = 8
+R_KSTAR = 6  # k* = k_c / b_eff + k_phi of the footprint [N/m^(n+2)]
+R_NORM = 7  # normalisation of the border taper
+R_CMIN = 8  # footprint extent: first and last loaded column of the window
+R_CMAX = 9
+N_RES = 10
 
 
 @njit(cache=True)
@@ -144,6 +147,7 @@ def evaluate_contact(
     pflag: np.ndarray,
     psig: np.ndarray,
     res: np.ndarray,
+    freeze: bool,
 ) -> None:
     """Stresses and resultant soil forces for the axle at height zw moving down at -vz.
 
@@ -152,8 +156,12 @@ def evaluate_contact(
     footprint's bounding box) give b_eff = 2A/L; the border taper gamma_i (separable half sines over
     the bounding box, normalised to mean one over the loaded nodes) is evaluated on this footprint.
     eq. (9)-(10) with the node's cell area dA = dx dy.
+
+    With ``freeze`` the footprint quantities (k*, taper extent and normalisation) of the previous
+    call are kept: G(z) is then smooth apart from contact kinks, which lets the vertical solve
+    converge in few steps; the solve ends with an unfrozen evaluation at the solution.
     """
-    for i in range(N_RES):
+    for i in (R_FX, R_FZ, R_T, R_DFZ):
         res[i] = 0.0
     n_exp = prm[P_N]
     tanphi = prm[P_TANPHI]
@@ -184,33 +192,44 @@ def evaluate_contact(
             pflag[p] = 0
             psig[p] = 0.0
     if ncont == 0:
+        res[R_NCONTACT] = 0.0
         return
     dA = dx * dy
-    area = ncont * dA
-    perim = 2.0 * ((cmax - cmin + 1) * dx + (jmax - jmin + 1) * dy)
-    beff = 2.0 * area / perim
-    kstar = prm[P_KC] / beff + prm[P_KPHI]
-    res[R_NCONTACT] = ncont
-    res[R_BEFF] = beff
-    # ---- border taper (separable), normalised over the loaded nodes
     taper = prm[P_TAPER] > 0.5
-    norm = 1.0
-    if taper:
-        nxe = cmax - cmin + 1
-        nye = jmax - jmin + 1
-        for k in range(cmin, cmax + 1):
-            gx[k] = math.sin(math.pi * (k - cmin + 0.5) / nxe)
-        gyc[0] = 0.0
-        for j in range(nyw):
-            g = 0.0
-            if jmin <= j <= jmax:
-                g = math.sin(math.pi * (j - jmin + 0.5) / nye)
-            gyc[j + 1] = gyc[j] + g
-        ssum = 0.0
-        for p in range(npatch):
-            if pflag[p] > 0:
-                ssum += gx[pc[p]] * (gyc[pj1[p]] - gyc[pj0[p]])
-        norm = ncont / ssum
+    if freeze and res[R_NCONTACT] > 0:
+        kstar = res[R_KSTAR]
+        norm = res[R_NORM]
+        cmin = int(res[R_CMIN])
+        cmax = int(res[R_CMAX])
+    else:
+        area = ncont * dA
+        perim = 2.0 * ((cmax - cmin + 1) * dx + (jmax - jmin + 1) * dy)
+        beff = 2.0 * area / perim
+        kstar = prm[P_KC] / beff + prm[P_KPHI]
+        res[R_NCONTACT] = ncont
+        res[R_BEFF] = beff
+        res[R_KSTAR] = kstar
+        res[R_CMIN] = cmin
+        res[R_CMAX] = cmax
+        # ---- border taper (separable), normalised over the loaded nodes
+        norm = 1.0
+        if taper:
+            nxe = cmax - cmin + 1
+            nye = jmax - jmin + 1
+            for k in range(cmin, cmax + 1):
+                gx[k] = math.sin(math.pi * (k - cmin + 0.5) / nxe)
+            gyc[0] = 0.0
+            for j in range(nyw):
+                g = 0.0
+                if jmin <= j <= jmax:
+                    g = math.sin(math.pi * (j - jmin + 0.5) / nye)
+                gyc[j + 1] = gyc[j] + g
+            ssum = 0.0
+            for p in range(npatch):
+                if pflag[p] > 0:
+                    ssum += gx[pc[p]] * (gyc[pj1[p]] - gyc[pj0[p]])
+            norm = ncont / ssum
+        res[R_NORM] = norm
     # ---- pass 2: stresses and forces (patches come column by column)
     Fx = 0.0
     Fz = 0.0
@@ -265,7 +284,10 @@ def evaluate_contact(
             sb = sel
             dsb = pst[p, 3]
         psig[p] = sb
-        gam = norm * gx[k] * (gyc[pj1[p]] - gyc[pj0[p]]) if taper else float(rows)
+        if taper:
+            gam = norm * gx[min(max(k, cmin), cmax)] * (gyc[pj1[p]] - gyc[pj0[p]])
+        else:
+            gam = float(rows)
         sig_sum = gam * sb + rows * sd  # sum over the patch's rows of eq. (7) [Pa]
         tau_sum = fsh * (coh * rows + tanphi * sig_sum)  # eq. (8)
         dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding

@@ -36,6 +36,7 @@ from .layout import (
     P_DT,
     P_DURATION,
     P_DX,
+    P_DYDX,
     P_HG,
     P_K,
     P_KC,
@@ -86,6 +87,7 @@ N_DIAG = 12
 
 Z_TOL = 1e-8  # m, convergence of the axle height
 MAX_ITER = 80
+FREEZE_AFTER = 1  # evaluations before the footprint is frozen within a step
 G_TOL = 1e-4  # residual of the force balance, relative to W
 X_PAD = 0.02  # m of untouched soil before the start and after the end of the run
 
@@ -95,7 +97,7 @@ def grid_shape(prm: np.ndarray):
     """(nx, ny, nyw, n_margin, dy, x0) of the DEM for these parameters."""
     dx = prm[P_DX]
     b = prm[P_B]
-    nyw = max(1, int(round(b / dx)))
+    nyw = max(1, int(round(b / (prm[P_DYDX] * dx))))
     dy = b / nyw
     n_margin = int(math.ceil(prm[P_MARGIN] / dy))
     ny = nyw + 2 * n_margin
@@ -107,31 +109,24 @@ def grid_shape(prm: np.ndarray):
 
 
 @njit(cache=True)
-def _solve_vertical(
-    zn,
-    vn,
-    prm,
-    npatch,
-    ztop,
-    pc,
-    pj0,
-    pj1,
-    pst,
-    xi,
-    e,
-    fx,
-    fz,
-    dx,
-    dy,
-    nyw,
-    gx,
-    gyc,
-    pflag,
-    psig,
-    res,
-    diag,
-):
-    """Backward-Euler axle height for this step; leaves ``res`` evaluated at the returned height."""
+def _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, freeze, diag):
+    """Contact forces at axle height z (vertical velocity from the backward-Euler step)."""
+    pc, pj0, pj1, pst, xi, e, fx, fz, gx, gyc, pflag, psig, res = work
+    evaluate_contact(z, (z - zn) / dt, prm, npatch, pc, pj0, pj1, pst, xi, e, fx, fz, dx, dy, nyw,
+                     gx, gyc, pflag, psig, res, freeze)  # fmt: skip
+    diag[D_ITERATIONS] += 1
+    return res[R_FZ]
+
+
+@njit(cache=True)
+def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
+    """Backward-Euler axle height for this step; leaves the contact state evaluated there.
+
+    Root of G(z) = m (z - z_n - dt v_n) / dt^2 + W - Fz(z) in the bracket [free fall, last
+    contact]: Newton, regula falsi (Illinois) when Newton stalls at a kink, bisection when the
+    bracket does not halve. After FREEZE_AFTER evaluations the footprint quantities are frozen
+    (see evaluate_contact), and the result is re-evaluated on its own footprint at the end.
+    """
     dt = prm[P_DT]
     m = prm[P_MASS]
     W = prm[P_W]
@@ -139,28 +134,7 @@ def _solve_vertical(
     zpred = zn + dt * vn
     z_free = zpred - W / c_in  # free fall: no soil force
     if z_free >= ztop:  # the wheel touches nothing at the free-fall height
-        evaluate_contact(
-            z_free,
-            (z_free - zn) / dt,
-            prm,
-            npatch,
-            pc,
-            pj0,
-            pj1,
-            pst,
-            xi,
-            e,
-            fx,
-            fz,
-            dx,
-            dy,
-            nyw,
-            gx,
-            gyc,
-            pflag,
-            psig,
-            res,
-        )
+        _evaluate(z_free, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
         return z_free, True
     lo = z_free
     g_lo = np.nan  # G(z_free) < 0, not evaluated: regula falsi waits until lo has a value
@@ -171,34 +145,17 @@ def _solve_vertical(
     side = 0
     width_2ago = np.inf
     width_1ago = hi - lo
-    for _ in range(MAX_ITER):
-        evaluate_contact(
-            z,
-            (z - zn) / dt,
-            prm,
-            npatch,
-            pc,
-            pj0,
-            pj1,
-            pst,
-            xi,
-            e,
-            fx,
-            fz,
-            dx,
-            dy,
-            nyw,
-            gx,
-            gyc,
-            pflag,
-            psig,
-            res,
-        )
-        diag[D_ITERATIONS] += 1
-        g = c_in * (z - zpred) + W - res[R_FZ]
-        if abs(g) < G_TOL * W:
-            return z, True
+    z_evaluated = np.nan
+    frozen = False
+    converged = False
+    for it in range(MAX_ITER):
+        frozen = it >= FREEZE_AFTER
+        g = c_in * (z - zpred) + W - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, frozen,
+                                               diag)  # fmt: skip
         z_evaluated = z
+        if abs(g) < G_TOL * W:
+            converged = True
+            break
         if g > 0.0:
             hi = z
             g_hi = g
@@ -212,8 +169,9 @@ def _solve_vertical(
                 g_hi *= 0.5
             side = -1
         if hi - lo < Z_TOL:
+            converged = True
             break
-        dg = c_in - res[R_DFZ]
+        dg = c_in - work[12][R_DFZ]
         z_new = z - g / dg if dg > 0.0 else lo - 1.0
         if not (lo < z_new < hi) or abs(g) > 0.5 * abs(g_prev):
             # Newton left the bracket or stalled at a kink: regula falsi step
@@ -227,36 +185,12 @@ def _solve_vertical(
         g_prev = g
         if abs(z_new - z) < Z_TOL:
             z = z_new
+            converged = True
             break
         z = z_new
-    else:
-        return z, False
-    if z == z_evaluated:
-        return z, True
-    evaluate_contact(
-        z,
-        (z - zn) / dt,
-        prm,
-        npatch,
-        pc,
-        pj0,
-        pj1,
-        pst,
-        xi,
-        e,
-        fx,
-        fz,
-        dx,
-        dy,
-        nyw,
-        gx,
-        gyc,
-        pflag,
-        psig,
-        res,
-    )
-    diag[D_ITERATIONS] += 1
-    return z, True
+    if z != z_evaluated or frozen:
+        _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
+    return z, converged
 
 
 @njit(cache=True)
@@ -323,6 +257,7 @@ def run_swt(prm: np.ndarray):
     psig = np.zeros(max_patch)
     res = np.zeros(N_RES)
     cflag = np.zeros((ncw_max + 2, ny), np.int8)
+    work = (pc, pj0, pj1, pst, xi, e, fx, fz, gx, gyc, pflag, psig, res)
     queue = np.zeros(nx * ny, np.int64)
     inq = np.zeros(nx * ny, np.int8)
     bulldoze = prm[P_BULLDOZE] > 0.5
@@ -350,30 +285,7 @@ def run_swt(prm: np.ndarray):
             h0, sp, sy, ke, js, c0, ncw, n_margin, nyw, e, z_low, pc, pj0, pj1, pst
         )
         diag[D_PATCH_STEPS] += npatch
-        z_new, ok = _solve_vertical(
-            zw,
-            vz,
-            prm,
-            npatch,
-            ztop,
-            pc,
-            pj0,
-            pj1,
-            pst,
-            xi,
-            e,
-            fx,
-            fz,
-            dx,
-            dy,
-            nyw,
-            gx,
-            gyc,
-            pflag,
-            psig,
-            res,
-            diag,
-        )
+        z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag)
         if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
             status = STATUS_UNSTABLE
             break

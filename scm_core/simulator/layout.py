@@ -44,7 +44,8 @@ P_MARGIN = 29
 P_OFF_F = 30
 P_OFF_T = 31
 P_OFF_Z = 32
-N_PARAMS = 33
+P_DYDX = 33
+N_PARAMS = 34
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -89,4 +90,5 @@ def pack(soil: SoilParams, wheel: WheelGeometry, rig: RigConfig) -> np.ndarray:
     p[P_OFF_F] = rig.offset_F
     p[P_OFF_T] = rig.offset_T
     p[P_OFF_Z] = rig.offset_z
+    p[P_DYDX] = rig.dy_over_dx
     return p

@@ -120,6 +120,13 @@ class RigConfig(_Frozen):
     duration: float = Field(50.0, gt=0.0, description="Simulated time [s]")
     dt: float = Field(0.02, gt=0.0, le=0.1, description="Time step [s] (implicit vertical step)")
     dx: float = Field(0.005, ge=0.0005, le=0.05, description="DEM grid spacing [m]")
+    dy_over_dx: float = Field(
+        2.0,
+        ge=0.25,
+        le=10.0,
+        description="Lateral grid spacing as a multiple of dx; the wheel surface does not vary "
+        "across y, so y resolution only matters at the track's edges",
+    )
     output_rate: float = Field(
         100.0, gt=0.0, description="Output sample rate [Hz]; at most one sample per step"
     )
