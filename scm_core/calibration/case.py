@@ -1,0 +1,449 @@
+"""Calibration case definitions (paper sections 4.5 and 5, Table 2): what to calibrate, how.
+
+A case names the calibrated parameters with their priors, the nominal values of everything else,
+the simulator settings, the sampler settings and the datasets. It is written as TOML::
+
+    name = "case1"
+    seed = 1
+    likelihood = "normalized"          # eq. (12)-(15); or "gaussian", eq. (6)
+    responses = ["F", "T", "z"]        # steady means entering the likelihood
+
+    [parameters]                       # calibrated, in this order (the sample columns)
+    k_c = { dist = "uniform", lower = -1e9, upper = 1e9, unit = "N/m^(n+1)" }
+    n = { dist = "normal", mean = 1.1, sd = 0.2, lower = 0.8, upper = 2.0 }
+    sigma_F = { dist = "uniform", lower = 0.0, upper = 5.0 }
+
+    [nominal]                          # fixed values (any SoilParams/WheelGeometry/RigConfig
+    J = 0.001                          # field, or a sigma_* not calibrated)
+
+    [simulator]                        # RigConfig numerics/rig overrides
+    duration = 50.0
+    dt = 0.02
+
+    [sampler]
+    n_samples = 2000
+    moves = "leader"                   # or "resample-move" (default)
+
+    [data]
+    files = ["wf34_s020.csv"]          # relative to the case file; --data replaces them
+    offset = 40.0                      # experimental averaging offset [s]
+
+    [reference]                        # bevameter values drawn on the figures (optional)
+    k_star = 1e7
+    n = 1.1
+    phi = 30.0
+
+Calibratable names: the float fields of :class:`~scm_core.simulator.SoilParams` (``n``, ``k_c``,
+``k_phi``, ``c``, ``phi`` [deg], ``D_soil``, ``J``, ``K``, ...) and of
+:class:`~scm_core.simulator.WheelGeometry` (``R``, ``b``, ...), plus the prediction-error standard
+deviations ``sigma_F`` [N], ``sigma_T`` [N m], ``sigma_z`` [m]. One sigma per response, shared
+by all datasets of the study.
+
+Every problem is reported as :class:`CaseError` with a one-line message that names the field
+(``parameters.k_c``, ``nominal.J``, ``sampler.n_samples`` ...).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError
+
+from scm_core.inference.priors import (
+    TABLE2_NOMINAL,
+    JointPrior,
+    distribution_from_dict,
+    table2_prior,
+)
+from scm_core.inference.tmcmc_stage import TMCMCSettings
+from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
+
+__all__ = [
+    "CALIBRATABLE",
+    "PRESETS",
+    "RESPONSES",
+    "SIGMA_NAMES",
+    "CaseDefinition",
+    "CaseError",
+    "DataSettings",
+    "PriorSpec",
+    "SamplerSettings",
+    "load_case",
+    "preset_case",
+]
+
+RESPONSES = ("F", "T", "z")
+SIGMA_NAMES = {"F": "sigma_F", "T": "sigma_T", "z": "sigma_z"}
+SIGMA_UNITS = {"sigma_F": "N", "sigma_T": "N m", "sigma_z": "m"}
+
+
+def _float_fields(cls: type[BaseModel]) -> tuple[str, ...]:
+    return tuple(
+        name
+        for name, f in cls.model_fields.items()
+        if f.annotation is float or f.annotation == (float | None)
+    )
+
+
+SOIL_FIELDS = tuple(SoilParams.model_fields)
+WHEEL_FIELDS = tuple(WheelGeometry.model_fields)
+RIG_FIELDS = tuple(RigConfig.model_fields)
+
+#: parameter name -> owner ("soil", "wheel" or "sigma") for every calibratable name
+CALIBRATABLE: dict[str, str] = {
+    **{n: "soil" for n in _float_fields(SoilParams)},
+    **{n: "wheel" for n in _float_fields(WheelGeometry)},
+    **{s: "sigma" for s in SIGMA_NAMES.values()},
+}
+#: every name accepted in [nominal]
+NOMINAL_NAMES = (*SOIL_FIELDS, *WHEEL_FIELDS, *RIG_FIELDS, *SIGMA_NAMES.values())
+
+
+class CaseError(ValueError):
+    """A refused case definition; the message is one line and names the field."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class PriorSpec(_Strict):
+    """A prior as written in the case: ``dist`` plus its parameters (see
+    :func:`scm_core.inference.distribution_from_dict`): uniform / log_uniform need lower and
+    upper; normal (truncated_normal) needs mean, sd, lower and upper. ``unit`` is a label."""
+
+    dist: Literal["uniform", "normal", "truncated_normal", "log_uniform", "loguniform"]
+    lower: float | None = None
+    upper: float | None = None
+    mean: float | None = None
+    sd: float | None = None
+    unit: str | None = None
+
+    def to_distribution(self):
+        data = self.model_dump(exclude_none=True, exclude={"unit"})
+        return distribution_from_dict(data)
+
+    def to_dict(self) -> dict[str, Any]:
+        return self.model_dump(exclude_none=True)
+
+
+class SamplerSettings(_Strict):
+    """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
+
+    ``batch_size``: chains per batch handed to the ``map`` (None: chosen by the runner; does
+    not change the results). ``max_stages``: stop (status "max_stages") after that many
+    tempering stages.
+    """
+
+    n_samples: int = Field(2000, ge=10)
+    moves: Literal["resample-move", "leader"] = "resample-move"
+    n_steps: int | None = Field(None, ge=1)
+    batch_size: int | None = Field(None, ge=1)
+    max_stages: int = Field(50, ge=1)
+    target_cov: float = Field(1.0, gt=0.0)
+
+    def tmcmc_settings(self) -> TMCMCSettings:
+        return TMCMCSettings(
+            moves=self.moves,
+            n_steps=self.n_steps,
+            max_stages=self.max_stages,
+            target_cov=self.target_cov,
+        )
+
+
+class DataSettings(_Strict):
+    """Datasets: file paths relative to the case file (replaced by ``--data`` at run time),
+    the averaging offset of the experimental signals [s] (paper: 40 s) and the low-pass cutoff
+    [Hz] (None: :func:`scm_core.signals.load_log`'s default)."""
+
+    files: tuple[str, ...] = ()
+    offset: float = Field(40.0, ge=0.0)
+    cutoff_hz: float | None = Field(None, gt=0.0)
+
+
+class CaseDefinition(_Strict):
+    """A calibration study: priors of the calibrated parameters, nominal values of the others.
+
+    Simulator configuration of a run, by increasing precedence: the simulator's defaults (the
+    paper's set-up), ``nominal``, ``simulator``, the dataset's test conditions (W, slip, omega,
+    R, b, n_grousers, grouser_height), the calibrated values. The dataset's wheel radius R is
+    the lab's nominal radius: it sets ``RigConfig.slip_radius`` and also ``WheelGeometry.R``
+    unless R is calibrated (cases 2: the equivalent rigid radius).
+    """
+
+    name: str = Field(min_length=1)
+    seed: int = Field(0, ge=0)
+    likelihood: Literal["normalized", "gaussian"] = "normalized"
+    responses: tuple[Literal["F", "T", "z"], ...] = RESPONSES
+    parameters: dict[str, PriorSpec]
+    nominal: dict[str, float | int | bool | str] = Field(default_factory=dict)
+    simulator: dict[str, float | int | bool | str] = Field(default_factory=dict)
+    sampler: SamplerSettings = Field(default_factory=SamplerSettings)
+    data: DataSettings = Field(default_factory=DataSettings)
+    reference: dict[str, float] = Field(default_factory=dict)
+    description: str = ""
+
+    _base_dir: Path | None = PrivateAttr(default=None)
+
+    # ------------------------------------------------------------------ construction
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], base_dir: str | Path | None = None):
+        """Validate a decoded case (TOML/JSON document); raises :class:`CaseError`."""
+        if not isinstance(data, Mapping):
+            raise CaseError("case: top level must be a table")
+        try:
+            case = cls.model_validate(dict(data))
+        except ValidationError as exc:
+            raise CaseError(_describe(exc)) from None
+        case._check()
+        case._base_dir = None if base_dir is None else Path(base_dir)
+        return case
+
+    @classmethod
+    def from_toml(cls, text: str, base_dir: str | Path | None = None) -> CaseDefinition:
+        """Parse TOML text; data file paths are relative to ``base_dir``."""
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise CaseError(f"case file is not valid TOML: {exc}") from None
+        return cls.from_dict(doc, base_dir)
+
+    def with_changes(self, **changes: Any) -> CaseDefinition:
+        """A validated copy; ``sampler`` / ``data`` may be given as partial dicts."""
+        doc = self.to_dict()
+        for key, value in changes.items():
+            if key in ("sampler", "data") and isinstance(value, Mapping):
+                doc[key] = {**doc.get(key, {}), **value}
+            else:
+                doc[key] = value
+        return CaseDefinition.from_dict(doc, self._base_dir)
+
+    # ------------------------------------------------------------------ validation
+
+    def _check(self) -> None:
+        if not self.parameters:
+            raise CaseError("parameters: at least one calibrated parameter is required")
+        if len(set(self.responses)) != len(self.responses) or not self.responses:
+            raise CaseError(f"responses: must be distinct entries of {list(RESPONSES)}")
+        for name, spec in self.parameters.items():
+            where = f"parameters.{name}"
+            if name not in CALIBRATABLE:
+                raise CaseError(
+                    f"{where}: unknown parameter {name!r}; calibratable: "
+                    f"{', '.join(CALIBRATABLE)}"
+                )
+            if name in self.nominal:
+                raise CaseError(
+                    f"{where}: {name!r} is both calibrated and nominal (nominal.{name}); "
+                    "remove one"
+                )
+            try:
+                dist = spec.to_distribution()
+            except (TypeError, KeyError) as exc:
+                raise CaseError(f"{where}: {spec.dist} prior is missing {exc}") from None
+            except ValueError as exc:
+                raise CaseError(f"{where}: {_strip_cls(str(exc))}") from None
+            if CALIBRATABLE[name] == "sigma" and dist.lower < 0:
+                raise CaseError(f"{where}: a standard deviation needs lower >= 0")
+        for name in self.nominal:
+            if name not in NOMINAL_NAMES:
+                raise CaseError(
+                    f"nominal.{name}: unknown name {name!r}; accepted: simulator keys "
+                    "(see `scm-calib simulate` keys) or sigma_F, sigma_T, sigma_z"
+                )
+        for name in self.simulator:
+            if name not in RIG_FIELDS:
+                raise CaseError(
+                    f"simulator.{name}: unknown rig/numerics key {name!r}; accepted: "
+                    f"{', '.join(RIG_FIELDS)}"
+                )
+            if name in self.nominal:
+                raise CaseError(f"simulator.{name}: also given as nominal.{name}; remove one")
+            if name in self.parameters:
+                raise CaseError(f"simulator.{name}: {name!r} is calibrated")
+        for resp in self.responses:
+            sig = SIGMA_NAMES[resp]
+            if sig in self.parameters:
+                continue
+            if sig not in self.nominal:
+                raise CaseError(
+                    f"{sig}: response {resp} is used but {sig} is neither calibrated "
+                    f"([parameters]) nor fixed ([nominal])"
+                )
+            value = self.nominal[sig]
+            if isinstance(value, bool | str) or not (math.isfinite(value) and value > 0):
+                raise CaseError(f"nominal.{sig}: must be a number > 0, got {value!r}")
+        # nominal values and simulator settings must build valid configurations
+        for cls, fields, label in (
+            (SoilParams, SOIL_FIELDS, "nominal"),
+            (WheelGeometry, WHEEL_FIELDS, "nominal"),
+        ):
+            values = {k: v for k, v in self.nominal.items() if k in fields}
+            _validate_config(cls, values, label)
+        rig_values = {k: v for k, v in self.nominal.items() if k in RIG_FIELDS}
+        _validate_config(RigConfig, rig_values, "nominal")
+        _validate_config(RigConfig, {**rig_values, **self.simulator}, "simulator")
+        for name in self.reference:
+            if name != "k_star" and name not in CALIBRATABLE:
+                raise CaseError(f"reference.{name}: unknown parameter {name!r}")
+
+    # ------------------------------------------------------------------ derived
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return tuple(self.parameters)
+
+    @property
+    def base_dir(self) -> Path | None:
+        return self._base_dir
+
+    def prior(self) -> JointPrior:
+        """The joint prior of the calibrated parameters, in case order."""
+        dists = {n: s.to_distribution() for n, s in self.parameters.items()}
+        units = {n: s.unit for n, s in self.parameters.items() if s.unit}
+        return JointPrior(dists, units)
+
+    def tmcmc_settings(self) -> TMCMCSettings:
+        return self.sampler.tmcmc_settings()
+
+    def data_paths(self) -> list[Path]:
+        """Dataset paths of ``data.files``, resolved against the case file's directory."""
+        base = self._base_dir or Path.cwd()
+        return [Path(f) if Path(f).is_absolute() else base / f for f in self.data.files]
+
+    def sigma_spec(self) -> dict[str, tuple[str, float | int]]:
+        """Per used response: ("parameter", column index) or ("fixed", value)."""
+        names = self.parameter_names
+        out: dict[str, tuple[str, float | int]] = {}
+        for resp in self.responses:
+            sig = SIGMA_NAMES[resp]
+            if sig in self.parameters:
+                out[resp] = ("parameter", names.index(sig))
+            else:
+                out[resp] = ("fixed", float(self.nominal[sig]))
+        return out
+
+    # ------------------------------------------------------------------ serialisation
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON/TOML-compatible dict; ``from_dict(to_dict())`` gives an equal case."""
+        out = self.model_dump(mode="json", exclude_none=True)
+        out["parameters"] = {n: s.to_dict() for n, s in self.parameters.items()}
+        out["responses"] = list(self.responses)
+        out["data"]["files"] = list(self.data.files)
+        return out
+
+    def fingerprint(self) -> str:
+        """sha256 of everything that changes the results (the data file names do not)."""
+        doc = self.to_dict()
+        doc["data"].pop("files", None)
+        doc.pop("description", None)
+        doc.pop("reference", None)
+        doc["sampler"].pop("batch_size", None)
+        text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(b"scm-calib-case/1\n" + text.encode()).hexdigest()
+
+
+def load_case(path: str | Path) -> CaseDefinition:
+    """Read a TOML case file; data paths are relative to its directory."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CaseError(f"cannot read case file {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise CaseError(f"case file {path} is not UTF-8 text") from None
+    try:
+        return CaseDefinition.from_toml(text, path.parent)
+    except CaseError as exc:
+        raise CaseError(f"{path.name}: {exc}") from None
+
+
+# ---------------------------------------------------------------------- error formatting
+
+
+def _strip_cls(msg: str) -> str:
+    for prefix in ("Uniform: ", "TruncatedNormal: ", "LogUniform: "):
+        msg = msg.replace(prefix, "")
+    return msg
+
+
+def _describe(exc: ValidationError) -> str:
+    err = exc.errors()[0]
+    loc = [str(p) for p in err.get("loc", ())]
+    # pydantic reports union members as an extra location element; keep the user's path
+    loc = [p for p in loc if p not in ("float", "int", "bool", "str")]
+    where = ".".join(loc) or "case"
+    kind = err.get("type", "")
+    if kind == "missing":
+        return f"{where}: required field is missing"
+    if kind == "extra_forbidden":
+        return f"{where}: unknown field"
+    msg = err.get("msg", "invalid value").removeprefix("Value error, ")
+    if "input" in err and kind != "model_type":
+        return f"{where}: {msg} (got {err['input']!r})"
+    return f"{where}: {msg}"
+
+
+def _validate_config(cls: type[BaseModel], values: dict[str, Any], label: str) -> None:
+    try:
+        cls.model_validate(values)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = ".".join(str(p) for p in err.get("loc", ()))
+        msg = err.get("msg", "invalid value").removeprefix("Value error, ")
+        where = f"{label}.{loc}" if loc else label
+        raise CaseError(f"{where}: {msg}") from None
+
+
+# ---------------------------------------------------------------------- presets
+
+#: bevameter measurements of WF34 (paper section 4.1), drawn on the figures
+WF34_REFERENCE = {"k_star": 1.0e7, "n": 1.1, "phi": 30.0, "c": 0.0}
+
+#: the paper's application cases (section 5); 2a and 2b differ only by their seed
+PRESETS: dict[str, dict[str, Any]] = {
+    "1": {"seed": 1, "description": "Gallina et al. case 1: k_c, k_phi, n, phi, J + sigmas"},
+    "2a": {"seed": 2, "description": "Gallina et al. case 2a: k_c, k_phi, n, phi, R + sigmas"},
+    "2b": {"seed": 3, "description": "Gallina et al. case 2b: as 2a, another seed"},
+}
+
+
+def preset_case(case: str, data_files: tuple[str, ...] = ()) -> CaseDefinition:
+    """The paper's case "1", "2a" or "2b": Table 2 priors and nominal values, 2000 samples per
+    stage with leader moves (one model run per sample and stage, the paper's budget), the
+    paper's simulator settings (50 s runs; offsets 20 s for F and T, 1 s for z; experimental
+    offset 40 s) and the normalised likelihood eq. (12)-(15)."""
+    key = str(case).strip()
+    if key not in PRESETS:
+        raise CaseError(f"unknown preset {case!r}; presets: {', '.join(PRESETS)}")
+    prior = table2_prior(key)
+    params = {}
+    for entry in prior.to_dict()["parameters"]:
+        entry = dict(entry)
+        name = entry.pop("name")
+        if entry["dist"] == "truncated_normal":
+            entry["dist"] = "normal"
+        params[name] = entry
+    nominal = {k: v for k, v in TABLE2_NOMINAL.items() if k not in params}
+    doc = {
+        "name": f"case{key}",
+        "seed": PRESETS[key]["seed"],
+        "description": PRESETS[key]["description"],
+        "likelihood": "normalized",
+        "parameters": params,
+        "nominal": nominal,
+        "simulator": {"duration": 50.0, "offset_F": 20.0, "offset_T": 20.0, "offset_z": 1.0},
+        "sampler": {"n_samples": 2000, "moves": "leader"},
+        "data": {"files": list(data_files), "offset": 40.0},
+        "reference": dict(WF34_REFERENCE),
+    }
+    return CaseDefinition.from_dict(doc)
+

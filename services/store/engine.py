@@ -1,0 +1,160 @@
+"""Engines and sessions for SQLite (embedded) and PostgreSQL (distributed).
+
+``make_engine(url)``:
+
+* ``postgresql://`` / ``postgres://`` URLs are switched to the psycopg 3 driver
+  (``postgresql+psycopg://``); connections are pre-pinged.
+* SQLite files get WAL journaling, foreign keys, a busy timeout and ``synchronous=NORMAL`` on
+  every connection, and the parent directory is created. SQLAlchemy emits ``BEGIN`` itself
+  (the sqlite3 module's own transaction handling is switched off) so that a transaction opened
+  for writing can start with ``BEGIN IMMEDIATE``: it takes SQLite's write lock up front and
+  waits for it (busy timeout) instead of failing on a lock upgrade half-way. See
+  :func:`write_session`. In-memory SQLite is not supported by the store (each pooled connection
+  would see its own database); use a file.
+* JSON columns are written as strict JSON; non-finite floats become the strings "nan", "inf",
+  "-inf" (the convention of ``scm_core.inference._serial``) and numpy scalars/arrays become
+  Python numbers/lists.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.engine import URL, Engine, make_url
+from sqlalchemy.orm import Session, sessionmaker
+
+__all__ = [
+    "dumps_json",
+    "is_sqlite",
+    "make_engine",
+    "make_sessionmaker",
+    "normalise_url",
+    "read_session",
+    "safe_url",
+    "write_session",
+]
+
+SQLITE_BUSY_TIMEOUT_S = 30.0
+_BEGIN_OPTION = "scm_sqlite_begin"
+
+
+def normalise_url(url: str | URL) -> URL:
+    """Parse ``url`` and pick the psycopg 3 driver for PostgreSQL."""
+    u = make_url(url) if isinstance(url, str) else url
+    if u.drivername in ("postgresql", "postgres"):
+        u = u.set(drivername="postgresql+psycopg")
+    return u
+
+
+def safe_url(url: str | URL) -> str:
+    """The URL with its password masked, for messages."""
+    return normalise_url(url).render_as_string(hide_password=True)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, float | np.floating):
+        x = float(obj)
+        if math.isfinite(x):
+            return x
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.integer | np.bool_):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
+
+
+def dumps_json(obj: Any) -> str:
+    """Strict JSON for JSON columns (see module docstring)."""
+    return json.dumps(_jsonable(obj), allow_nan=False, separators=(",", ":"))
+
+
+def is_sqlite(bind: Engine | sa.Connection | Session) -> bool:
+    engine = bind.get_bind() if isinstance(bind, Session) else bind
+    return engine.dialect.name == "sqlite"
+
+
+def make_engine(url: str | URL, *, echo: bool = False, **kwargs: Any) -> Engine:
+    """An engine for ``url`` set up as described in the module docstring."""
+    u = normalise_url(url)
+    if u.get_backend_name() == "sqlite":
+        return _sqlite_engine(u, echo=echo, **kwargs)
+    kwargs.setdefault("pool_pre_ping", True)
+    return sa.create_engine(u, echo=echo, json_serializer=dumps_json, **kwargs)
+
+
+def _sqlite_engine(u: URL, *, echo: bool, **kwargs: Any) -> Engine:
+    database = u.database or ""
+    if database in ("", ":memory:") or "mode=memory" in str(u):
+        raise ValueError("the store needs a SQLite file, not an in-memory database")
+    if not database.startswith("file:"):
+        Path(database).expanduser().parent.mkdir(parents=True, exist_ok=True)
+    connect_args = dict(kwargs.pop("connect_args", {}))
+    connect_args.setdefault("timeout", SQLITE_BUSY_TIMEOUT_S)
+    connect_args.setdefault("check_same_thread", False)
+    engine = sa.create_engine(
+        u, echo=echo, json_serializer=dumps_json, connect_args=connect_args, **kwargs
+    )
+    busy_ms = int(float(connect_args["timeout"]) * 1000)
+
+    @sa.event.listens_for(engine, "connect")
+    def _on_connect(dbapi_connection: Any, _record: Any) -> None:
+        dbapi_connection.isolation_level = None  # SQLAlchemy emits BEGIN (below)
+        cur = dbapi_connection.cursor()
+        cur.execute("PRAGMA journal_mode=WAL")
+        cur.execute("PRAGMA foreign_keys=ON")
+        cur.execute(f"PRAGMA busy_timeout={busy_ms}")
+        cur.execute("PRAGMA synchronous=NORMAL")
+        cur.close()
+
+    @sa.event.listens_for(engine, "begin")
+    def _on_begin(conn: sa.Connection) -> None:
+        mode = conn.get_execution_options().get(_BEGIN_OPTION, "DEFERRED")
+        conn.exec_driver_sql(f"BEGIN {mode}")
+
+    return engine
+
+
+def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:
+    """Sessions that keep loaded attributes after commit (records are built from them)."""
+    return sessionmaker(bind=engine, expire_on_commit=False, autoflush=False)
+
+
+@contextmanager
+def write_session(factory: sessionmaker[Session]) -> Iterator[Session]:
+    """One read-write transaction: commit on success, roll back on error.
+
+    On SQLite the transaction starts with ``BEGIN IMMEDIATE`` (writers queue on the busy
+    timeout); on PostgreSQL it is an ordinary READ COMMITTED transaction and the repositories
+    use row locks / conditional UPDATEs where they need them.
+    """
+    with factory() as session:
+        if is_sqlite(session):
+            session.connection(execution_options={_BEGIN_OPTION: "IMMEDIATE"})
+        try:
+            yield session
+            session.commit()
+        except BaseException:
+            session.rollback()
+            raise
+
+
+@contextmanager
+def read_session(factory: sessionmaker[Session]) -> Iterator[Session]:
+    """One read-only transaction (a consistent snapshot on SQLite), rolled back at the end."""
+    with factory() as session:
+        try:
+            yield session
+        finally:
+            session.rollback()

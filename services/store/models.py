@@ -1,0 +1,217 @@
+"""SQLAlchemy models: the database owns study state (datasets, studies, stages, batches, samples,
+events). The schema is created by the Alembic migrations in ``migrations/``, never by
+``create_all`` in production; ``tests/store`` checks that models and migrations agree.
+
+Arrays are stored compactly: sample parameter vectors and responses as little-endian float64
+bytes per row, stage plans and batch results as ``.npz`` blobs (see :mod:`.codec`), so -inf and
+NaN survive exactly. Timestamps are aware UTC datetimes.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+from .types import BigIntId, JSONType, Real, UTCDateTime, utcnow
+
+__all__ = [
+    "BATCH_STATUSES",
+    "STAGE_STATUSES",
+    "STUDY_ACTIVE",
+    "STUDY_FINAL",
+    "STUDY_STATUSES",
+    "Base",
+    "Dataset",
+    "Event",
+    "Sample",
+    "Stage",
+    "Study",
+    "StudyDataset",
+    "WorkBatch",
+]
+
+STUDY_STATUSES = ("queued", "running", "completed", "failed", "cancelled", "stalled")
+STUDY_ACTIVE = ("queued", "running")
+STUDY_FINAL = ("completed", "failed", "cancelled", "stalled")
+STAGE_STATUSES = ("planned", "running", "reducing", "done")
+BATCH_STATUSES = ("pending", "leased", "done", "failed")
+SOURCE_KINDS = ("timeseries", "summary")
+
+NAMING_CONVENTION = {
+    "ix": "ix_%(table_name)s_%(column_0_N_name)s",
+    "uq": "uq_%(table_name)s_%(column_0_N_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_N_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+
+def _in(column: str, values: tuple[str, ...]) -> str:
+    return f"{column} IN ({', '.join(repr(v) for v in values)})"
+
+
+class Base(DeclarativeBase):
+    metadata = sa.MetaData(naming_convention=NAMING_CONVENTION)
+
+
+class Dataset(Base):
+    """An uploaded SWT dataset; immutable, identified by its content hash."""
+
+    __tablename__ = "datasets"
+    __table_args__ = (sa.CheckConstraint(_in("source_kind", SOURCE_KINDS), name="source_kind"),)
+
+    id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
+    content_hash: Mapped[str] = mapped_column(sa.String(64), unique=True)
+    name: Mapped[str] = mapped_column(sa.String(200))
+    source_kind: Mapped[str] = mapped_column(sa.String(16))
+    filename: Mapped[str | None] = mapped_column(sa.String(255))
+    media_type: Mapped[str | None] = mapped_column(sa.String(100))
+    size_bytes: Mapped[int] = mapped_column(sa.BigInteger)
+    raw: Mapped[bytes | None] = mapped_column(sa.LargeBinary, deferred=True)
+    meta: Mapped[dict[str, Any]] = mapped_column(JSONType)
+    processed: Mapped[dict[str, Any]] = mapped_column(JSONType)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class Study(Base):
+    """A calibration: case, priors, datasets, sampler settings, seed and progress."""
+
+    __tablename__ = "studies"
+    __table_args__ = (
+        sa.CheckConstraint(_in("status", STUDY_STATUSES), name="status"),
+        sa.Index("ix_studies_status_id", "status", "id"),
+    )
+
+    id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
+    name: Mapped[str] = mapped_column(sa.String(200))
+    status: Mapped[str] = mapped_column(sa.String(16), default="queued")
+    case_spec: Mapped[dict[str, Any]] = mapped_column(JSONType)
+    priors: Mapped[dict[str, Any]] = mapped_column(JSONType)
+    sampler: Mapped[dict[str, Any]] = mapped_column(JSONType)
+    simulator: Mapped[dict[str, Any]] = mapped_column(JSONType)
+    seed: Mapped[int] = mapped_column(sa.BigInteger)
+    n_samples: Mapped[int] = mapped_column(sa.Integer)
+    batch_size: Mapped[int | None] = mapped_column(sa.Integer)
+    current_stage: Mapped[int | None] = mapped_column(sa.Integer)
+    log_evidence: Mapped[float | None] = mapped_column(Real)
+    log_evidence_var: Mapped[float | None] = mapped_column(Real)
+    model_runs: Mapped[int] = mapped_column(sa.BigInteger, default=0)
+    failed_runs: Mapped[int] = mapped_column(sa.BigInteger, default=0)
+    error: Mapped[str | None] = mapped_column(sa.Text)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class StudyDataset(Base):
+    """Datasets of a study, in likelihood order (``position``)."""
+
+    __tablename__ = "study_datasets"
+    __table_args__ = (sa.UniqueConstraint("study_id", "dataset_id"),)
+
+    study_id: Mapped[int] = mapped_column(
+        sa.ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+    )
+    position: Mapped[int] = mapped_column(sa.Integer, primary_key=True)
+    dataset_id: Mapped[int] = mapped_column(
+        sa.ForeignKey("datasets.id", ondelete="RESTRICT"), index=True
+    )
+
+
+class Stage(Base):
+    """One TMCMC stage of a study: its plan, diagnostics and, once done, its population."""
+
+    __tablename__ = "stages"
+    __table_args__ = (
+        sa.UniqueConstraint("study_id", "stage_index"),
+        sa.CheckConstraint(_in("status", STAGE_STATUSES), name="status"),
+    )
+
+    id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
+    study_id: Mapped[int] = mapped_column(sa.ForeignKey("studies.id", ondelete="CASCADE"))
+    stage_index: Mapped[int] = mapped_column(sa.Integer)
+    status: Mapped[str] = mapped_column(sa.String(16))
+    exponent: Mapped[float | None] = mapped_column(Real)
+    prev_exponent: Mapped[float | None] = mapped_column(Real)
+    beta: Mapped[float | None] = mapped_column(Real)
+    acceptance: Mapped[float | None] = mapped_column(Real)
+    ess: Mapped[float | None] = mapped_column(Real)
+    log_evidence_increment: Mapped[float | None] = mapped_column(Real)
+    log_evidence: Mapped[float | None] = mapped_column(Real)
+    n_chains: Mapped[int] = mapped_column(sa.Integer)
+    n_steps: Mapped[int | None] = mapped_column(sa.Integer)
+    n_batches: Mapped[int] = mapped_column(sa.Integer)
+    model_runs: Mapped[int | None] = mapped_column(sa.BigInteger)
+    failed_runs: Mapped[int | None] = mapped_column(sa.BigInteger)
+    plan: Mapped[bytes | None] = mapped_column(sa.LargeBinary, deferred=True)
+    state_meta: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class WorkBatch(Base):
+    """A batch of chains (or of stage-0 points) of one stage: the unit of leased work."""
+
+    __tablename__ = "work_batches"
+    __table_args__ = (
+        sa.UniqueConstraint("study_id", "stage_index", "batch_index"),
+        sa.ForeignKeyConstraint(
+            ["study_id", "stage_index"],
+            ["stages.study_id", "stages.stage_index"],
+            ondelete="CASCADE",
+        ),
+        sa.CheckConstraint(_in("status", BATCH_STATUSES), name="status"),
+        sa.CheckConstraint("chain_start <= chain_stop", name="chain_range"),
+        sa.Index("ix_work_batches_status_lease_expires_at", "status", "lease_expires_at"),
+    )
+
+    id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
+    study_id: Mapped[int] = mapped_column(sa.ForeignKey("studies.id", ondelete="CASCADE"))
+    stage_index: Mapped[int] = mapped_column(sa.Integer)
+    batch_index: Mapped[int] = mapped_column(sa.Integer)
+    chain_start: Mapped[int] = mapped_column(sa.Integer)
+    chain_stop: Mapped[int] = mapped_column(sa.Integer)
+    status: Mapped[str] = mapped_column(sa.String(16), default="pending")
+    attempts: Mapped[int] = mapped_column(sa.Integer, default=0)
+    worker_id: Mapped[str | None] = mapped_column(sa.String(200))
+    leased_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    lease_expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    heartbeat_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    dispatched_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    result: Mapped[bytes | None] = mapped_column(sa.LargeBinary, deferred=True)
+    error: Mapped[str | None] = mapped_column(sa.Text)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class Sample(Base):
+    """One sample of a stage's population; ``params``/``responses`` are float64 bytes."""
+
+    __tablename__ = "samples"
+
+    stage_id: Mapped[int] = mapped_column(
+        sa.ForeignKey("stages.id", ondelete="CASCADE"), primary_key=True
+    )
+    sample_index: Mapped[int] = mapped_column(sa.Integer, primary_key=True)
+    params: Mapped[bytes] = mapped_column(sa.LargeBinary)
+    responses: Mapped[bytes | None] = mapped_column(sa.LargeBinary)
+    log_likelihood: Mapped[float | None] = mapped_column(Real)
+    log_prior: Mapped[float | None] = mapped_column(Real)
+
+
+class Event(Base):
+    """Append-only log: what happened to a study (or, with no study, to the service)."""
+
+    __tablename__ = "events"
+    __table_args__ = (sa.Index("ix_events_study_id_id", "study_id", "id"),)
+
+    id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
+    study_id: Mapped[int | None] = mapped_column(sa.ForeignKey("studies.id", ondelete="CASCADE"))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    kind: Mapped[str] = mapped_column(sa.String(64))
+    payload: Mapped[dict[str, Any]] = mapped_column(JSONType)
