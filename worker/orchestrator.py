@@ -1,0 +1,322 @@
+"""The study state machine over the store: submit, run a work batch, advance a stage, reap.
+
+The TMCMC algorithm lives in :mod:`scm_core.inference.tmcmc_stage`; this module only decides what
+to run next and records it. The database owns the state: a work batch may be delivered twice (the
+store counts its result once) and a stage advances exactly once (compare-and-set in the store).
+Where a batch runs (a local process pool or a Celery worker) is the :class:`Dispatcher`'s business.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from scm_core.calibration import CaseDefinition, StudyModel
+from scm_core.inference.tmcmc_stage import (
+    chain_batches,
+    evaluate_points,
+    initial_samples,
+    initial_state,
+    plan_stage,
+    reduce_stage,
+    run_chains,
+    stage_status,
+)
+from scm_core.signals import SWTDataset, load_log, load_summary
+from services.store import Store
+from services.store.errors import NotFoundError
+from services.store.records import BatchKey, BatchLease, ReduceInput, StageAdvance, StudySpec
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BATCH_SIZE = 50  # chains per work batch: ~1-2 min of simulator time at the defaults
+
+
+class Dispatcher(Protocol):
+    """Sends work batches somewhere they will be run (at least once)."""
+
+    def dispatch(self, keys: Sequence[BatchKey]) -> None: ...
+
+
+class StudyInputError(ValueError):
+    """A study cannot be made from the request; the message names the field."""
+
+
+# ---------------------------------------------------------------------------- studies
+
+
+def study_spec(
+    store: Store, case: CaseDefinition, dataset_ids: Sequence[int], batch_size: int | None = None
+) -> StudySpec:
+    """Validated :class:`StudySpec` for ``case`` on the stored datasets ``dataset_ids``."""
+    if not dataset_ids:
+        raise StudyInputError("dataset_ids: at least one dataset is needed")
+    if len(set(dataset_ids)) != len(dataset_ids):
+        raise StudyInputError("dataset_ids: a dataset is listed twice")
+    for did in dataset_ids:
+        try:
+            store.datasets.get(int(did))
+        except NotFoundError:
+            raise StudyInputError(f"dataset_ids: no dataset with id {did}") from None
+    size = batch_size or case.sampler.batch_size or DEFAULT_BATCH_SIZE
+    return StudySpec(
+        name=case.name,
+        case=case.to_dict(),
+        priors=case.prior().to_dict(),
+        dataset_ids=[int(d) for d in dataset_ids],
+        seed=case.seed,
+        n_samples=case.sampler.n_samples,
+        sampler=case.tmcmc_settings().to_dict(),
+        simulator=dict(case.simulator),
+        batch_size=size,
+    )
+
+
+def submit_study(
+    store: Store,
+    case: CaseDefinition,
+    dataset_ids: Sequence[int],
+    dispatcher: Dispatcher | None = None,
+    batch_size: int | None = None,
+):
+    """Create a study and start it (stage 0 batches are dispatched when a dispatcher is given)."""
+    record = store.studies.create(study_spec(store, case, dataset_ids, batch_size))
+    start_study(store, record.id, dispatcher)
+    return store.studies.get(record.id)
+
+
+def start_study(store: Store, study_id: int, dispatcher: Dispatcher | None) -> None:
+    study = store.studies.get(study_id)
+    stage0 = store.studies.start(study_id, chain_batches(study.n_samples, study.batch_size))
+    if stage0 is not None and dispatcher is not None:
+        _dispatch_stage(store, study_id, 0, dispatcher)
+
+
+def _dispatch_stage(store: Store, study_id: int, stage_index: int, dispatcher: Dispatcher) -> None:
+    keys = [b.key for b in store.batches.list(study_id, stage_index) if b.status == "pending"]
+    if keys:
+        dispatcher.dispatch(keys)
+        store.batches.mark_dispatched(keys)
+
+
+# ---------------------------------------------------------------------------- models
+
+
+@dataclass
+class StudyContext:
+    """What running a study's batches needs; rebuilt from the database, cached per process."""
+
+    case: CaseDefinition
+    model: StudyModel
+    settings: Any  # TMCMCSettings
+
+    @property
+    def prior(self):
+        return self.case.prior()
+
+
+def load_datasets(store: Store, case: CaseDefinition, dataset_ids: Sequence[int]) -> list:
+    """SWT datasets of a study, processed with the case's data settings (offset, cutoff)."""
+    out: list[SWTDataset] = []
+    for did in dataset_ids:
+        rec = store.datasets.get(did)
+        if rec.source_kind == "timeseries":
+            raw = store.datasets.raw(did)
+            out.append(
+                load_log(
+                    raw,
+                    metadata=rec.meta or None,
+                    offset=case.data.offset,
+                    cutoff_hz=case.data.cutoff_hz,
+                    name=rec.name,
+                    keep_series=False,
+                )
+            )
+        else:
+            out.append(load_summary(store.datasets.raw(did), metadata=rec.meta or None))
+    return out
+
+
+class ContextCache:
+    """Per-process cache of :class:`StudyContext` by study id (thread-safe)."""
+
+    def __init__(self, maxsize: int = 8) -> None:
+        self._items: dict[int, StudyContext] = {}
+        self._lock = threading.Lock()
+        self._maxsize = maxsize
+
+    def get(self, store: Store, study_id: int) -> StudyContext:
+        with self._lock:
+            ctx = self._items.get(study_id)
+        if ctx is not None:
+            return ctx
+        study = store.studies.get(study_id)
+        case = CaseDefinition.from_dict(study.case)
+        datasets = load_datasets(store, case, study.dataset_ids)
+        ctx = StudyContext(
+            case=case, model=StudyModel(case, datasets), settings=case.tmcmc_settings()
+        )
+        with self._lock:
+            if len(self._items) >= self._maxsize:
+                self._items.pop(next(iter(self._items)))
+            self._items[study_id] = ctx
+        return ctx
+
+
+# ---------------------------------------------------------------------------- batches
+
+
+def worker_id() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}:{threading.get_ident()}"
+
+
+class _Heartbeat:
+    """Renews a lease from a background thread while a batch runs."""
+
+    def __init__(self, store: Store, lease: BatchLease, every: float) -> None:
+        self._store, self._lease, self._every = store, lease, every
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True, name="heartbeat")
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._every):
+            try:
+                if not self._store.batches.heartbeat(self._lease):
+                    return
+            except Exception:  # the next beat retries; the reaper covers a dead worker
+                log.exception("heartbeat failed for %s", self._lease.key)
+
+    def __enter__(self) -> _Heartbeat:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
+def compute_batch(store: Store, lease: BatchLease, ctx: StudyContext):
+    """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""
+    key = lease.key
+    if key.stage_index == 0:
+        study = store.studies.get(key.study_id)
+        X = initial_samples(ctx.prior, study.n_samples, study.seed)[
+            lease.chain_start : lease.chain_stop
+        ]
+        return evaluate_points(X, ctx.model.log_likelihood_batch)
+    plan = store.stages.plan(key.study_id, key.stage_index)
+    return run_chains(plan, lease.chains, ctx.model.log_likelihood_batch)
+
+
+def execute_batch(
+    store: Store,
+    key: BatchKey,
+    cache: ContextCache,
+    dispatcher: Dispatcher | None,
+    worker: str | None = None,
+    heartbeat_every: float = 30.0,
+) -> str:
+    """Claim, run and store one work batch; advance its stage if it was the last one.
+
+    Idempotent: a batch already done or leased elsewhere is skipped ("skipped"); a second
+    result is not counted ("duplicate"). Returns the outcome.
+    """
+    lease = store.batches.claim(key, worker or worker_id())
+    if lease is None:
+        return "skipped"
+    try:
+        ctx = cache.get(store, key.study_id)
+        with _Heartbeat(store, lease, heartbeat_every):
+            result = compute_batch(store, lease, ctx)
+    except Exception as exc:
+        log.exception("batch %s failed", key)
+        store.batches.release(lease, f"{type(exc).__name__}: {exc}")
+        raise
+    outcome = store.batches.complete(key, result)
+    if outcome.status == "stored" and outcome.stage_complete:
+        advance(store, key.study_id, key.stage_index, cache, dispatcher)
+    return outcome.status
+
+
+def reducer(ctx: StudyContext):
+    """The store's reducer for a study: the stage's population, then the next plan or the end."""
+
+    def reduce(inp: ReduceInput) -> StageAdvance:
+        study = inp.study
+        if inp.stage.stage_index == 0:
+            X = initial_samples(ctx.prior, study.n_samples, study.seed)
+            state = initial_state(ctx.prior, X, inp.results, study.seed, ctx.settings)
+        else:
+            state = reduce_stage(inp.plan, inp.results)
+        status = stage_status(state, ctx.settings)
+        if status is None:
+            plan = plan_stage(state, ctx.prior, ctx.settings)
+            return StageAdvance(state, plan, chain_batches(plan.n_chains, study.batch_size))
+        if status == "completed":
+            return StageAdvance(state, final_status="completed")
+        return StageAdvance(state, final_status="stalled", error=f"TMCMC stopped: {status}")
+
+    return reduce
+
+
+def advance(
+    store: Store,
+    study_id: int,
+    stage_index: int,
+    cache: ContextCache,
+    dispatcher: Dispatcher | None,
+) -> str:
+    """Advance a finished stage (exactly once across all processes) and dispatch the next one."""
+    ctx = cache.get(store, study_id)
+    outcome = store.stages.advance(study_id, stage_index, reducer(ctx))
+    if outcome.status == "advanced" and dispatcher is not None:
+        _dispatch_stage(store, study_id, stage_index + 1, dispatcher)
+    return outcome.status
+
+
+def reap_once(
+    store: Store, cache: ContextCache, dispatcher: Dispatcher, redispatch_after: float | None = None
+):
+    """Re-dispatch lost work (expired leases, undelivered batches) and advance ready stages."""
+    report = store.batches.reap(redispatch_after=redispatch_after)
+    if report.to_dispatch:
+        dispatcher.dispatch(report.to_dispatch)
+    for study_id, stage_index in report.ready_stages:
+        try:
+            advance(store, study_id, stage_index, cache, dispatcher)
+        except Exception:
+            log.exception("advancing study %s stage %s failed", study_id, stage_index)
+    return report
+
+
+def reap_forever(
+    store: Store,
+    cache: ContextCache,
+    dispatcher: Dispatcher,
+    interval: float,
+    stop: threading.Event,
+    redispatch_after: float | None = None,
+) -> None:
+    """The reaper loop (``scm-calib reaper``, or a thread of the embedded server)."""
+    while not stop.is_set():
+        try:
+            reap_once(store, cache, dispatcher, redispatch_after)
+        except Exception:
+            log.exception("reaper pass failed")
+        stop.wait(interval)
+
+
+def wait_for_study(store: Store, study_id: int, timeout: float, poll: float = 0.5):
+    """Poll until the study leaves queued/running; returns the record (tests, scripts)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        study = store.studies.get(study_id)
+        if study.status not in ("queued", "running") or time.monotonic() > deadline:
+            return study
+        time.sleep(poll)

@@ -1,0 +1,56 @@
+"""Per-process runtime: the store, the study cache and a dispatcher, made on first use."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+from services.config import Settings, get_settings
+from services.store import Store
+from services.store.records import BatchKey
+
+from .orchestrator import ContextCache, Dispatcher, execute_batch
+
+
+@dataclass
+class Runtime:
+    """What a worker process needs to run batches."""
+
+    store: Store
+    dispatcher: Dispatcher | None
+    cache: ContextCache = field(default_factory=ContextCache)
+
+    def execute(self, key: BatchKey) -> str:
+        return execute_batch(self.store, key, self.cache, self.dispatcher)
+
+
+def celery_dispatcher(settings: Settings):
+    from .celery_app import make_celery
+    from .dispatch import CeleryDispatcher
+
+    return CeleryDispatcher(make_celery(settings))
+
+
+_lock = threading.Lock()
+
+
+@lru_cache(maxsize=1)
+def process_runtime() -> Runtime:
+    """The runtime of a Celery worker process (settings from the environment)."""
+    settings = get_settings()
+    with _lock:
+        return Runtime(Store.from_settings(settings), celery_dispatcher(settings))
+
+
+_local_runtimes: dict[str, Runtime] = {}
+
+
+def run_local_batch(database_url: str, key: tuple[int, int, int]) -> str:
+    """Entry point of the embedded pool's processes: run one batch (no dispatcher: the
+    parent's loop dispatches the next stage)."""
+    rt = _local_runtimes.get(database_url)
+    if rt is None:
+        rt = Runtime(Store.open(database_url), None)
+        _local_runtimes[database_url] = rt
+    return rt.execute(BatchKey(*key))
