@@ -32,13 +32,13 @@ class LocalDispatcher:
     def __init__(
         self,
         workers: int,
-        target: Callable[[str, tuple[int, int, int]], str],
-        database_url: str,
+        target: Callable[[tuple, tuple[int, int, int]], str],
+        store_args: tuple,
         on_done: Callable[[], None] | None = None,
     ) -> None:
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"))
         self._target = target
-        self._url = database_url
+        self._store_args = store_args
         self._inflight: set[BatchKey] = set()
         self._lock = threading.Lock()
         self._on_done = on_done

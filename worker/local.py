@@ -30,7 +30,7 @@ class LocalRuntime:
         self.dispatcher = LocalDispatcher(
             workers or settings.worker_concurrency,
             run_local_batch,
-            settings.database_url,
+            (settings.database_url, settings.lease_seconds, settings.max_attempts),
             on_done=self._wake.set,
         )
         self._thread = threading.Thread(target=self._loop, name="scm-calib-local", daemon=True)

@@ -220,7 +220,7 @@ def execute_batch(
     cache: ContextCache,
     dispatcher: Dispatcher | None,
     worker: str | None = None,
-    heartbeat_every: float = 30.0,
+    heartbeat_every: float | None = None,
 ) -> str:
     """Claim, run and store one work batch; advance its stage if it was the last one.
 
@@ -232,7 +232,8 @@ def execute_batch(
         return "skipped"
     try:
         ctx = cache.get(store, key.study_id)
-        with _Heartbeat(store, lease, heartbeat_every):
+        every = heartbeat_every or max(0.2, store.db.lease_seconds / 4.0)
+        with _Heartbeat(store, lease, every):
             result = compute_batch(store, lease, ctx)
     except Exception as exc:
         log.exception("batch %s failed", key)

@@ -46,11 +46,12 @@ def process_runtime() -> Runtime:
 _local_runtimes: dict[str, Runtime] = {}
 
 
-def run_local_batch(database_url: str, key: tuple[int, int, int]) -> str:
+def run_local_batch(store_args: tuple[str, float, int], key: tuple[int, int, int]) -> str:
     """Entry point of the embedded pool's processes: run one batch (no dispatcher: the
-    parent's loop dispatches the next stage)."""
-    rt = _local_runtimes.get(database_url)
+    parent's loop dispatches the next stage). store_args: (url, lease_seconds, max_attempts)."""
+    rt = _local_runtimes.get(store_args[0])
     if rt is None:
-        rt = Runtime(Store.open(database_url), None)
-        _local_runtimes[database_url] = rt
+        url, lease, attempts = store_args
+        rt = Runtime(Store.open(url, lease_seconds=lease, max_attempts=attempts), None)
+        _local_runtimes[url] = rt
     return rt.execute(BatchKey(*key))

@@ -6,7 +6,12 @@ import sys
 
 import click
 
+from .calibrate import calibrate
+from .db import db
+from .sensitivity import sensitivity
 from .simulate import simulate
+from .synth import synth
+from .worker_cmd import reaper, worker
 
 
 class _Group(click.Group):
@@ -33,3 +38,9 @@ def cli() -> None:
 
 
 cli.add_command(simulate)
+cli.add_command(synth)
+cli.add_command(calibrate)
+cli.add_command(sensitivity)
+cli.add_command(db)
+cli.add_command(worker)
+cli.add_command(reaper)
