@@ -11,7 +11,6 @@ from collections.abc import Sequence
 
 import sqlalchemy as sa
 from alembic import op
-from sqlalchemy.dialects import postgresql
 
 revision: str = "0001"
 down_revision: str | Sequence[str] | None = None
@@ -19,7 +18,7 @@ branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
 ID = sa.BigInteger().with_variant(sa.Integer(), "sqlite")
-JSON = sa.JSON().with_variant(postgresql.JSONB(), "postgresql")
+JSON = sa.JSON()
 TS = sa.DateTime(timezone=True)
 
 
@@ -87,9 +86,7 @@ def upgrade() -> None:
         sa.Column("position", sa.Integer(), nullable=False),
         sa.Column("dataset_id", ID, nullable=False),
         sa.PrimaryKeyConstraint("study_id", "position", name="pk_study_datasets"),
-        sa.UniqueConstraint(
-            "study_id", "dataset_id", name="uq_study_datasets_study_id_dataset_id"
-        ),
+        sa.UniqueConstraint("study_id", "dataset_id", name="uq_study_datasets_study_id_dataset_id"),
         sa.ForeignKeyConstraint(
             ["study_id"],
             ["studies.id"],

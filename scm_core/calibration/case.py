@@ -236,13 +236,11 @@ class CaseDefinition(_Strict):
             where = f"parameters.{name}"
             if name not in CALIBRATABLE:
                 raise CaseError(
-                    f"{where}: unknown parameter {name!r}; calibratable: "
-                    f"{', '.join(CALIBRATABLE)}"
+                    f"{where}: unknown parameter {name!r}; calibratable: {', '.join(CALIBRATABLE)}"
                 )
             if name in self.nominal:
                 raise CaseError(
-                    f"{where}: {name!r} is both calibrated and nominal (nominal.{name}); "
-                    "remove one"
+                    f"{where}: {name!r} is both calibrated and nominal (nominal.{name}); remove one"
                 )
             try:
                 dist = spec.to_distribution()
@@ -341,12 +339,16 @@ class CaseDefinition(_Strict):
         return out
 
     def fingerprint(self) -> str:
-        """sha256 of everything that changes the results (the data file names do not)."""
+        """sha256 of everything that changes the samples of a stage: not the data file names
+        (the datasets are hashed by content), the batch size, ``max_stages`` (it only decides
+        when to stop, so a stopped study can be continued with a larger value), the
+        description or the reference values."""
         doc = self.to_dict()
         doc["data"].pop("files", None)
         doc.pop("description", None)
         doc.pop("reference", None)
         doc["sampler"].pop("batch_size", None)
+        doc["sampler"].pop("max_stages", None)
         text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(b"scm-calib-case/1\n" + text.encode()).hexdigest()
 
@@ -446,4 +448,3 @@ def preset_case(case: str, data_files: tuple[str, ...] = ()) -> CaseDefinition:
         "reference": dict(WF34_REFERENCE),
     }
     return CaseDefinition.from_dict(doc)
-

@@ -35,8 +35,8 @@ __all__ = [
     "encode",
     "f64_bytes",
     "f64_matrix",
-    "state_meta",
     "state_from_meta",
+    "state_meta",
 ]
 
 BLOB_FORMAT = "scm-calib-blob/1"

@@ -33,6 +33,7 @@ from sqlalchemy.orm import Session, sessionmaker
 __all__ = [
     "dumps_json",
     "is_sqlite",
+    "jsonable",
     "make_engine",
     "make_sessionmaker",
     "normalise_url",
@@ -58,26 +59,26 @@ def safe_url(url: str | URL) -> str:
     return normalise_url(url).render_as_string(hide_password=True)
 
 
-def _jsonable(obj: Any) -> Any:
+def jsonable(obj: Any) -> Any:
     if isinstance(obj, float | np.floating):
         x = float(obj)
         if math.isfinite(x):
             return x
         return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.integer | np.bool_):
         return obj.item()
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     return obj
 
 
 def dumps_json(obj: Any) -> str:
     """Strict JSON for JSON columns (see module docstring)."""
-    return json.dumps(_jsonable(obj), allow_nan=False, separators=(",", ":"))
+    return json.dumps(jsonable(obj), allow_nan=False, separators=(",", ":"))
 
 
 def is_sqlite(bind: Engine | sa.Connection | Session) -> bool:

@@ -215,3 +215,13 @@ class Event(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     kind: Mapped[str] = mapped_column(sa.String(64))
     payload: Mapped[dict[str, Any]] = mapped_column(JSONType)
+
+
+@sa.event.listens_for(Event, "before_update")
+def _event_update(mapper: Any, connection: Any, target: Event) -> None:
+    raise TypeError("events are append-only")
+
+
+@sa.event.listens_for(Event, "before_delete")
+def _event_delete(mapper: Any, connection: Any, target: Event) -> None:
+    raise TypeError("events are append-only")

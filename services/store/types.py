@@ -4,7 +4,9 @@
   text in one fixed format, so comparisons in SQL stay correct).
 * :class:`Real`: float64 column; NaN is stored as NULL on every backend (SQLite cannot store
   NaN; PostgreSQL could, but one convention is simpler), ±inf is stored as is.
-* :data:`JSONType`: JSON on SQLite, JSONB on PostgreSQL.
+* :data:`JSONType`: JSON on both backends. Deliberately not JSONB on PostgreSQL: JSONB
+  reorders object keys, and the same code must see the same documents on SQLite and
+  PostgreSQL (configuration blobs are read back, never queried inside).
 * :data:`BigIntId`: 64-bit autoincrement key (plain INTEGER on SQLite, where only
   ``INTEGER PRIMARY KEY`` autoincrements).
 """
@@ -16,7 +18,6 @@ from datetime import UTC, datetime
 from typing import Any
 
 import sqlalchemy as sa
-from sqlalchemy.dialects import postgresql
 from sqlalchemy.engine import Dialect
 from sqlalchemy.types import TypeDecorator
 
@@ -65,5 +66,5 @@ class Real(TypeDecorator[float]):
         return None if value is None else float(value)
 
 
-JSONType = sa.JSON().with_variant(postgresql.JSONB(), "postgresql")
+JSONType = sa.JSON()
 BigIntId = sa.BigInteger().with_variant(sa.Integer(), "sqlite")
