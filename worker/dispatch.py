@@ -50,7 +50,7 @@ class LocalDispatcher:
                     continue
                 self._inflight.add(k)
             fut = self._pool.submit(
-                self._target, self._url, (k.study_id, k.stage_index, k.batch_index)
+                self._target, self._store_args, (k.study_id, k.stage_index, k.batch_index)
             )
             fut.add_done_callback(lambda f, key=k: self._done(key, f))
 

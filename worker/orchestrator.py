@@ -201,17 +201,31 @@ class _Heartbeat:
         self._thread.join()
 
 
-def compute_batch(store: Store, lease: BatchLease, ctx: StudyContext):
+class _TimedLikelihood:
+    """The study likelihood, timing the model evaluations (simulator time) it does."""
+
+    def __init__(self, func) -> None:
+        self.func = func
+        self.seconds = 0.0
+
+    def __call__(self, X):
+        t0 = time.perf_counter()
+        try:
+            return self.func(X)
+        finally:
+            self.seconds += time.perf_counter() - t0
+
+
+def compute_batch(store: Store, lease: BatchLease, ctx: StudyContext, likelihood=None):
     """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""
     key = lease.key
+    likelihood = likelihood or ctx.model.log_likelihood_batch
     if key.stage_index == 0:
         study = store.studies.get(key.study_id)
-        X = initial_samples(ctx.prior, study.n_samples, study.seed)[
-            lease.chain_start : lease.chain_stop
-        ]
-        return evaluate_points(X, ctx.model.log_likelihood_batch)
+        X = initial_samples(ctx.prior, study.n_samples, study.seed)
+        return evaluate_points(X[lease.chain_start : lease.chain_stop], likelihood)
     plan = store.stages.plan(key.study_id, key.stage_index)
-    return run_chains(plan, lease.chains, ctx.model.log_likelihood_batch)
+    return run_chains(plan, lease.chains, likelihood)
 
 
 def execute_batch(
@@ -230,18 +244,33 @@ def execute_batch(
     lease = store.batches.claim(key, worker or worker_id())
     if lease is None:
         return "skipped"
+    t0 = time.perf_counter()
     try:
         ctx = cache.get(store, key.study_id)
+        timed = _TimedLikelihood(ctx.model.log_likelihood_batch)
         every = heartbeat_every or max(0.2, store.db.lease_seconds / 4.0)
         with _Heartbeat(store, lease, every):
-            result = compute_batch(store, lease, ctx)
+            result = compute_batch(store, lease, ctx, timed)
     except Exception as exc:
         log.exception("batch %s failed", key)
         store.batches.release(lease, f"{type(exc).__name__}: {exc}")
         raise
+    compute_s = time.perf_counter() - t0
     outcome = store.batches.complete(key, result)
-    if outcome.status == "stored" and outcome.stage_complete:
-        advance(store, key.study_id, key.stage_index, cache, dispatcher)
+    if outcome.status == "stored":
+        store.events.append(
+            key.study_id,
+            "batch_done",
+            {
+                "stage": key.stage_index,
+                "batch": key.batch_index,
+                "worker": lease.worker_id,
+                "compute_s": compute_s,
+                "model_s": timed.seconds,
+            },
+        )
+        if outcome.stage_complete:
+            advance(store, key.study_id, key.stage_index, cache, dispatcher)
     return outcome.status
 
 
