@@ -102,8 +102,9 @@ class Settings(BaseSettings):
         ),
     )
     broker_url: str | None = Field(
-        default="redis://127.0.0.1:6379/0",
-        description="Celery broker. None or empty: embedded mode with a local process pool.",
+        default=None,
+        description="Celery broker, e.g. redis://127.0.0.1:6379/0. None or empty (the default): "
+        "embedded mode with a local process pool, no broker needed.",
     )
     api_tokens: Annotated[list[str], NoDecode] = Field(
         default_factory=list,
