@@ -9,8 +9,10 @@ import click
 from .calibrate import calibrate
 from .db import db
 from .sensitivity import sensitivity
+from .serve import serve
 from .simulate import simulate
 from .synth import synth
+from .upload import upload
 from .worker_cmd import reaper, worker
 
 
@@ -44,3 +46,5 @@ cli.add_command(sensitivity)
 cli.add_command(db)
 cli.add_command(worker)
 cli.add_command(reaper)
+cli.add_command(serve)
+cli.add_command(upload)

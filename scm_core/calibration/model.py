@@ -1,0 +1,240 @@
+"""The study's batch likelihood: parameter vectors -> simulated SWTs -> eq. (12)-(15) or (6).
+
+:class:`StudyModel` holds plain data only (dicts of numbers, numpy arrays), so it pickles to
+process pools and remote workers; ``StudyModel.log_likelihood_batch`` is what
+:func:`scm_core.inference.tmcmc_batched` (or :func:`scm_core.calibration.run_tmcmc`) calls.
+
+For a batch X (m, d) and n datasets, the m * n simulator configurations are built (see
+:meth:`StudyModel.configs` for the precedence) and run in ONE
+:func:`scm_core.simulator.simulate_packed` call (numba threads, rows independent, so results do
+not depend on how the rows are batched). The likelihood is the product over datasets and used
+responses of eq. (12)-(15) (``normalized``) or eq. (6) (``gaussian``) with the steady means of
+the log as x_exp. The prediction-error sigmas are one per response (sigma_F, sigma_T, sigma_z),
+shared by all datasets: each dataset's residual is scaled by the same sigma, as the paper's
+single-dataset likelihood generalises when the model error is assumed the same at every test
+condition (give each condition its own study to relax that).
+
+A run that fails (status != "ok") or whose configuration is invalid (e.g. a calibrated R that
+makes the grousers too high for the rim: pydantic refuses it) gives log L = -inf and NaN
+responses; TMCMC counts those as failed runs. Nothing is raised for a bad parameter vector.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from pydantic import ValidationError
+
+from scm_core.inference.likelihood import LIKELIHOODS
+from scm_core.signals import SWTDataset
+from scm_core.simulator import (
+    RigConfig,
+    SoilParams,
+    SWTResult,
+    WheelGeometry,
+    simulate_packed,
+    simulate_swt,
+)
+from scm_core.simulator.layout import N_PARAMS, pack
+
+from .case import RESPONSES, RIG_FIELDS, SOIL_FIELDS, WHEEL_FIELDS, CaseDefinition
+
+__all__ = ["DatasetTerms", "StudyModel", "dataset_terms"]
+
+
+@dataclass(frozen=True)
+class DatasetTerms:
+    """What the likelihood needs from one dataset: its name, simulator condition keys (W, slip,
+    omega, R, b, n_grousers, grouser_height, as available) and the steady means (F N, T N m,
+    z m)."""
+
+    name: str
+    conditions: dict[str, float | int]
+    means: tuple[float, float, float]
+    content_hash: str = ""
+
+
+def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
+    """Reduce an :class:`~scm_core.signals.SWTDataset` to the plain data the model keeps."""
+    if isinstance(dataset, DatasetTerms):
+        return dataset
+    m = dataset.means
+    return DatasetTerms(
+        name=dataset.name,
+        conditions=dict(dataset.conditions.to_sim_config()),
+        means=(float(m["F"]), float(m["T"]), float(m["z"])),
+        content_hash=dataset.content_hash,
+    )
+
+
+def build_configs(
+    nominal: Mapping[str, Any],
+    simulator: Mapping[str, Any],
+    conditions: Mapping[str, Any],
+    values: Mapping[str, float],
+) -> tuple[SoilParams, WheelGeometry, RigConfig]:
+    """(soil, wheel, rig) = defaults <- nominal <- simulator <- conditions <- values.
+
+    ``conditions`` are a dataset's simulator keys; its R is the lab's nominal radius, used as
+    ``slip_radius`` and as the rim radius unless ``values`` holds R. Without a dataset R the
+    slip radius is ``simulator.slip_radius`` / ``nominal.slip_radius`` if given, else the
+    nominal (uncalibrated) rim radius. Raises pydantic's ValidationError for invalid values.
+    """
+    soil: dict[str, Any] = {}
+    wheel: dict[str, Any] = {}
+    rig: dict[str, Any] = {}
+    for source in (nominal, simulator, conditions, values):
+        for key, value in source.items():
+            if key in SOIL_FIELDS:
+                soil[key] = value
+            elif key in WHEEL_FIELDS:
+                wheel[key] = value
+            elif key in RIG_FIELDS:
+                rig[key] = value
+    lab_radius = conditions.get("R")
+    if lab_radius is not None:
+        rig["slip_radius"] = lab_radius
+        wheel["R"] = values.get("R", lab_radius)
+    elif "slip_radius" not in rig:
+        rig["slip_radius"] = {**nominal, **simulator}.get("R", WheelGeometry().R)
+    return (
+        SoilParams.model_validate(soil),
+        WheelGeometry.model_validate(wheel),
+        RigConfig.model_validate(rig),
+    )
+
+
+class StudyModel:
+    """Batch likelihood of a calibration case over one or more SWT datasets (picklable).
+
+    ``names``: calibrated parameters (sample columns); ``response_names``: the columns of the
+    responses returned with the likelihood, F/T/z per dataset (``F[name]``...). Pass
+    :class:`~scm_core.signals.SWTDataset` objects or :class:`DatasetTerms`.
+    """
+
+    def __init__(self, case: CaseDefinition, datasets: Sequence[SWTDataset | DatasetTerms]):
+        if not datasets:
+            raise ValueError("a study needs at least one dataset")
+        self.names: tuple[str, ...] = case.parameter_names
+        self.likelihood: str = case.likelihood
+        self.used: tuple[int, ...] = tuple(RESPONSES.index(r) for r in case.responses)
+        sig = case.sigma_spec()
+        self.sigma_columns: tuple[int | None, ...] = tuple(
+            int(sig[RESPONSES[i]][1]) if sig[RESPONSES[i]][0] == "parameter" else None
+            for i in self.used
+        )
+        self.sigma_fixed: tuple[float, ...] = tuple(
+            float(sig[RESPONSES[i]][1]) if sig[RESPONSES[i]][0] == "fixed" else np.nan
+            for i in self.used
+        )
+        self.physical: tuple[tuple[int, str], ...] = tuple(
+            (j, n) for j, n in enumerate(self.names) if not n.startswith("sigma_")
+        )
+        self.nominal: dict[str, Any] = {
+            k: v for k, v in case.nominal.items() if not k.startswith("sigma_")
+        }
+        self.simulator: dict[str, Any] = dict(case.simulator)
+        self.datasets: tuple[DatasetTerms, ...] = tuple(dataset_terms(d) for d in datasets)
+        self.x_exp: NDArray[np.float64] = np.array([d.means for d in self.datasets], dtype=float)
+
+    # ------------------------------------------------------------------ configurations
+
+    @property
+    def n_datasets(self) -> int:
+        return len(self.datasets)
+
+    @property
+    def response_names(self) -> tuple[str, ...]:
+        return tuple(f"{r}[{d.name}]" for d in self.datasets for r in RESPONSES)
+
+    def values(self, theta: ArrayLike) -> dict[str, float]:
+        """Calibrated simulator values of one parameter vector (sigmas left out)."""
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        return {name: float(theta[j]) for j, name in self.physical}
+
+    def configs(
+        self, theta: ArrayLike, dataset: int | SWTDataset | DatasetTerms = 0
+    ) -> tuple[SoilParams, WheelGeometry, RigConfig]:
+        """Simulator configuration of ``theta`` under the conditions of ``dataset`` (an index
+        into the model's datasets, or any dataset; see :func:`build_configs`); raises
+        ValidationError for invalid values."""
+        d = self.datasets[dataset] if isinstance(dataset, int) else dataset_terms(dataset)
+        return build_configs(self.nominal, self.simulator, d.conditions, self.values(theta))
+
+    def pack_rows(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Packed simulator rows (m * n_datasets, N_PARAMS), row i * n + k for point i and
+        dataset k, and a validity mask (invalid rows are zero and must not be run)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        m, n = X.shape[0], self.n_datasets
+        prms = np.zeros((m * n, N_PARAMS))
+        valid = np.zeros(m * n, dtype=bool)
+        for i in range(m):
+            values = self.values(X[i])
+            for k, d in enumerate(self.datasets):
+                try:
+                    cfg = build_configs(self.nominal, self.simulator, d.conditions, values)
+                except (ValidationError, ValueError):
+                    continue
+                prms[i * n + k] = pack(*cfg)
+                valid[i * n + k] = True
+        return prms, valid
+
+    # ------------------------------------------------------------------ evaluation
+
+    def simulate_means(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Steady means (m, n_datasets, 3) (NaN where a run failed or was invalid) and the
+        per-row ok mask (m, n_datasets)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        m, n = X.shape[0], self.n_datasets
+        prms, valid = self.pack_rows(X)
+        means = np.full((m * n, 3), np.nan)
+        ok = np.zeros(m * n, dtype=bool)
+        rows = np.flatnonzero(valid)
+        if rows.size:
+            batch = simulate_packed(prms[rows])
+            means[rows] = batch.means
+            ok[rows] = batch.ok
+        means[~ok] = np.nan
+        return means.reshape(m, n, 3), ok.reshape(m, n)
+
+    def sigmas(self, X: ArrayLike) -> NDArray[np.float64]:
+        """Prediction-error sigmas (m, n_used) of the used responses."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        out = np.empty((X.shape[0], len(self.used)))
+        for u, (col, fixed) in enumerate(zip(self.sigma_columns, self.sigma_fixed, strict=True)):
+            out[:, u] = X[:, col] if col is not None else fixed
+        return out
+
+    def log_likelihood_from_means(
+        self, means: NDArray[np.float64], sigma: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """log L (m,) from simulated means (m, n_datasets, 3) and sigmas (m, n_used); summed
+        over datasets in order (row results independent of m)."""
+        func = LIKELIHOODS[self.likelihood]
+        used = list(self.used)
+        total = np.zeros(means.shape[0])
+        for k in range(self.n_datasets):
+            ll = np.asarray(func(self.x_exp[k, used], means[:, k, used], sigma), dtype=float)
+            total = total + ll.reshape(-1)
+        return np.where(np.isnan(total), -np.inf, total)
+
+    def log_likelihood_batch(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(log L (m,), responses (m, 3 * n_datasets)) for parameter vectors X (m, d)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        means, _ = self.simulate_means(X)
+        ll = self.log_likelihood_from_means(means, self.sigmas(X))
+        return ll, means.reshape(X.shape[0], -1)
+
+    __call__ = log_likelihood_batch
+
+    def simulate_at(
+        self, theta: ArrayLike, dataset: int | SWTDataset | DatasetTerms = 0
+    ) -> SWTResult:
+        """Full simulated series at ``theta`` under the conditions of ``dataset`` (index or
+        dataset; e.g. the MAP sample, to draw the fit); raises ValidationError for an invalid
+        configuration."""
+        return simulate_swt(*self.configs(theta, dataset))

@@ -1,0 +1,117 @@
+"""JSON-ready summaries of a finished (or stopped) calibration study (pure, no file I/O)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scm_core.inference.posterior import credible_interval, summarize_result
+from scm_core.inference.tmcmc import TMCMCResult
+
+from .case import RESPONSES, CaseDefinition
+from .model import StudyModel
+
+__all__ = ["finite_or_none", "stage_table", "study_summary"]
+
+
+def finite_or_none(x: Any) -> float | None:
+    """A float for JSON, or None for NaN / inf (strict JSON has neither)."""
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _by_name(names: Sequence[str], values: NDArray[np.float64]) -> dict[str, float | None]:
+    return {n: finite_or_none(v) for n, v in zip(names, values, strict=True)}
+
+
+def stage_table(
+    result: TMCMCResult, wall_times: Sequence[float] | None = None
+) -> list[dict[str, Any]]:
+    """One row per stage: stage, exponent, beta, acceptance, ESS, unique samples, model runs,
+    failed runs, proposals outside the support, log evidence so far, wall time [s]."""
+    rows = []
+    for i, row in enumerate(result.diagnostics()):
+        out = {k: (int(v) if isinstance(v, int) else finite_or_none(v)) for k, v in row.items()}
+        if wall_times is not None and i < len(wall_times):
+            out["wall_time_s"] = finite_or_none(wall_times[i])
+        rows.append(out)
+    return rows
+
+
+def study_summary(
+    result: TMCMCResult,
+    case: CaseDefinition,
+    model: StudyModel,
+    wall_times: Sequence[float] | None = None,
+    extra_settings: dict[str, Any] | None = None,
+    map_responses: dict[str, dict[str, float | None]] | None = None,
+) -> dict[str, Any]:
+    """Posterior summary (mean, sd, quantiles, 95 % interval, correlations, MAP), evidence,
+    per-stage diagnostics, totals, settings and datasets, as one JSON-compatible dict."""
+    names = result.names
+    post = summarize_result(result)
+    ci = credible_interval(result.samples, 0.95)
+    settings = {
+        "n_samples": int(result.final.n_samples),
+        "seed": int(case.seed),
+        "likelihood": case.likelihood,
+        "responses": list(case.responses),
+        "tmcmc": case.tmcmc_settings().to_dict(),
+        **(extra_settings or {}),
+    }
+    datasets = []
+    for k, d in enumerate(model.datasets):
+        datasets.append(
+            {
+                "name": d.name,
+                "content_hash": d.content_hash,
+                "conditions": d.conditions,
+                "means": dict(zip(RESPONSES, map(float, model.x_exp[k]), strict=True)),
+            }
+        )
+    summary: dict[str, Any] = {
+        "format": "scm-calib-study-summary",
+        "version": 1,
+        "case": case.to_dict(),
+        "case_hash": case.fingerprint(),
+        "status": result.status,
+        "parameters": list(names),
+        "units": dict(case.prior().units or {}),
+        "posterior": {
+            "mean": _by_name(names, post.mean),
+            "sd": _by_name(names, post.sd),
+            "quantiles": {
+                f"{q:g}": _by_name(names, post.quantiles[i])
+                for i, q in enumerate(post.quantile_levels)
+            },
+            "credible_interval_95": {
+                n: [finite_or_none(ci[j, 0]), finite_or_none(ci[j, 1])] for j, n in enumerate(names)
+            },
+            "correlation": {
+                "names": list(names),
+                "matrix": [[finite_or_none(v) for v in row] for row in post.correlation],
+            },
+            "map": None if post.map_sample is None else _by_name(names, post.map_sample),
+            "map_log_posterior": finite_or_none(post.map_log_posterior),
+            "n_unique": int(result.final.n_unique),
+        },
+        "log_evidence": finite_or_none(result.log_evidence),
+        "log_evidence_se": finite_or_none(result.log_evidence_se),
+        "stages": stage_table(result, wall_times),
+        "n_stages": len(result.stages) - 1,
+        "model_runs": int(result.n_model_runs),
+        "failed_runs": int(result.n_failed_runs),
+        "wall_time_s": finite_or_none(sum(wall_times)) if wall_times else None,
+        "settings": settings,
+        "datasets": datasets,
+    }
+    if map_responses is not None:
+        summary["map_responses"] = map_responses
+    return summary

@@ -1,0 +1,286 @@
+"""Morris screening of the SCM soil parameters on the steady SWT responses (paper section 4.4,
+Figure 4).
+
+Factors: the 7 soil parameters of Table 1 (k_c, k_phi, n, c, phi, D_soil, J). As in the paper,
+k_c and k_phi are screened jointly by default, through k* = k_c / b_eff + k_phi (eq. 11): the
+factor ``k_star`` sets k_phi = k* with k_c = 0, so k* is exact and does not depend on the
+footprint width b_eff; the other five factors are screened as they are (6 factors in all).
+With ``joint_k=False`` k_c and k_phi are separate factors (7 in all).
+
+Bounds, by precedence: explicit ``bounds``; the case's prior bounds for a calibrated factor
+(not for ``k_star``); the defaults :data:`DEFAULT_BOUNDS`: Table 2's parameter space for n, phi
+and J, and documented choices for the rest:
+
+* k_star, k_phi: 1e6 .. 1e8 N/m^(n+2), log scale (a decade either side of WF34's 1e7;
+  Table 2's 1 .. 1e10 is mostly soils that cannot carry the wheel);
+* k_c: -5e5 .. 5e5 N/m^(n+1) (k_c / b_eff up to ~6e6 for b_eff ~ 0.08 m);
+* c: 0 .. 1000 Pa (dry sands: c ~ 0; 1 kPa is a cohesive sandy soil);
+* D_soil: 0 .. 1e6 N s/m^3 (at SWT penetration rates of a few mm/s, up to ~5 kPa of damping
+  stress, a quarter of the static stress).
+
+Responses: the steady means F, T, z of the simulated SWT under one dataset's conditions. A run
+that fails (e.g. bottoms out on a soft, high-n soil) gives NaN; the elementary effects that
+touch it are left out and mu, mu*, sigma are taken over the remaining trajectories (counts in
+``n_effects``). Indices as in :mod:`scm_core.inference.morris`: linear = mu* / sum mu*,
+non-linear = sigma / sum sigma, per response.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from pydantic import ValidationError
+
+from scm_core.inference.morris import morris_analyze, morris_design
+from scm_core.signals import SWTDataset
+from scm_core.simulator import simulate_packed
+from scm_core.simulator.layout import N_PARAMS, pack
+
+from .case import RESPONSES, CaseDefinition
+from .model import DatasetTerms, build_configs, dataset_terms
+
+__all__ = [
+    "DEFAULT_BOUNDS",
+    "TABLE1_PARAMETERS",
+    "MorrisModel",
+    "SensitivityResult",
+    "run_sensitivity",
+    "screening_factors",
+]
+
+TABLE1_PARAMETERS = ("k_c", "k_phi", "n", "c", "phi", "D_soil", "J")
+
+DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
+    "k_star": (1.0e6, 1.0e8),
+    "k_c": (-5.0e5, 5.0e5),
+    "k_phi": (1.0e6, 1.0e8),
+    "n": (0.8, 2.0),
+    "c": (0.0, 1000.0),
+    "phi": (11.5, 37.3),
+    "D_soil": (0.0, 1.0e6),
+    "J": (0.001, 0.1),
+}
+LOG_SCALE = ("k_star", "k_phi")
+
+MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
+
+
+def screening_factors(
+    case: CaseDefinition | None = None,
+    joint_k: bool = True,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+) -> tuple[tuple[str, ...], NDArray[np.float64], NDArray[np.bool_]]:
+    """(names, bounds (d, 2), log_scale (d,)) of the screened factors (see module doc)."""
+    names = ("k_star", "n", "c", "phi", "D_soil", "J") if joint_k else TABLE1_PARAMETERS
+    bounds = dict(bounds or {})
+    unknown = set(bounds) - set(names)
+    if unknown:
+        raise ValueError(
+            f"bounds given for {sorted(unknown)}, which are not screened; factors: "
+            f"{', '.join(names)}"
+        )
+    rows = []
+    for name in names:
+        if name in bounds:
+            lo, hi = bounds[name]
+        elif case is not None and name in case.parameters and name != "k_star":
+            dist = case.parameters[name].to_distribution()
+            lo, hi = dist.lower, dist.upper
+        else:
+            lo, hi = DEFAULT_BOUNDS[name]
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+            raise ValueError(f"bounds of {name}: need finite lower < upper, got {lo!r}, {hi!r}")
+        rows.append((float(lo), float(hi)))
+    b = np.array(rows, dtype=float)
+    log = np.array([n in LOG_SCALE and b[i, 0] > 0 for i, n in enumerate(names)], dtype=bool)
+    return names, b, log
+
+
+class MorrisModel:
+    """Picklable ``func_batch``: factor points (m, d) -> steady means (m, 3) [N, N m, m] under
+    one dataset's conditions (NaN for failed or invalid runs), rows run in one
+    :func:`~scm_core.simulator.simulate_packed` call."""
+
+    def __init__(
+        self,
+        names: Sequence[str],
+        case: CaseDefinition | None,
+        dataset: SWTDataset | DatasetTerms,
+    ):
+        self.names = tuple(names)
+        self.nominal = (
+            {k: v for k, v in case.nominal.items() if not k.startswith("sigma_")} if case else {}
+        )
+        self.simulator = dict(case.simulator) if case else {}
+        self.dataset = dataset_terms(dataset)
+
+    def values(self, x: NDArray[np.float64]) -> dict[str, float]:
+        out: dict[str, float] = {}
+        for name, v in zip(self.names, x, strict=True):
+            if name == "k_star":
+                out["k_c"] = 0.0
+                out["k_phi"] = float(v)
+            else:
+                out[name] = float(v)
+        return out
+
+    def __call__(self, X: ArrayLike) -> NDArray[np.float64]:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        prms = np.zeros((X.shape[0], N_PARAMS))
+        valid = np.zeros(X.shape[0], dtype=bool)
+        for i, x in enumerate(X):
+            try:
+                cfg = build_configs(
+                    self.nominal, self.simulator, self.dataset.conditions, self.values(x)
+                )
+            except (ValidationError, ValueError):
+                continue
+            prms[i] = pack(*cfg)
+            valid[i] = True
+        out = np.full((X.shape[0], 3), np.nan)
+        rows = np.flatnonzero(valid)
+        if rows.size:
+            res = simulate_packed(prms[rows])
+            means = res.means.copy()
+            means[~res.ok] = np.nan
+            out[rows] = means
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class SensitivityResult:
+    """Morris statistics (d, 3) per factor and response F, T, z; see the module doc."""
+
+    names: tuple[str, ...]
+    bounds: NDArray[np.float64]
+    log_scale: NDArray[np.bool_]
+    mu: NDArray[np.float64]
+    mu_star: NDArray[np.float64]
+    sigma: NDArray[np.float64]
+    linear_index: NDArray[np.float64]
+    nonlinear_index: NDArray[np.float64]
+    n_effects: NDArray[np.int64]
+    points: NDArray[np.float64]
+    outputs: NDArray[np.float64]
+    r: int
+    levels: int
+    seed: int
+    dataset: str
+
+    @property
+    def n_runs(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def n_failed(self) -> int:
+        return int(np.count_nonzero(~np.all(np.isfinite(self.outputs), axis=1)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible (NaN as null)."""
+
+        def table(a: NDArray[np.float64]) -> dict[str, dict[str, float | None]]:
+            return {
+                resp: {n: _num(a[i, k]) for i, n in enumerate(self.names)}
+                for k, resp in enumerate(RESPONSES)
+            }
+
+        return {
+            "method": "morris",
+            "factors": [
+                {
+                    "name": n,
+                    "lower": float(self.bounds[i, 0]),
+                    "upper": float(self.bounds[i, 1]),
+                    "log_scale": bool(self.log_scale[i]),
+                }
+                for i, n in enumerate(self.names)
+            ],
+            "responses": {"F": "N", "T": "N m", "z": "m"},
+            "r": self.r,
+            "levels": self.levels,
+            "seed": self.seed,
+            "dataset": self.dataset,
+            "n_runs": self.n_runs,
+            "n_failed_runs": self.n_failed,
+            "mu": table(self.mu),
+            "mu_star": table(self.mu_star),
+            "sigma": table(self.sigma),
+            "linear_index": table(self.linear_index),
+            "nonlinear_index": table(self.nonlinear_index),
+            "n_effects": {
+                resp: {n: int(self.n_effects[i, k]) for i, n in enumerate(self.names)}
+                for k, resp in enumerate(RESPONSES)
+            },
+        }
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _nan_stats(ee: NDArray[np.float64]):
+    """mu, mu*, sigma (ddof 1) and counts over trajectories, ignoring NaN effects."""
+    finite = np.isfinite(ee)
+    count = finite.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = np.where(finite, ee, 0.0)
+        mu = z.sum(axis=0) / count
+        mu_star = np.abs(z).sum(axis=0) / count
+        dev = np.where(finite, ee - mu, 0.0)
+        sigma = np.sqrt((dev * dev).sum(axis=0) / (count - 1))
+    mu = np.where(count > 0, mu, np.nan)
+    mu_star = np.where(count > 0, mu_star, np.nan)
+    sigma = np.where(count > 1, sigma, np.nan)
+    return mu, mu_star, sigma, count
+
+
+def _normalise(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    s = np.nansum(a, axis=0, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(s > 0, a / s, 0.0)
+
+
+def run_sensitivity(
+    dataset: SWTDataset | DatasetTerms,
+    case: CaseDefinition | None = None,
+    r: int = 20,
+    levels: int = 4,
+    seed: int = 0,
+    joint_k: bool = True,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    map: MapFn = map,
+    batch_size: int | None = None,
+) -> SensitivityResult:
+    """Morris screening (r trajectories on a ``levels`` grid) of the soil parameters under the
+    conditions of ``dataset``, with the case's nominal values and simulator settings."""
+    names, b, log = screening_factors(case, joint_k, bounds)
+    points, design = morris_design(b, r=r, levels=levels, seed=seed, names=names, log_scale=log)
+    model = MorrisModel(names, case, dataset)
+    n = points.shape[0]
+    size = n if batch_size is None else int(batch_size)
+    chunks = [points[i : i + size] for i in range(0, n, size)]
+    Y = np.concatenate([np.asarray(y) for y in map(model, chunks)], axis=0)
+    ee = morris_analyze(design, Y).ee  # NaN where a run failed
+    mu, mu_star, sigma, count = _nan_stats(ee)
+    return SensitivityResult(
+        names=names,
+        bounds=b,
+        log_scale=log,
+        mu=mu,
+        mu_star=mu_star,
+        sigma=sigma,
+        linear_index=_normalise(mu_star),
+        nonlinear_index=_normalise(sigma),
+        n_effects=count.astype(np.int64),
+        points=points,
+        outputs=Y,
+        r=int(r),
+        levels=int(levels),
+        seed=int(seed),
+        dataset=model.dataset.name,
+    )

@@ -1,0 +1,125 @@
+"""Pooled posterior of several completed studies with the same parameters (paper Fig. 9).
+
+Each study's final stage is an equally weighted posterior sample; pooling takes the same number
+of samples from each (``scm_core.inference.posterior.pool_samples``), so every study weighs the
+same whatever its size.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import numpy as np
+from fastapi import APIRouter, Depends, HTTPException, Query
+
+from scm_core.inference.posterior import pool_samples
+from services.store import NotFoundError, Store
+
+from ..deps import StoreDep, require_read
+from ..schemas import SEED_MAX, PooledOut, PooledRequest, PooledStudy
+from ..views import num, parameter_names, parameter_summaries, parameter_units, resolve_stage
+from . import errors
+
+router = APIRouter(prefix="/pooled", tags=["pooled"], dependencies=[Depends(require_read)])
+
+
+def _unprocessable(message: str) -> HTTPException:
+    return HTTPException(422, message)
+
+
+def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
+    ids = list(req.study_ids)
+    if not ids:
+        raise _unprocessable("study_ids: give at least one completed study")
+    if len(set(ids)) != len(ids):
+        raise _unprocessable("study_ids: a study is listed twice")
+    studies, finals = [], []
+    names: list[str] | None = None
+    for sid in ids:
+        try:
+            study = store.studies.get(sid)
+        except NotFoundError:
+            raise _unprocessable(f"study_ids: no study with id {sid}") from None
+        if study.status != "completed":
+            raise _unprocessable(
+                f"study_ids: study {sid} is {study.status}; only completed studies are pooled"
+            )
+        these = parameter_names(study)
+        if names is None:
+            names = these
+        elif these != names:
+            raise _unprocessable(
+                f"study_ids: study {sid} calibrates {these}, study {ids[0]} {names}: pooling "
+                "needs the same parameters in the same order"
+            )
+        stage = resolve_stage(store, sid, -1)
+        studies.append(study)
+        finals.append(store.samples.arrays(sid, stage.stage_index).samples)
+    assert names is not None
+    smallest = min(len(x) for x in finals)
+    n_per = req.n_per_study or smallest
+    if n_per > smallest:
+        raise _unprocessable(
+            f"n_per_study: {n_per} is more than the smallest study's {smallest} samples"
+        )
+    X = pool_samples(finals, n_per, req.seed)
+    params, corr, _ = parameter_summaries(X, names, parameter_units(studies[0]))
+    per_study = [
+        PooledStudy(
+            study_id=s.id,
+            name=s.name,
+            n_samples=len(x),
+            log_evidence=num(s.log_evidence),
+            mean={n: num(v) for n, v in zip(names, x.mean(axis=0), strict=True)},
+            sd={n: num(v) for n, v in zip(names, x.std(axis=0, ddof=1), strict=True)},
+        )
+        for s, x in zip(studies, finals, strict=True)
+    ]
+    return PooledOut(
+        study_ids=ids,
+        n_per_study=n_per,
+        n_samples=int(X.shape[0]),
+        names=names,
+        parameters=params,
+        correlation=corr,
+        studies=per_study,
+        samples=np.asarray(X).tolist() if req.include_samples else None,
+    )
+
+
+@router.post(
+    "",
+    response_model=PooledOut,
+    summary="Pooled posterior of completed studies",
+    responses=errors(401, 422),
+)
+def pooled_post(body: PooledRequest, store: StoreDep) -> PooledOut:
+    """Summary (mean, sd, quantiles, correlations) of the pooled final samples of completed
+    studies with the same parameters, and each study's mean and sd. Reads only: needs a token
+    only when reads do."""
+    return pooled_summary(store, body)
+
+
+@router.get(
+    "",
+    response_model=PooledOut,
+    summary="Pooled posterior (query form)",
+    responses=errors(401, 422),
+)
+def pooled_get(
+    store: StoreDep,
+    study_ids: Annotated[
+        list[str], Query(description="Repeat the parameter, or give ids comma-separated.")
+    ],
+    n_per_study: Annotated[int | None, Query(ge=2)] = None,
+    seed: Annotated[int, Query(ge=0, le=SEED_MAX)] = 0,
+) -> PooledOut:
+    ids: list[int] = []
+    for part in (p.strip() for item in study_ids for p in item.split(",")):
+        if not part:
+            continue
+        try:
+            ids.append(int(part))
+        except ValueError:
+            raise _unprocessable(f"query.study_ids: not a study id: {part!r}") from None
+    return pooled_summary(store, PooledRequest(study_ids=ids, n_per_study=n_per_study, seed=seed))

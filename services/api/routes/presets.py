@@ -1,0 +1,47 @@
+"""The paper's calibration cases 1, 2a and 2b (Table 2 priors) as case documents."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Depends, HTTPException
+
+from scm_core.calibration import PRESETS, CaseError, preset_case
+
+from ..deps import require_read
+from ..schemas import PresetOut
+from . import errors
+
+router = APIRouter(prefix="/presets", tags=["presets"], dependencies=[Depends(require_read)])
+
+
+def preset_or_404(name: str):
+    try:
+        return preset_case(name)
+    except CaseError as exc:
+        raise HTTPException(404, f"preset: {exc}") from None
+
+
+@router.get("", response_model=list[PresetOut], summary="List presets", responses=errors(401))
+def list_presets() -> list[PresetOut]:
+    out = []
+    for key in PRESETS:
+        case = preset_case(key)
+        out.append(
+            PresetOut(
+                name=key,
+                case_name=case.name,
+                description=case.description,
+                seed=case.seed,
+                parameters=list(case.parameter_names),
+                n_samples=case.sampler.n_samples,
+                moves=case.sampler.moves,
+            )
+        )
+    return out
+
+
+@router.get("/{name}", summary="One preset as a case document", responses=errors(401, 404))
+def get_preset(name: str) -> dict[str, Any]:
+    """The full case document (the same form ``POST /studies`` accepts as ``case``)."""
+    return preset_or_404(name).to_dict()

@@ -1,0 +1,386 @@
+"""Calibration studies: submit, list, progress, cancel, stages, samples, summary, events.
+
+A study is checked completely before anything is stored: the case (preset or document, with
+the overrides applied), the datasets, and the simulator configuration at the prior medians on
+every dataset's test conditions. A refused study leaves no row behind.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import math
+from collections.abc import Iterator
+from typing import Annotated, Any
+
+import numpy as np
+from fastapi import APIRouter, Body, Depends, HTTPException, Query, Response
+from fastapi.responses import StreamingResponse
+from pydantic import ValidationError
+
+from scm_core.calibration import CaseDefinition, CaseError, StudyModel, preset_case
+from services.store import Store
+from services.store.models import STUDY_STATUSES
+from worker.orchestrator import StudyInputError, start_study, study_spec
+
+from ..deps import DispatcherDep, StoreDep, require_read, require_write
+from ..schemas import (
+    SEED_MAX,
+    CancelRequest,
+    EventOut,
+    SamplesPage,
+    StageOut,
+    StudyCreate,
+    StudyOut,
+    StudyPage,
+    SummaryOut,
+)
+from ..views import (
+    num,
+    num_list,
+    parameter_names,
+    parameter_summaries,
+    parameter_units,
+    resolve_stage,
+    response_names,
+    stage_out,
+    study_brief,
+    study_out,
+)
+from . import errors
+
+log = logging.getLogger(__name__)
+
+router = APIRouter(prefix="/studies", tags=["studies"], dependencies=[Depends(require_read)])
+
+SAMPLE_PAGE_MAX = 5000
+CSV_CHUNK = 2000
+#: overrides that go to the case's [sampler] table
+_SAMPLER_OVERRIDES = ("n_samples", "moves", "n_steps", "max_stages")
+_TOP_OVERRIDES = ("name", "seed", "likelihood")
+
+
+def _unprocessable(message: str) -> HTTPException:
+    return HTTPException(422, " ".join(str(message).split()))
+
+
+# ---------------------------------------------------------------------------- submission
+
+
+def build_case(body: StudyCreate) -> CaseDefinition:
+    """The case of a request: the preset or the case document, with the overrides applied;
+    422 naming the field (``preset``, ``case.parameters.k_phi``, ``n_samples`` ...)."""
+    if (body.preset is None) == (body.case is None):
+        raise _unprocessable(
+            "preset: give exactly one of 'preset' (a name: 1, 2a, 2b) or 'case' (a case document)"
+        )
+    if body.preset is not None:
+        try:
+            case = preset_case(body.preset)
+        except CaseError as exc:
+            raise _unprocessable(f"preset: {exc}") from None
+    else:
+        try:
+            case = CaseDefinition.from_dict(body.case or {})
+        except CaseError as exc:
+            text = str(exc)
+            raise _unprocessable(text if text.startswith("case") else f"case.{text}") from None
+    sampler = {k: getattr(body, k) for k in _SAMPLER_OVERRIDES if getattr(body, k) is not None}
+    top = {k: getattr(body, k) for k in _TOP_OVERRIDES if getattr(body, k) is not None}
+    if sampler or top:
+        try:
+            case = case.with_changes(**top, **({"sampler": sampler} if sampler else {}))
+        except CaseError as exc:
+            raise _unprocessable(str(exc).removeprefix("sampler.")) from None
+    if case.seed > SEED_MAX:
+        raise _unprocessable(f"seed: must be < 2**63 (got {case.seed})")
+    return case
+
+
+def precheck(store: Store, case: CaseDefinition, dataset_ids: list[int]) -> None:
+    """Refuse a case whose simulator configuration cannot be built at the prior medians on
+    the datasets' test conditions (the study would fail on its first batch)."""
+    datasets = [store.datasets.load(d) for d in dataset_ids]
+    model = StudyModel(case, datasets)
+    theta = case.prior().ppf(np.full(len(case.parameters), 0.5))
+    for k, d in enumerate(model.datasets):
+        try:
+            model.configs(theta, k)
+        except (ValidationError, ValueError) as exc:
+            if isinstance(exc, ValidationError):
+                err = exc.errors()[0]
+                loc = ".".join(str(p) for p in err.get("loc", ()))
+                msg = str(err.get("msg", "")).removeprefix("Value error, ")
+                text = f"{loc}: {msg}" if loc else msg
+            else:
+                text = str(exc)
+            raise _unprocessable(
+                f"dataset_ids: dataset {dataset_ids[k]} ({d.name}): invalid simulator "
+                f"configuration at the prior medians: {text}"
+            ) from None
+
+
+@router.post(
+    "",
+    response_model=StudyOut,
+    status_code=201,
+    summary="Submit a study",
+    dependencies=[Depends(require_write)],
+    responses=errors(401, 413, 422),
+)
+def create_study(
+    body: StudyCreate, response: Response, store: StoreDep, dispatcher: DispatcherDep
+) -> StudyOut:
+    """Create a study from a preset of the paper or a full case document on stored datasets,
+    with optional overrides (``seed``, ``n_samples``, ``moves``, ``n_steps``, ``max_stages``,
+    ``likelihood``, ``name``, ``batch_size``), and start it. Any problem answers 422 naming
+    the field, and nothing is stored."""
+    case = build_case(body)
+    try:
+        spec = study_spec(store, case, body.dataset_ids, body.batch_size)
+    except StudyInputError as exc:
+        raise _unprocessable(str(exc)) from None
+    precheck(store, case, list(spec.dataset_ids))
+    record = store.studies.create(spec)
+    try:
+        start_study(store, record.id, dispatcher)
+    except Exception:  # the batches stay pending: the reaper / local loop dispatches them
+        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
+    response.headers["Location"] = f"/studies/{record.id}"
+    return study_out(store, store.studies.get(record.id))
+
+
+# ---------------------------------------------------------------------------- reading
+
+
+@router.get("", response_model=StudyPage, summary="List studies", responses=errors(401, 422))
+def list_studies(
+    store: StoreDep,
+    status: Annotated[
+        str | None, Query(description="Filter: one status or several, comma-separated.")
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> StudyPage:
+    """Studies, newest first."""
+    statuses = None
+    if status:
+        statuses = [s.strip() for s in status.split(",") if s.strip()]
+        unknown = [s for s in statuses if s not in STUDY_STATUSES]
+        if unknown:
+            raise _unprocessable(
+                f"query.status: unknown status {unknown[0]!r}; one of {', '.join(STUDY_STATUSES)}"
+            )
+    page = store.studies.list(statuses, limit=limit, offset=offset)
+    return StudyPage(
+        items=[study_brief(s) for s in page.items],
+        total=page.total,
+        limit=limit,
+        offset=offset,
+        next_offset=page.next_offset,
+    )
+
+
+@router.get(
+    "/{study_id}",
+    response_model=StudyOut,
+    summary="A study with its progress",
+    responses=errors(401, 404),
+)
+def get_study(study_id: int, store: StoreDep) -> StudyOut:
+    """The study, its case document and a progress block: current stage and exponent,
+    evaluations done and planned in it, model runs so far, rate and ETA of the stage."""
+    return study_out(store, store.studies.get(study_id))
+
+
+@router.post(
+    "/{study_id}/cancel",
+    response_model=StudyOut,
+    summary="Cancel a study",
+    dependencies=[Depends(require_write)],
+    responses=errors(401, 404, 409),
+)
+def cancel_study(
+    study_id: int, store: StoreDep, body: Annotated[CancelRequest | None, Body()] = None
+) -> StudyOut:
+    """Cancel a queued or running study (work in flight is abandoned); 409 if it has ended."""
+    if not store.studies.cancel(study_id, body.reason if body else None):
+        study = store.studies.get(study_id)
+        raise HTTPException(
+            409,
+            f"study {study_id} is {study.status}: only queued or running studies can be cancelled",
+        )
+    return study_out(store, store.studies.get(study_id))
+
+
+@router.get(
+    "/{study_id}/stages",
+    response_model=list[StageOut],
+    summary="Stages and their diagnostics",
+    responses=errors(401, 404),
+)
+def list_stages(study_id: int, store: StoreDep) -> list[StageOut]:
+    store.studies.get(study_id)
+    return [stage_out(store, s) for s in store.stages.list(study_id)]
+
+
+@router.get(
+    "/{study_id}/stages/{stage}/samples",
+    response_model=SamplesPage,
+    summary="Samples of a stage (JSON pages)",
+    responses=errors(401, 404, 409),
+)
+def get_samples(
+    study_id: int,
+    stage: int,
+    store: StoreDep,
+    offset: Annotated[int, Query(ge=0)] = 0,
+    limit: Annotated[int, Query(ge=1, le=SAMPLE_PAGE_MAX)] = 500,
+) -> SamplesPage:
+    """Rows ``offset`` .. ``offset + limit - 1`` of stage ``stage`` (-1: the last finished
+    stage). Non-finite numbers are the strings "nan", "inf", "-inf". A stage that is not
+    finished has no samples yet (total 0)."""
+    st = resolve_stage(store, study_id, stage)
+    study = store.studies.get(study_id)
+    page = store.samples.page(study_id, st.stage_index, start=offset, limit=limit)
+    a = page.arrays
+    rnames = response_names(store, study)
+    has_resp = a.responses is not None and len(a) > 0
+    if has_resp and a.responses.shape[1] != len(rnames):
+        rnames = [f"r{k}" for k in range(a.responses.shape[1])]
+    return SamplesPage(
+        study_id=study_id,
+        stage=st.stage_index,
+        stage_status=st.status,
+        total=page.total,
+        limit=limit,
+        offset=offset,
+        next_offset=page.next_start,
+        names=parameter_names(study),
+        response_names=rnames if has_resp else None,
+        samples=num_list(a.samples) if len(a) else [],
+        log_likelihood=num_list(a.log_likelihood),
+        log_prior=num_list(a.log_prior),
+        responses=num_list(a.responses) if has_resp else None,
+    )
+
+
+def _csv_chunks(store: Store, study_id: int, stage: int, names: list[str], rnames: list[str]):
+    first = store.samples.page(study_id, stage, start=0, limit=CSV_CHUNK)
+    with_resp = first.arrays.responses is not None and len(first.arrays) > 0
+    if with_resp and first.arrays.responses.shape[1] != len(rnames):
+        rnames = [f"r{k}" for k in range(first.arrays.responses.shape[1])]
+
+    def render(rows: list[list[Any]]) -> str:
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerows(rows)
+        return buf.getvalue()
+
+    def gen() -> Iterator[str]:
+        yield render(
+            [["sample", *names, "log_likelihood", "log_prior", *(rnames if with_resp else [])]]
+        )
+        page = first
+        while len(page.arrays):
+            a = page.arrays
+            rows = []
+            for i in range(len(a)):
+                row: list[Any] = [page.start + i, *a.samples[i].tolist()]
+                row += [float(a.log_likelihood[i]), float(a.log_prior[i])]
+                if with_resp and a.responses is not None:
+                    row += a.responses[i].tolist()
+                rows.append(row)
+            yield render(rows)
+            if page.next_start is None:
+                break
+            page = store.samples.page(study_id, stage, start=page.next_start, limit=CSV_CHUNK)
+
+    return gen()
+
+
+@router.get(
+    "/{study_id}/stages/{stage}/samples.csv",
+    summary="Samples of a stage (streamed CSV)",
+    response_class=StreamingResponse,
+    responses={200: {"content": {"text/csv": {}}}, **errors(401, 404, 409)},
+)
+def get_samples_csv(study_id: int, stage: int, store: StoreDep) -> StreamingResponse:
+    """All samples of stage ``stage`` (-1: the last finished one) as CSV: sample index,
+    parameters, log_likelihood, log_prior, responses. Floats round-trip exactly; non-finite
+    values are written nan, inf, -inf."""
+    st = resolve_stage(store, study_id, stage)
+    study = store.studies.get(study_id)
+    chunks = _csv_chunks(
+        store, study_id, st.stage_index, parameter_names(study), response_names(store, study)
+    )
+    filename = f"study{study_id}_stage{st.stage_index}_samples.csv"
+    return StreamingResponse(
+        chunks,
+        media_type="text/csv; charset=utf-8",
+        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+    )
+
+
+@router.get(
+    "/{study_id}/summary",
+    response_model=SummaryOut,
+    summary="Posterior summary of the last finished stage",
+    responses=errors(401, 404, 409),
+)
+def get_summary(study_id: int, store: StoreDep) -> SummaryOut:
+    """Mean, sd, quantiles, 95 % interval, correlations and MAP sample of the last finished
+    stage (the posterior when ``is_posterior``: exponent 1), with the log evidence."""
+    study = store.studies.get(study_id)
+    st = resolve_stage(store, study_id, -1)
+    a = store.samples.arrays(study_id, st.stage_index)
+    if len(a) < 2:
+        raise HTTPException(409, f"study {study_id}: stage {st.stage_index} has < 2 samples")
+    names = parameter_names(study)
+    params, corr, post = parameter_summaries(
+        a.samples, names, parameter_units(study), a.log_prior, a.log_likelihood
+    )
+    last = st.stage_index == max(s.stage_index for s in store.stages.list(study_id))
+    var = study.log_evidence_var if (last and study.status not in ("queued", "running")) else None
+    exponent = num(st.exponent)
+    return SummaryOut(
+        study_id=study_id,
+        status=study.status,
+        stage=st.stage_index,
+        exponent=exponent,
+        is_posterior=exponent is not None and exponent >= 1.0 - 1e-12,
+        n_samples=len(a),
+        names=names,
+        parameters=params,
+        correlation=corr,
+        map=None
+        if post.map_sample is None
+        else {n: num(v) for n, v in zip(names, post.map_sample, strict=True)},
+        map_log_posterior=num(post.map_log_posterior),
+        log_evidence=num(st.log_evidence),
+        log_evidence_sd=None if var is None or var < 0 else num(math.sqrt(var)),
+        model_runs=study.model_runs,
+    )
+
+
+@router.get(
+    "/{study_id}/events",
+    response_model=list[EventOut],
+    summary="What happened to a study",
+    responses=errors(401, 404),
+)
+def list_events(
+    study_id: int,
+    store: StoreDep,
+    after_id: Annotated[int | None, Query(ge=0, description="Only events after this id.")] = None,
+    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+) -> list[EventOut]:
+    """The study's events in order (created, stage planned/done, cancelled, failed, ...)."""
+    store.studies.get(study_id)
+    events = store.events.list(study_id, after_id=after_id, limit=limit)
+    return [
+        EventOut(
+            id=e.id, study_id=e.study_id, created_at=e.created_at, kind=e.kind, payload=e.payload
+        )
+        for e in events
+    ]

@@ -1,0 +1,293 @@
+"""Request and response models of the API (pydantic v2).
+
+Floats that may be undefined (NaN, or infinite where JSON has no number for it) are ``null`` in
+responses, except in sample pages, which keep the store's convention: the strings ``"nan"``,
+``"inf"`` and ``"-inf"`` (a log-likelihood of ``-inf`` means "outside the support / failed run").
+Every error response is ``{"detail": "<one line naming the field>"}``.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+SEED_MAX = 2**63 - 1
+
+
+class _In(BaseModel):
+    """Request bodies: unknown fields are refused (a typo must not pass silently)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class ErrorOut(BaseModel):
+    detail: str = Field(description="What is wrong, naming the field or resource.")
+
+
+class PageInfo(BaseModel):
+    total: int = Field(description="Items matching the query, in all pages.")
+    limit: int
+    offset: int
+    next_offset: int | None = Field(description="Offset of the next page; null on the last one.")
+
+
+# ---------------------------------------------------------------------------- health
+
+
+class HealthOut(BaseModel):
+    status: Literal["ok"] = "ok"
+    version: str
+    mode: Literal["embedded", "distributed"]
+
+
+class CheckOut(BaseModel):
+    ok: bool
+    detail: str
+
+
+class ReadyOut(BaseModel):
+    status: Literal["ready", "not ready"]
+    detail: str
+    checks: dict[str, CheckOut]
+
+
+# ---------------------------------------------------------------------------- datasets
+
+
+class DatasetOut(BaseModel):
+    id: int
+    name: str
+    content_hash: str
+    source_kind: Literal["timeseries", "summary"]
+    filename: str | None
+    media_type: str | None
+    size_bytes: int
+    created_at: datetime
+    conditions: dict[str, Any] = Field(description="Test conditions (SI): W, slip, omega, R, ...")
+    means: dict[str, float | None] = Field(description="Steady means: F [N], T [Nm], z [m].")
+    standard_errors: dict[str, float | None]
+    offset: float | None = Field(description="Averaging offset of the stored processing [s].")
+    window: list[float | None] | None = Field(description="Averaging window [s].")
+    rate_hz: float | None
+    n_samples: int | None
+    n_trials: int | None
+    meta: dict[str, Any] = Field(description="Metadata sent with the upload.")
+    created: bool | None = Field(
+        None, description="On upload: true if stored now, false if identical content existed."
+    )
+
+
+class DatasetPage(PageInfo):
+    items: list[DatasetOut]
+
+
+class SeriesOut(BaseModel):
+    dataset_id: int
+    name: str
+    units: dict[str, str]
+    stride: int = Field(description="Every stride-th sample is returned (max_points).")
+    n_total: int = Field(description="Samples in the log.")
+    t: list[float]
+    raw: dict[str, list[float]]
+    filtered: dict[str, list[float]]
+    window: list[float] | None
+    offset: float | None
+    cutoff_hz: float | None
+    means: dict[str, float | None]
+    standard_errors: dict[str, float | None]
+
+
+# ---------------------------------------------------------------------------- presets
+
+
+class PresetOut(BaseModel):
+    name: str = Field(description="Preset key: 1, 2a or 2b.")
+    case_name: str
+    description: str
+    seed: int
+    parameters: list[str]
+    n_samples: int
+    moves: str
+
+
+# ---------------------------------------------------------------------------- studies
+
+
+class StudyCreate(_In):
+    """A new study: a preset name or a full case document, the stored datasets to fit, and
+    optional overrides of the case's settings."""
+
+    preset: str | None = Field(None, description="The paper's case: '1', '2a' or '2b'.")
+    case: dict[str, Any] | None = Field(
+        None, description="A case document (the TOML case file as JSON); data.files is ignored."
+    )
+    dataset_ids: list[int] = Field(
+        default_factory=list, description="Stored datasets (POST /datasets), likelihood order."
+    )
+    name: str | None = Field(None, min_length=1, max_length=200)
+    seed: int | None = Field(None, ge=0, le=SEED_MAX)
+    n_samples: int | None = Field(None, description="Samples per stage (>= 10).")
+    moves: Literal["resample-move", "leader"] | None = None
+    n_steps: int | None = Field(None, description="Metropolis steps per chain (resample-move).")
+    max_stages: int | None = Field(None, description="Stop after this many tempering stages.")
+    likelihood: Literal["normalized", "gaussian"] | None = None
+    batch_size: int | None = Field(None, ge=1, description="Chains per work batch.")
+
+
+class CancelRequest(_In):
+    reason: str | None = Field(None, max_length=500)
+
+
+class ProgressOut(BaseModel):
+    """Where a study is. Evaluations are the Metropolis steps (stage 0: prior points) of the
+    current stage; each is one model run unless its proposal falls outside the prior support.
+    The ETA covers the current stage, from the study's rate so far (the number of stages still
+    to come is not known in advance)."""
+
+    status: str
+    stage: int | None
+    stage_status: str | None
+    exponent: float | None
+    evaluations_done: int
+    evaluations_planned: int
+    batches_done: int
+    batches_total: int
+    model_runs: int = Field(description="Finished stages' model runs plus evaluations done now.")
+    failed_runs: int
+    elapsed_seconds: float | None
+    runs_per_second: float | None
+    eta_seconds: float | None = Field(description="Time to finish the current stage.")
+    error: str | None
+
+
+class StudyBrief(BaseModel):
+    id: int
+    name: str
+    status: str
+    error: str | None
+    parameter_names: list[str]
+    dataset_ids: list[int]
+    seed: int
+    n_samples: int
+    batch_size: int | None
+    current_stage: int | None
+    log_evidence: float | None
+    model_runs: int
+    failed_runs: int
+    created_at: datetime
+    updated_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+
+
+class StudyOut(StudyBrief):
+    log_evidence_var: float | None
+    case: dict[str, Any]
+    priors: dict[str, Any]
+    sampler: dict[str, Any]
+    progress: ProgressOut
+
+
+class StudyPage(PageInfo):
+    items: list[StudyBrief]
+
+
+class StageOut(BaseModel):
+    stage: int
+    status: str
+    exponent: float | None
+    prev_exponent: float | None
+    beta: float | None
+    acceptance: float | None
+    ess: float | None
+    log_evidence_increment: float | None
+    log_evidence: float | None
+    n_chains: int
+    n_steps: int | None
+    n_batches: int
+    batches: dict[str, int] = Field(description="Work batches by status.")
+    model_runs: int | None
+    failed_runs: int | None
+    created_at: datetime
+    finished_at: datetime | None
+
+
+Num = float | Literal["nan", "inf", "-inf"]
+
+
+class SamplesPage(PageInfo):
+    study_id: int
+    stage: int
+    stage_status: str
+    names: list[str] = Field(description="Columns of samples (the calibrated parameters).")
+    response_names: list[str] | None = Field(description="Columns of responses (F/T/z per set).")
+    samples: list[list[Num]]
+    log_likelihood: list[Num]
+    log_prior: list[Num]
+    responses: list[list[Num]] | None
+
+
+class ParameterSummary(BaseModel):
+    name: str
+    unit: str | None
+    mean: float | None
+    sd: float | None
+    quantiles: dict[str, float | None] = Field(description="Keys q2.5, q25, q50, q75, q97.5.")
+    ci95: list[float | None]
+    map: float | None = Field(description="Value at the MAP sample (null when pooled).")
+
+
+class SummaryOut(BaseModel):
+    study_id: int
+    status: str
+    stage: int
+    exponent: float | None
+    is_posterior: bool = Field(description="True when the stage's exponent is 1.")
+    n_samples: int
+    names: list[str]
+    parameters: list[ParameterSummary]
+    correlation: list[list[float | None]]
+    map: dict[str, float | None] | None
+    map_log_posterior: float | None
+    log_evidence: float | None
+    log_evidence_sd: float | None
+    model_runs: int
+
+
+class PooledRequest(_In):
+    study_ids: list[int] = Field(description="Completed studies with the same parameters.")
+    n_per_study: int | None = Field(
+        None, ge=2, description="Samples taken from each study (default: the smallest study's)."
+    )
+    seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the subsampling.")
+    include_samples: bool = Field(False, description="Also return the pooled samples.")
+
+
+class PooledStudy(BaseModel):
+    study_id: int
+    name: str
+    n_samples: int
+    log_evidence: float | None
+    mean: dict[str, float | None]
+    sd: dict[str, float | None]
+
+
+class PooledOut(BaseModel):
+    study_ids: list[int]
+    n_per_study: int
+    n_samples: int
+    names: list[str]
+    parameters: list[ParameterSummary]
+    correlation: list[list[float | None]]
+    studies: list[PooledStudy]
+    samples: list[list[float]] | None = None
+
+
+class EventOut(BaseModel):
+    id: int
+    study_id: int | None
+    created_at: datetime
+    kind: str
+    payload: dict[str, Any]

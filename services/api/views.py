@@ -1,0 +1,242 @@
+"""Read models built from the store: study progress, stage lookup, posterior summaries.
+
+Kept apart from the routers so that the routes stay thin and these can be tested alone.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+from fastapi import HTTPException
+from numpy.typing import NDArray
+
+from scm_core.calibration import RESPONSES
+from scm_core.inference.posterior import credible_interval, summarize
+from services.store import NotFoundError, StageRecord, Store, StudyRecord
+
+from .schemas import ParameterSummary, ProgressOut, StageOut, StudyBrief, StudyOut
+
+ACTIVE = ("queued", "running")
+FINISHED_OK = ("completed", "stalled")
+
+
+def num(x: Any) -> float | None:
+    """A finite float, or None (JSON has no NaN or infinity)."""
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def num_list(a: NDArray[np.float64]) -> list:
+    """Floats for JSON, non-finite values as the strings "nan", "inf", "-inf"."""
+    a = np.asarray(a, dtype=np.float64)
+    if np.isfinite(a).all():
+        return a.tolist()
+
+    def one(v: float) -> float | str:
+        if math.isfinite(v):
+            return v
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
+
+    if a.ndim == 1:
+        return [one(v) for v in a.tolist()]
+    return [[one(v) for v in row] for row in a.tolist()]
+
+
+# ---------------------------------------------------------------------------- studies
+
+
+def parameter_names(study: StudyRecord) -> list[str]:
+    return [str(p["name"]) for p in study.priors.get("parameters", [])]
+
+
+def parameter_units(study: StudyRecord) -> dict[str, str | None]:
+    return {str(p["name"]): p.get("unit") for p in study.priors.get("parameters", [])}
+
+
+def response_names(store: Store, study: StudyRecord) -> list[str]:
+    """Columns of the stored responses: F, T, z per dataset (``F[name]``), as the model."""
+    out = []
+    for did in study.dataset_ids:
+        try:
+            name = store.datasets.get(did).name
+        except NotFoundError:
+            name = f"dataset{did}"
+        out.extend(f"{r}[{name}]" for r in RESPONSES)
+    return out
+
+
+def study_brief(study: StudyRecord) -> StudyBrief:
+    return StudyBrief(
+        id=study.id,
+        name=study.name,
+        status=study.status,
+        error=study.error,
+        parameter_names=parameter_names(study),
+        dataset_ids=list(study.dataset_ids),
+        seed=study.seed,
+        n_samples=study.n_samples,
+        batch_size=study.batch_size,
+        current_stage=study.current_stage,
+        log_evidence=num(study.log_evidence),
+        model_runs=study.model_runs,
+        failed_runs=study.failed_runs,
+        created_at=study.created_at,
+        updated_at=study.updated_at,
+        started_at=study.started_at,
+        finished_at=study.finished_at,
+    )
+
+
+def study_out(store: Store, study: StudyRecord) -> StudyOut:
+    return StudyOut(
+        **study_brief(study).model_dump(),
+        log_evidence_var=num(study.log_evidence_var),
+        case=study.case,
+        priors=study.priors,
+        sampler=study.sampler,
+        progress=study_progress(store, study),
+    )
+
+
+def _stage_evaluations(store: Store, study: StudyRecord, stage: StageRecord) -> tuple:
+    """(planned, done, batches_done, batches_total) evaluations of a stage, from its batches
+    and (after stage 0) the chain lengths of its plan."""
+    batches = store.batches.list(study.id, stage.stage_index)
+    lengths = [b.chain_stop - b.chain_start for b in batches]
+    if stage.stage_index > 0:
+        plan = store.stages.plan(study.id, stage.stage_index)
+        if plan is not None:
+            cl = np.asarray(plan.chain_length, dtype=np.int64)
+            lengths = [int(cl[b.chain_start : b.chain_stop].sum()) for b in batches]
+    planned = int(sum(lengths))
+    done_flags = [b.status == "done" for b in batches]
+    done = int(sum(n for n, ok in zip(lengths, done_flags, strict=True) if ok))
+    return planned, done, int(sum(done_flags)), len(batches)
+
+
+def study_progress(store: Store, study: StudyRecord, now: datetime | None = None) -> ProgressOut:
+    """The progress block of ``GET /studies/{id}`` (see :class:`ProgressOut`)."""
+    now = now or store.db.now()
+    stage = None
+    if study.current_stage is not None:
+        try:
+            stage = store.stages.get(study.id, study.current_stage)
+        except NotFoundError:
+            stage = None
+    planned = done = batches_done = batches_total = 0
+    runs = study.model_runs
+    if stage is not None:
+        planned, done, batches_done, batches_total = _stage_evaluations(store, study, stage)
+        if stage.status == "done":
+            done = planned
+        else:
+            runs += done
+    elapsed = rate = eta = None
+    if study.started_at is not None:
+        end = study.finished_at or now
+        elapsed = max((end - study.started_at).total_seconds(), 0.0)
+        if elapsed > 0 and runs > 0:
+            rate = runs / elapsed
+    if study.status in ACTIVE:
+        if stage is not None and rate:
+            eta = max(planned - done, 0) / rate
+    elif study.status in FINISHED_OK:
+        eta = 0.0
+    return ProgressOut(
+        status=study.status,
+        stage=study.current_stage,
+        stage_status=None if stage is None else stage.status,
+        exponent=None if stage is None else num(stage.exponent),
+        evaluations_done=done,
+        evaluations_planned=planned,
+        batches_done=batches_done,
+        batches_total=batches_total,
+        model_runs=int(runs),
+        failed_runs=study.failed_runs,
+        elapsed_seconds=elapsed,
+        runs_per_second=rate,
+        eta_seconds=eta,
+        error=study.error,
+    )
+
+
+def stage_out(store: Store, stage: StageRecord) -> StageOut:
+    return StageOut(
+        stage=stage.stage_index,
+        status=stage.status,
+        exponent=num(stage.exponent),
+        prev_exponent=num(stage.prev_exponent),
+        beta=num(stage.beta),
+        acceptance=num(stage.acceptance),
+        ess=num(stage.ess),
+        log_evidence_increment=num(stage.log_evidence_increment),
+        log_evidence=num(stage.log_evidence),
+        n_chains=stage.n_chains,
+        n_steps=stage.n_steps,
+        n_batches=stage.n_batches,
+        batches=store.batches.counts(stage.study_id, stage.stage_index),
+        model_runs=stage.model_runs,
+        failed_runs=stage.failed_runs,
+        created_at=stage.created_at,
+        finished_at=stage.finished_at,
+    )
+
+
+def resolve_stage(store: Store, study_id: int, j: int) -> StageRecord:
+    """Stage ``j`` of a study; negative ``j`` counts finished stages from the end (-1: the
+    last finished stage)."""
+    store.studies.get(study_id)  # 404 for an unknown study
+    stages = store.stages.list(study_id)
+    if j < 0:
+        done = [s for s in stages if s.status == "done"]
+        if not done:
+            raise HTTPException(409, f"study {study_id} has no finished stage yet")
+        if -j > len(done):
+            raise HTTPException(
+                404, f"stage {j}: study {study_id} has {len(done)} finished stage(s)"
+            )
+        return done[j]
+    for s in stages:
+        if s.stage_index == j:
+            return s
+    raise HTTPException(404, f"stage {j} of study {study_id} not found")
+
+
+# ---------------------------------------------------------------------------- posteriors
+
+
+def parameter_summaries(
+    X: NDArray[np.float64],
+    names: Sequence[str],
+    units: dict[str, str | None],
+    log_prior: NDArray[np.float64] | None = None,
+    log_likelihood: NDArray[np.float64] | None = None,
+) -> tuple[list[ParameterSummary], list[list[float | None]], Any]:
+    """Per-parameter summaries, the correlation matrix and the PosteriorSummary."""
+    post = summarize(X, names, log_prior, log_likelihood)
+    ci = np.atleast_2d(credible_interval(X, 0.95))
+    params = []
+    for k, name in enumerate(names):
+        params.append(
+            ParameterSummary(
+                name=name,
+                unit=units.get(name),
+                mean=num(post.mean[k]),
+                sd=num(post.sd[k]),
+                quantiles={
+                    f"q{100 * q:g}": num(v)
+                    for q, v in zip(post.quantile_levels, post.quantiles[:, k], strict=True)
+                },
+                ci95=[num(ci[k, 0]), num(ci[k, 1])],
+                map=None if post.map_sample is None else num(post.map_sample[k]),
+            )
+        )
+    corr = [[num(v) for v in row] for row in np.asarray(post.correlation)]
+    return params, corr, post

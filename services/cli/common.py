@@ -1,0 +1,53 @@
+"""Shared pieces of the ``scm-calib`` commands: one-line errors and input loading."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import click
+
+from scm_core.calibration import CaseDefinition, CaseError, load_case
+from scm_core.signals import LogFormatError, SWTDataset, load_dataset
+
+
+class CLIError(click.ClickException):
+    """A bad input (case file, dataset, option): one line on stderr, exit code 2."""
+
+    exit_code = 2
+
+
+def read_case(path: Path) -> CaseDefinition:
+    try:
+        return load_case(path)
+    except CaseError as exc:
+        raise CLIError(str(exc)) from None
+
+
+def data_paths(case: CaseDefinition, data: Sequence[Path]) -> list[Path]:
+    """``--data`` paths if given, else the case's ``[data] files``; at least one."""
+    paths = list(data) if data else case.data_paths()
+    if not paths:
+        raise CLIError(
+            "no datasets: give --data LOG.csv (repeatable) or list files under [data] in the case"
+        )
+    return paths
+
+
+def read_datasets(case: CaseDefinition, paths: Sequence[Path]) -> list[SWTDataset]:
+    """Load every dataset with the case's averaging offset and cutoff; one-line errors."""
+    out = []
+    for path in paths:
+        if not Path(path).is_file():
+            raise CLIError(f"dataset {path}: no such file")
+        try:
+            out.append(load_dataset(path, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz))
+        except (LogFormatError, ValueError, OSError) as exc:
+            msg = " ".join(str(exc).split())
+            raise CLIError(msg if str(path.name) in msg else f"{path.name}: {msg}") from None
+    names = [d.name for d in out]
+    if len(set(names)) != len(names):
+        # keep response column names unique
+        out = [replace(d, name=f"{d.name}#{i}") for i, d in enumerate(out)]
+    return out

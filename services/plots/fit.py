@@ -1,0 +1,112 @@
+"""Simulated vs measured SWT signals at a parameter sample (e.g. the MAP), like Figure 3."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from scm_core.signals import SWTDataset, lowpass
+from scm_core.simulator import RigConfig, SWTResult
+
+_ROWS = (
+    ("F", "drawbar_pull", "drawbar pull F [N]", 1.0, "offset_F"),
+    ("T", "torque", "torque T [N m]", 1.0, "offset_T"),
+    ("z", "sinkage", "sinkage z [mm]", 1000.0, "offset_z"),
+)
+
+
+def _filtered(t: np.ndarray, y: np.ndarray, cutoff_hz: float | None) -> np.ndarray:
+    """The simulated signal through the lab logs' zero-phase low-pass, for a like-for-like
+    look (unfiltered if too short or too coarsely sampled)."""
+    if t.size < 30:
+        return y
+    rate = 1.0 / float(np.median(np.diff(t)))
+    try:
+        return lowpass(y, rate, cutoff_hz)
+    except ValueError:
+        return y
+
+
+def plot_fit(
+    datasets: Sequence[SWTDataset],
+    sims: Sequence[SWTResult | None],
+    rigs: Sequence[RigConfig | None],
+    path: str | Path,
+    title: str | None = None,
+) -> Path:
+    """One column per dataset, rows F, T, z: the filtered measured signal with its steady mean
+    over the experimental window, and the simulated signal with its mean over the simulation's
+    windows. Summary datasets (no series) show their mean +- sd as a band."""
+    path = Path(path)
+    ncols = len(datasets)
+    fig = Figure(figsize=(5.2 * ncols, 7.5), layout="constrained")
+    axes = np.array(fig.subplots(3, ncols, squeeze=False))
+    for c, (ds, sim, rig) in enumerate(zip(datasets, sims, rigs, strict=True)):
+        t_end = 0.0
+        for r, (key, column, ylabel, scale, offset_name) in enumerate(_ROWS):
+            ax = axes[r, c]
+            stat = ds.responses[key]
+            if ds.series is not None:
+                t = ds.series.t
+                ax.plot(
+                    t,
+                    ds.series.filtered[column] * scale,
+                    lw=0.7,
+                    color="0.35",
+                    label="measured (filtered)",
+                )
+                lo, hi = ds.window if ds.window is not None else (float(t[0]), float(t[-1]))
+                ax.hlines(
+                    stat.mean * scale,
+                    lo,
+                    hi,
+                    colors="k",
+                    lw=2.2,
+                    label=f"measured mean {stat.mean * scale:.4g}",
+                )
+                t_end = max(t_end, float(t[-1]))
+            else:
+                ax.axhspan(
+                    (stat.mean - stat.sd) * scale,
+                    (stat.mean + stat.sd) * scale,
+                    color="0.8",
+                    alpha=0.6,
+                    label="measured mean +- sd",
+                )
+                ax.axhline(stat.mean * scale, color="k", lw=2.0)
+            if sim is not None and rig is not None:
+                ts = sim.series["t"]
+                ys = sim.series[key] * scale
+                ax.plot(ts, ys, lw=0.5, color="tab:blue", alpha=0.3)
+                ax.plot(
+                    ts,
+                    _filtered(ts, ys, ds.cutoff_hz),
+                    lw=0.9,
+                    color="tab:blue",
+                    label="simulated (filtered)",
+                )
+                if sim.means is not None:
+                    m = getattr(sim.means, key) * scale
+                    ax.hlines(
+                        m,
+                        getattr(rig, offset_name),
+                        rig.duration,
+                        colors="tab:red",
+                        lw=2.2,
+                        label=f"simulated mean {m:.4g}",
+                    )
+                t_end = max(t_end, rig.duration)
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7, loc="lower right")
+        axes[0, c].set_title(f"{ds.name} (slip {ds.conditions.slip:g}, W {ds.conditions.W:g} N)")
+        axes[-1, c].set_xlabel("time t [s]")
+        if t_end > 0:
+            for r in range(3):
+                axes[r, c].set_xlim(0, t_end)
+    fig.suptitle(title or "Measured vs simulated at the MAP sample")
+    fig.savefig(path, dpi=110)
+    return path

@@ -1,0 +1,209 @@
+"""Posterior figures like the paper's Figures 5-8: prior vs posterior histograms and bivariate
+kernel-density contours of selected parameter pairs."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Collection, Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from numpy.typing import NDArray
+
+from scm_core.inference.posterior import kde_2d
+
+#: pairs of the paper's Figures 6 (case 1) and 7-8 (cases 2), in order of preference
+PAPER_PAIRS = (("k_c", "k_phi"), ("n", "phi"), ("phi", "J"), ("n", "R"))
+
+_LABELS = {
+    "k_c": "k_c [N/m^(n+1)]",
+    "k_phi": "k_phi [N/m^(n+2)]",
+    "n": "n [-]",
+    "phi": "phi [deg]",
+    "J": "J [m/s]",
+    "R": "R [m]",
+    "c": "c [Pa]",
+    "D_soil": "D_soil [N s/m^3]",
+    "sigma_F": "sigma_F [N]",
+    "sigma_T": "sigma_T [N m]",
+    "sigma_z": "sigma_z [m]",
+}
+
+
+def label(name: str, units: Mapping[str, str] | None = None) -> str:
+    if units and name in units and units[name] not in ("", "-"):
+        return f"{name} [{units[name]}]"
+    return _LABELS.get(name, name)
+
+
+def _log(name: str, log_params: Collection[str]) -> bool:
+    return name in log_params
+
+
+def _tx(name: str, x, log_params: Collection[str]):
+    """Values on the plotting scale: log10 for parameters with a log-uniform prior."""
+    if not _log(name, log_params):
+        return x
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.log10(np.asarray(x, dtype=float))
+
+
+def _axis_label(name: str, units: Mapping[str, str] | None, log_params: Collection[str]) -> str:
+    text = label(name, units)
+    return f"log10 {text}" if _log(name, log_params) else text
+
+
+def default_pairs(names: Sequence[str], limit: int = 3) -> list[tuple[str, str]]:
+    """The paper's pairs among ``names`` (k_c-k_phi, n-phi, phi-J or n-R), else consecutive
+    pairs of the non-sigma parameters; at most ``limit``."""
+    pairs = [p for p in PAPER_PAIRS if p[0] in names and p[1] in names]
+    if "J" in names:
+        pairs = [p for p in pairs if p != ("n", "R")] + [p for p in pairs if p == ("n", "R")]
+    physical = [n for n in names if not n.startswith("sigma_")]
+    for a, b in itertools.pairwise(physical):
+        if len(pairs) >= limit:
+            break
+        if (a, b) not in pairs and (b, a) not in pairs:
+            pairs.append((a, b))
+    return pairs[:limit]
+
+
+def plot_prior_posterior(
+    names: Sequence[str],
+    prior_samples: NDArray[np.float64],
+    posterior_samples: NDArray[np.float64],
+    path: str | Path,
+    bounds: NDArray[np.float64] | None = None,
+    units: Mapping[str, str] | None = None,
+    map_sample: NDArray[np.float64] | None = None,
+    truth: Mapping[str, float] | None = None,
+    reference: Mapping[str, float] | None = None,
+    title: str | None = None,
+    log_params: Collection[str] = (),
+) -> Path:
+    """Histograms (densities) of prior and posterior samples per parameter (Figure 5);
+    parameters in ``log_params`` (log-uniform priors) are drawn on a log10 scale."""
+    path = Path(path)
+    d = len(names)
+    ncols = min(4, d)
+    nrows = math.ceil(d / ncols)
+    fig = Figure(figsize=(3.4 * ncols, 2.7 * nrows), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
+    for j, name in enumerate(names):
+        ax = axes[j]
+        pr = _tx(name, prior_samples[:, j], log_params)
+        po = _tx(name, posterior_samples[:, j], log_params)
+        if bounds is not None:
+            lo, hi = _tx(name, bounds[j], log_params)
+        else:
+            lo, hi = min(pr.min(), po.min()), max(pr.max(), po.max())
+        if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+            lo, hi = float(np.min(po)) - 0.5, float(np.max(po)) + 0.5
+        edges = np.linspace(lo, hi, 41)
+        ax.hist(pr, bins=edges, density=True, color="0.75", label="prior")
+        p_lo, p_hi = float(po.min()), float(po.max())
+        if p_hi > p_lo:
+            fine = np.linspace(p_lo, p_hi, 31)
+            ax.hist(po, bins=fine, density=True, color="tab:blue", alpha=0.75, label="posterior")
+        else:
+            ax.axvline(p_lo, color="tab:blue", lw=2, label="posterior")
+        if map_sample is not None:
+            ax.axvline(_tx(name, map_sample[j], log_params), color="tab:red", lw=1.2, label="MAP")
+        if truth and name in truth:
+            ax.axvline(
+                _tx(name, truth[name], log_params), color="tab:green", lw=1.2, ls="--", label="true"
+            )
+        if reference and name in reference:
+            ax.axvline(
+                _tx(name, reference[name], log_params), color="k", lw=1.0, ls=":", label="bevameter"
+            )
+        ax.set_xlabel(_axis_label(name, units, log_params))
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+        ax.grid(alpha=0.3)
+    for ax in axes[d:]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title or "Prior and posterior densities")
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def plot_pairs(
+    names: Sequence[str],
+    samples: NDArray[np.float64],
+    path: str | Path,
+    pairs: Sequence[tuple[str, str]] | None = None,
+    units: Mapping[str, str] | None = None,
+    reference: Mapping[str, float] | None = None,
+    k_star_line: tuple[float, float] | None = None,
+    truth: Mapping[str, float] | None = None,
+    title: str | None = None,
+    log_params: Collection[str] = (),
+) -> Path | None:
+    """Bivariate kernel-density contours of posterior pairs (Figures 6-8); parameters in
+    ``log_params`` are drawn (and their densities estimated) on a log10 scale.
+
+    ``k_star_line`` = (k*, b_eff) draws the dashed line k_c / b_eff + k_phi = k* on the k_c-k_phi
+    panel (the paper's bevameter k* at the simulations' mean b_eff); ``reference`` marks
+    bevameter means, ``truth`` the true values of a synthetic study. None if no pair.
+    """
+    path = Path(path)
+    pairs = list(pairs) if pairs is not None else default_pairs(names)
+    if not pairs:
+        return None
+    index = {n: j for j, n in enumerate(names)}
+    fig = Figure(figsize=(4.6 * len(pairs), 4.0), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(pairs)))
+    for ax, (a, b) in zip(axes, pairs, strict=True):
+        x = _tx(a, samples[:, index[a]], log_params)
+        y = _tx(b, samples[:, index[b]], log_params)
+        ax.scatter(x, y, s=3, color="0.4", alpha=0.25, lw=0, label="samples")
+        distinct = np.unique(np.column_stack([x, y]), axis=0).shape[0]
+        if np.ptp(x) > 0 and np.ptp(y) > 0 and distinct > 3:
+            try:
+                gx, gy, dens = kde_2d(x, y, n_grid=80)
+                levels = np.linspace(0.05, 0.95, 8) * float(dens.max())
+                ax.contour(gx, gy, dens, levels=levels, cmap="viridis", linewidths=1.0)
+            except (np.linalg.LinAlgError, ValueError):
+                pass
+        if k_star_line is not None and (a, b) == ("k_c", "k_phi"):
+            k_star, b_eff = k_star_line
+            xs = np.linspace(*ax.get_xlim(), 200)
+            k_c = 10.0**xs if _log(a, log_params) else xs
+            ylim = ax.get_ylim()
+            ys = _tx(b, k_star - k_c / b_eff, log_params)
+            ax.plot(xs, ys, "--", color="0.5", label=f"k* = {k_star:.3g}")
+            ax.set_ylim(ylim)
+        ref = {**(reference or {})}
+        if "k_star" in ref and (a, b) == ("k_c", "k_phi"):
+            ref.setdefault("k_c", 0.0)
+            ref.setdefault("k_phi", ref["k_star"])
+        if a in ref and b in ref:
+            ax.plot(
+                _tx(a, ref[a], log_params),
+                _tx(b, ref[b], log_params),
+                "k+",
+                ms=12,
+                mew=2,
+                label="bevameter",
+            )
+        if truth and a in truth and b in truth:
+            ax.plot(
+                _tx(a, truth[a], log_params),
+                _tx(b, truth[b], log_params),
+                "x",
+                color="tab:green",
+                ms=10,
+                mew=2,
+                label="true",
+            )
+        ax.set_xlabel(_axis_label(a, units, log_params))
+        ax.set_ylabel(_axis_label(b, units, log_params))
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    fig.suptitle(title or "Bivariate posterior densities")
+    fig.savefig(path, dpi=110)
+    return path

@@ -1,0 +1,307 @@
+"""Plain, immutable values returned by the repositories (never live ORM objects)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any, Generic, Literal, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scm_core.inference.tmcmc_stage import StagePlan, StageState
+
+from .codec import BatchResult
+
+__all__ = [
+    "AdvanceOutcome",
+    "BatchKey",
+    "BatchLease",
+    "BatchRecord",
+    "CompleteOutcome",
+    "DatasetRecord",
+    "EventRecord",
+    "Page",
+    "ReapReport",
+    "ReduceInput",
+    "Reducer",
+    "SampleArrays",
+    "SamplePage",
+    "StageAdvance",
+    "StageRecord",
+    "StudyRecord",
+    "StudySpec",
+]
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class Page(Generic[T]):
+    """One page of a listing: ``items`` from ``offset``, ``total`` matching rows in all."""
+
+    items: list[T]
+    total: int
+    limit: int
+    offset: int
+
+    @property
+    def next_offset(self) -> int | None:
+        nxt = self.offset + len(self.items)
+        return nxt if nxt < self.total else None
+
+
+@dataclass(frozen=True)
+class DatasetRecord:
+    id: int
+    content_hash: str
+    name: str
+    source_kind: str
+    filename: str | None
+    media_type: str | None
+    size_bytes: int
+    meta: dict[str, Any]
+    processed: dict[str, Any]
+    created_at: datetime
+
+    @property
+    def means(self) -> dict[str, float]:
+        """Steady means {"F", "T", "z"} of the processed dataset."""
+        return {k: float(v["mean"]) for k, v in self.processed["responses"].items()}
+
+    @property
+    def standard_errors(self) -> dict[str, float]:
+        return {k: float(v["se"]) for k, v in self.processed["responses"].items()}
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """What a new study is made of.
+
+    priors: ``JointPrior.to_dict()``; sampler: ``TMCMCSettings.to_dict()`` (plus whatever the
+    orchestrator needs); case and simulator: free JSON. ``dataset_ids`` in likelihood order.
+    seed: 0 <= seed < 2**63. batch_size: chains per work batch (None: orchestrator decides).
+    """
+
+    name: str
+    case: Mapping[str, Any]
+    priors: Mapping[str, Any]
+    dataset_ids: Sequence[int]
+    seed: int
+    n_samples: int
+    sampler: Mapping[str, Any] = field(default_factory=dict)
+    simulator: Mapping[str, Any] = field(default_factory=dict)
+    batch_size: int | None = None
+
+
+@dataclass(frozen=True)
+class StudyRecord:
+    id: int
+    name: str
+    status: str
+    case: dict[str, Any]
+    priors: dict[str, Any]
+    sampler: dict[str, Any]
+    simulator: dict[str, Any]
+    seed: int
+    n_samples: int
+    batch_size: int | None
+    dataset_ids: tuple[int, ...]
+    current_stage: int | None
+    log_evidence: float | None
+    log_evidence_var: float | None
+    model_runs: int
+    failed_runs: int
+    error: str | None
+    created_at: datetime
+    updated_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+
+
+@dataclass(frozen=True)
+class StageRecord:
+    """Stage ``stage_index`` of a study. Float diagnostics are None where undefined (NaN).
+
+    exponent, prev_exponent, beta (proposal scale used), ess, log_evidence_increment and
+    n_steps come from the plan; acceptance, log_evidence (running sum), model_runs and
+    failed_runs are filled when the stage is done.
+    """
+
+    id: int
+    study_id: int
+    stage_index: int
+    status: str
+    exponent: float | None
+    prev_exponent: float | None
+    beta: float | None
+    acceptance: float | None
+    ess: float | None
+    log_evidence_increment: float | None
+    log_evidence: float | None
+    n_chains: int
+    n_steps: int | None
+    n_batches: int
+    model_runs: int | None
+    failed_runs: int | None
+    created_at: datetime
+    updated_at: datetime
+    finished_at: datetime | None
+
+
+@dataclass(frozen=True, order=True)
+class BatchKey:
+    study_id: int
+    stage_index: int
+    batch_index: int
+
+
+@dataclass(frozen=True)
+class BatchRecord:
+    id: int
+    key: BatchKey
+    chain_start: int
+    chain_stop: int
+    status: str
+    attempts: int
+    worker_id: str | None
+    leased_at: datetime | None
+    lease_expires_at: datetime | None
+    heartbeat_at: datetime | None
+    dispatched_at: datetime | None
+    finished_at: datetime | None
+    error: str | None
+
+
+@dataclass(frozen=True)
+class BatchLease:
+    """A granted lease: run chains ``chains`` of the stage, heartbeat before ``expires_at``."""
+
+    batch_id: int
+    key: BatchKey
+    chain_start: int
+    chain_stop: int
+    worker_id: str
+    attempt: int
+    expires_at: datetime
+
+    @property
+    def chains(self) -> range:
+        return range(self.chain_start, self.chain_stop)
+
+
+@dataclass(frozen=True)
+class CompleteOutcome:
+    """Result of storing a batch result: "stored" (first delivery), "duplicate" (already
+    stored; nothing changed) or "rejected" (batch failed or study no longer running).
+    ``done``/``total``: batches of the stage done after this call."""
+
+    status: Literal["stored", "duplicate", "rejected"]
+    done: int
+    total: int
+
+    @property
+    def stage_complete(self) -> bool:
+        return self.done == self.total
+
+
+@dataclass(frozen=True)
+class ReapReport:
+    """What :meth:`BatchRepository.reap` did.
+
+    requeued: expired leases put back to pending. failed: batches over the attempt cap (their
+    studies are in failed_studies). to_dispatch: pending batches to send to the broker (the
+    requeued ones plus pending ones not dispatched for a while); their dispatched_at is set.
+    ready_stages: (study_id, stage_index) whose batches are all done but that have not been
+    advanced (e.g. the process that stored the last result died).
+    """
+
+    requeued: list[BatchKey]
+    failed: list[BatchKey]
+    failed_studies: list[int]
+    to_dispatch: list[BatchKey]
+    ready_stages: list[tuple[int, int]]
+
+
+@dataclass(frozen=True)
+class EventRecord:
+    id: int
+    study_id: int | None
+    created_at: datetime
+    kind: str
+    payload: dict[str, Any]
+
+
+@dataclass(frozen=True, eq=False)
+class SampleArrays:
+    """A stage's population: samples (n, d), log_likelihood and log_prior (n,), responses
+    (n, k) or None; rows in sample order."""
+
+    samples: NDArray[np.float64]
+    log_likelihood: NDArray[np.float64]
+    log_prior: NDArray[np.float64]
+    responses: NDArray[np.float64] | None
+
+    def __len__(self) -> int:
+        return int(self.samples.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class SamplePage:
+    """Rows ``start`` .. ``start + len(arrays) - 1`` of a stage of ``total`` samples."""
+
+    start: int
+    total: int
+    arrays: SampleArrays
+
+    @property
+    def next_start(self) -> int | None:
+        nxt = self.start + len(self.arrays)
+        return nxt if nxt < self.total and len(self.arrays) else None
+
+
+@dataclass(frozen=True)
+class ReduceInput:
+    """Handed to the reducer inside the advance transaction."""
+
+    study: StudyRecord
+    stage: StageRecord
+    plan: StagePlan | None
+    results: list[BatchResult]
+
+
+@dataclass(frozen=True, eq=False)
+class StageAdvance:
+    """The reducer's answer: the population of the reduced stage and what comes next.
+
+    next_plan with next_batches (consecutive ranges covering chains 0..n_chains-1) opens
+    stage + 1. With next_plan None the study ends with ``final_status`` ("completed",
+    "stalled" or "failed", with ``error``). ``payload``: extra fields for the "stage_done"
+    event (strict JSON after non-finite floats become strings).
+    """
+
+    state: StageState
+    next_plan: StagePlan | None = None
+    next_batches: Sequence[range] = ()
+    final_status: str | None = None
+    error: str | None = None
+    payload: Mapping[str, Any] | None = None
+
+
+Reducer = Callable[[ReduceInput], StageAdvance]
+
+
+@dataclass(frozen=True)
+class AdvanceOutcome:
+    """Result of :meth:`StageRepository.advance`.
+
+    "advanced": this call reduced the stage (exactly one caller gets it). "already": the stage
+    is not open any more (another caller advanced it). "not_ready": some batches are not done.
+    "inactive": the study is not running (cancelled, failed, ...). study_status is the study's
+    status after the call; next_stage the index of the stage opened, if any.
+    """
+
+    status: Literal["advanced", "already", "not_ready", "inactive"]
+    study_status: str
+    next_stage: int | None = None

@@ -1,0 +1,79 @@
+"""The append-only event log: what happened to a study (or, with study_id None, the service).
+
+Order: by ``id``, which is allocated at insert. Concurrent writers may commit in a different
+order than their ids, so a poller reading ``after_id`` should re-read a short overlap window
+(or poll by study, where the orchestrator's transactions are serialised by the stage lock).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from datetime import datetime
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from ..engine import jsonable
+from ..models import Event
+from ..records import EventRecord
+from .base import Database
+
+__all__ = ["EventRepository", "append_event"]
+
+
+def _record(e: Event) -> EventRecord:
+    return EventRecord(
+        id=e.id,
+        study_id=e.study_id,
+        created_at=e.created_at,
+        kind=e.kind,
+        payload=dict(e.payload or {}),
+    )
+
+
+def append_event(
+    session: Session,
+    study_id: int | None,
+    kind: str,
+    payload: Mapping[str, Any] | None,
+    at: datetime,
+) -> Event:
+    """Add one event in the caller's transaction (flushed, so it has its id)."""
+    event = Event(
+        study_id=study_id, kind=kind, payload=jsonable(dict(payload or {})), created_at=at
+    )
+    session.add(event)
+    session.flush()
+    return event
+
+
+class EventRepository:
+    def __init__(self, db: Database) -> None:
+        self.db = db
+
+    def append(
+        self, study_id: int | None, kind: str, payload: Mapping[str, Any] | None = None
+    ) -> EventRecord:
+        """Append one event (its own transaction)."""
+        with self.db.write() as s:
+            return _record(append_event(s, study_id, kind, payload, self.db.now()))
+
+    def list(
+        self,
+        study_id: int | None = None,
+        *,
+        after_id: int | None = None,
+        kinds: Sequence[str] | None = None,
+        limit: int = 100,
+    ) -> list[EventRecord]:
+        """Events in append order (ascending id), optionally of one study, after an id."""
+        q = sa.select(Event).order_by(Event.id).limit(max(int(limit), 0))
+        if study_id is not None:
+            q = q.where(Event.study_id == study_id)
+        if after_id is not None:
+            q = q.where(Event.id > after_id)
+        if kinds:
+            q = q.where(Event.kind.in_(list(kinds)))
+        with self.db.read() as s:
+            return [_record(e) for e in s.scalars(q)]

@@ -1,0 +1,242 @@
+"""Studies: creation, listing, start, cancel and failure.
+
+Status: queued -> running -> completed | stalled | failed, and queued/running -> cancelled |
+failed. Every status change is a compare-and-set (``UPDATE ... WHERE status IN (...)``), so a
+cancel racing with a stage advance or with the reaper has exactly one winner.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from datetime import datetime
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from scm_core.inference.tmcmc_stage import StagePlan
+
+from ..engine import jsonable
+from ..errors import NotFoundError
+from ..models import STUDY_ACTIVE, STUDY_STATUSES, Dataset, Study, StudyDataset
+from ..records import Page, StageRecord, StudyRecord, StudySpec
+from .base import Database
+from .events import append_event
+
+__all__ = ["StudyRepository", "fail_study", "load_study", "set_study_status"]
+
+_SEED_LIMIT = 2**63
+
+
+def _dataset_ids(session: Session, study_ids: Iterable[int]) -> dict[int, tuple[int, ...]]:
+    ids = list(study_ids)
+    out: dict[int, list[int]] = {i: [] for i in ids}
+    if ids:
+        rows = session.execute(
+            sa.select(StudyDataset.study_id, StudyDataset.dataset_id)
+            .where(StudyDataset.study_id.in_(ids))
+            .order_by(StudyDataset.study_id, StudyDataset.position)
+        )
+        for study_id, dataset_id in rows:
+            out[study_id].append(dataset_id)
+    return {k: tuple(v) for k, v in out.items()}
+
+
+def _record(st: Study, dataset_ids: tuple[int, ...]) -> StudyRecord:
+    return StudyRecord(
+        id=st.id,
+        name=st.name,
+        status=st.status,
+        case=dict(st.case_spec),
+        priors=dict(st.priors),
+        sampler=dict(st.sampler),
+        simulator=dict(st.simulator),
+        seed=int(st.seed),
+        n_samples=st.n_samples,
+        batch_size=st.batch_size,
+        dataset_ids=dataset_ids,
+        current_stage=st.current_stage,
+        log_evidence=st.log_evidence,
+        log_evidence_var=st.log_evidence_var,
+        model_runs=int(st.model_runs),
+        failed_runs=int(st.failed_runs),
+        error=st.error,
+        created_at=st.created_at,
+        updated_at=st.updated_at,
+        started_at=st.started_at,
+        finished_at=st.finished_at,
+    )
+
+
+def load_study(session: Session, study_id: int) -> StudyRecord:
+    """The study as a record, read in the caller's transaction."""
+    st = session.get(Study, study_id, populate_existing=True)
+    if st is None:
+        raise NotFoundError(f"study {study_id} not found")
+    return _record(st, _dataset_ids(session, [study_id])[study_id])
+
+
+def set_study_status(
+    session: Session,
+    study_id: int,
+    to: str,
+    now: datetime,
+    *,
+    from_: Sequence[str] = STUDY_ACTIVE,
+    **values: Any,
+) -> bool:
+    """Compare-and-set of a study's status; True if this call changed it."""
+    if to not in STUDY_STATUSES:
+        raise ValueError(f"unknown study status {to!r}")
+    values.setdefault("updated_at", now)
+    if to not in STUDY_ACTIVE:
+        values.setdefault("finished_at", now)
+    res = session.execute(
+        sa.update(Study)
+        .where(Study.id == study_id, Study.status.in_(list(from_)))
+        .values(status=to, **values)
+        .execution_options(synchronize_session=False)
+    )
+    return res.rowcount == 1
+
+
+def fail_study(
+    session: Session, study_id: int, error: str, now: datetime, payload: dict[str, Any] | None
+) -> bool:
+    """Mark an active study failed with ``error`` and log "study_failed" (caller's tx)."""
+    if not set_study_status(session, study_id, "failed", now, error=error):
+        return False
+    append_event(session, study_id, "study_failed", {"error": error, **(payload or {})}, now)
+    return True
+
+
+class StudyRepository:
+    def __init__(self, db: Database) -> None:
+        self.db = db
+
+    def create(self, spec: StudySpec) -> StudyRecord:
+        """Insert a queued study with its datasets (in order) and a "study_created" event."""
+        if not 0 <= int(spec.seed) < _SEED_LIMIT:
+            raise ValueError(f"seed must satisfy 0 <= seed < 2**63, got {spec.seed}")
+        if int(spec.n_samples) < 1:
+            raise ValueError(f"n_samples must be >= 1, got {spec.n_samples}")
+        if spec.batch_size is not None and int(spec.batch_size) < 1:
+            raise ValueError(f"batch_size must be >= 1 or None, got {spec.batch_size}")
+        dataset_ids = [int(i) for i in spec.dataset_ids]
+        if len(set(dataset_ids)) != len(dataset_ids):
+            raise ValueError(f"dataset ids repeat: {dataset_ids}")
+        now = self.db.now()
+        with self.db.write() as s:
+            if dataset_ids:
+                found = set(s.scalars(sa.select(Dataset.id).where(Dataset.id.in_(dataset_ids))))
+                missing = [i for i in dataset_ids if i not in found]
+                if missing:
+                    raise NotFoundError(f"datasets not found: {missing}")
+            st = Study(
+                name=spec.name[:200],
+                status="queued",
+                case_spec=jsonable(dict(spec.case)),
+                priors=jsonable(dict(spec.priors)),
+                sampler=jsonable(dict(spec.sampler)),
+                simulator=jsonable(dict(spec.simulator)),
+                seed=int(spec.seed),
+                n_samples=int(spec.n_samples),
+                batch_size=None if spec.batch_size is None else int(spec.batch_size),
+                model_runs=0,
+                failed_runs=0,
+                created_at=now,
+                updated_at=now,
+            )
+            s.add(st)
+            s.flush()
+            s.add_all(
+                StudyDataset(study_id=st.id, position=i, dataset_id=d)
+                for i, d in enumerate(dataset_ids)
+            )
+            append_event(
+                s, st.id, "study_created", {"name": st.name, "dataset_ids": dataset_ids}, now
+            )
+            s.flush()
+            return _record(st, tuple(dataset_ids))
+
+    def get(self, study_id: int) -> StudyRecord:
+        with self.db.read() as s:
+            return load_study(s, study_id)
+
+    def list(
+        self,
+        status: str | Sequence[str] | None = None,
+        *,
+        limit: int = 50,
+        offset: int = 0,
+    ) -> Page[StudyRecord]:
+        """Studies, newest first, optionally only those with the given status(es)."""
+        where = []
+        if status is not None:
+            statuses = [status] if isinstance(status, str) else list(status)
+            unknown = set(statuses) - set(STUDY_STATUSES)
+            if unknown:
+                raise ValueError(f"unknown study status(es) {sorted(unknown)}")
+            where.append(Study.status.in_(statuses))
+        with self.db.read() as s:
+            total = s.scalar(sa.select(sa.func.count()).select_from(Study).where(*where)) or 0
+            studies = list(
+                s.scalars(
+                    sa.select(Study)
+                    .where(*where)
+                    .order_by(Study.id.desc())
+                    .limit(max(int(limit), 0))
+                    .offset(max(int(offset), 0))
+                )
+            )
+            ids = _dataset_ids(s, [st.id for st in studies])
+            items = [_record(st, ids[st.id]) for st in studies]
+        return Page(items, int(total), limit, offset)
+
+    def start(
+        self,
+        study_id: int,
+        batches: Sequence[range],
+        *,
+        plan: StagePlan | None = None,
+        exponent: float = 0.0,
+    ) -> StageRecord | None:
+        """queued -> running and open stage 0 (status planned) with pending ``batches``, in
+        one transaction. Stage 0 normally has no plan: its points are
+        ``initial_samples(prior, n_samples, seed)``, rows ``batch.chain_start:chain_stop``.
+        Returns the stage, or None if the study was not queued (started only once)."""
+        from .stages import create_stage, stage_record
+
+        now = self.db.now()
+        with self.db.write() as s:
+            if not set_study_status(
+                s, study_id, "running", now, from_=("queued",), started_at=now, current_stage=0
+            ):
+                if s.get(Study, study_id) is None:
+                    raise NotFoundError(f"study {study_id} not found")
+                return None
+            append_event(s, study_id, "study_started", {"stage": 0}, now)
+            stage = create_stage(s, study_id, 0, plan, batches, now, exponent=exponent)
+            return stage_record(stage)
+
+    def cancel(self, study_id: int, reason: str | None = None) -> bool:
+        """queued/running -> cancelled. Leased work is abandoned: leases, heartbeats and
+        results of a cancelled study are refused. False if the study had already ended."""
+        now = self.db.now()
+        with self.db.write() as s:
+            if not set_study_status(s, study_id, "cancelled", now, error=reason):
+                if s.get(Study, study_id) is None:
+                    raise NotFoundError(f"study {study_id} not found")
+                return False
+            append_event(s, study_id, "study_cancelled", {"reason": reason}, now)
+            return True
+
+    def fail(self, study_id: int, error: str, payload: dict[str, Any] | None = None) -> bool:
+        """queued/running -> failed with ``error`` (e.g. a reducer raised)."""
+        now = self.db.now()
+        with self.db.write() as s:
+            if not fail_study(s, study_id, error, now, payload):
+                if s.get(Study, study_id) is None:
+                    raise NotFoundError(f"study {study_id} not found")
+                return False
+            return True

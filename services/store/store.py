@@ -1,0 +1,98 @@
+"""The store: all repositories over one database.
+
+>>> store = Store.open("sqlite:///scm-calib-data/scm-calib.db")   # doctest: +SKIP
+>>> store.studies.list(status="running").items                      # doctest: +SKIP
+
+:meth:`Store.open` refuses a database that is not at the migrations' head revision
+(:class:`~services.store.migrate.SchemaVersionError`); run ``scm-calib db upgrade`` first.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import datetime
+from typing import TYPE_CHECKING
+
+from sqlalchemy.engine import URL, Engine
+
+from .engine import make_engine
+from .migrate import check_revision
+from .repositories import (
+    BatchRepository,
+    Database,
+    DatasetRepository,
+    EventRepository,
+    SampleRepository,
+    StageRepository,
+    StudyRepository,
+)
+from .types import utcnow
+
+if TYPE_CHECKING:
+    from services.config import Settings
+
+__all__ = ["Store"]
+
+
+class Store:
+    """Repositories sharing one :class:`Database` (engine, clock, lease policy)."""
+
+    def __init__(self, db: Database) -> None:
+        self.db = db
+        self.datasets = DatasetRepository(db)
+        self.studies = StudyRepository(db)
+        self.stages = StageRepository(db)
+        self.batches = BatchRepository(db)
+        self.samples = SampleRepository(db)
+        self.events = EventRepository(db)
+
+    @classmethod
+    def open(
+        cls,
+        url: str | URL | Engine,
+        *,
+        lease_seconds: float = 300.0,
+        max_attempts: int = 3,
+        clock: Callable[[], datetime] = utcnow,
+        check: bool = True,
+    ) -> Store:
+        """A store on ``url`` (or an existing engine); checks the schema revision."""
+        engine = url if isinstance(url, Engine) else make_engine(url)
+        if check:
+            try:
+                check_revision(engine)
+            except Exception:
+                if not isinstance(url, Engine):
+                    engine.dispose()
+                raise
+        return cls(
+            Database(engine, clock=clock, lease_seconds=lease_seconds, max_attempts=max_attempts)
+        )
+
+    @classmethod
+    def from_settings(cls, settings: Settings | None = None, *, check: bool = True) -> Store:
+        """A store configured by the service settings (default: :func:`get_settings`)."""
+        if settings is None:
+            from services.config import get_settings
+
+            settings = get_settings()
+        return cls.open(
+            settings.database_url,
+            lease_seconds=settings.lease_seconds,
+            max_attempts=settings.max_attempts,
+            check=check,
+        )
+
+    @property
+    def engine(self) -> Engine:
+        return self.db.engine
+
+    def close(self) -> None:
+        """Close the engine's pooled connections."""
+        self.db.engine.dispose()
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,146 @@
+"""Pagination of datasets and studies, status filters, cancel, and the pooled posterior.
+
+Studies are submitted through the API without a local pool; where a test needs finished
+studies, their work batches are run in this process through the real orchestrator
+(:func:`run_inline`).
+"""
+
+from __future__ import annotations
+
+import pytest
+from test_api_support import (
+    AUTH,
+    BACKENDS,
+    api_client,
+    detail,
+    fresh_database,
+    run_inline,
+    summary_doc,
+    tiny_case,
+)
+
+
+@pytest.fixture(params=BACKENDS)
+def env(request: pytest.FixtureRequest, tmp_path):
+    with fresh_database(request.param, tmp_path) as url, api_client(url) as client:
+        yield client, url
+
+
+def _pages(client, path: str, limit: int, **params) -> list[dict]:
+    pages, offset = [], 0
+    while offset is not None:
+        page = client.get(path, params={"limit": limit, "offset": offset, **params}).json()
+        pages.append(page)
+        offset = page["next_offset"]
+    return pages
+
+
+def test_dataset_pagination(env) -> None:
+    client, _ = env
+    ids = []
+    for k in range(5):
+        r = client.post("/datasets", json=summary_doc(float(k)), headers=AUTH)
+        assert r.status_code == 201, r.text
+        ids.append(r.json()["id"])
+    pages = _pages(client, "/datasets", 2)
+    assert [len(p["items"]) for p in pages] == [2, 2, 1]
+    assert all(p["total"] == 5 for p in pages)
+    listed = [d["id"] for p in pages for d in p["items"]]
+    assert listed == sorted(ids, reverse=True)  # newest first
+    one = client.get(f"/datasets/{ids[0]}").json()
+    assert one["source_kind"] == "summary" and one["means"]["z"] == pytest.approx(0.019)
+    assert client.get("/datasets", params={"offset": 10}).json()["items"] == []
+    r = client.get(f"/datasets/{ids[0]}/series")
+    assert r.status_code == 404 and "summary" in detail(r)
+
+
+def test_study_pagination_filter_and_cancel(env) -> None:
+    client, _ = env
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    ids = []
+    for seed in range(5):
+        r = client.post(
+            "/studies",
+            json={"case": tiny_case(), "dataset_ids": [ds], "seed": seed, "name": f"s{seed}"},
+            headers=AUTH,
+        )
+        assert r.status_code == 201, r.text
+        assert r.json()["seed"] == seed and r.json()["status"] == "running"
+        ids.append(r.json()["id"])
+    for sid in ids[:2]:
+        r = client.post(f"/studies/{sid}/cancel", json={"reason": "test"}, headers=AUTH)
+        assert r.status_code == 200 and r.json()["status"] == "cancelled"
+        assert r.json()["error"] == "test"
+    r = client.post(f"/studies/{ids[0]}/cancel", headers=AUTH)
+    assert r.status_code == 409 and "cancelled" in detail(r)
+
+    pages = _pages(client, "/studies", 2)
+    assert [s["id"] for p in pages for s in p["items"]] == sorted(ids, reverse=True)
+    assert [len(p["items"]) for p in pages] == [2, 2, 1]
+    running = client.get("/studies", params={"status": "running"}).json()
+    assert running["total"] == 3 and {s["id"] for s in running["items"]} == set(ids[2:])
+    both = client.get("/studies", params={"status": "running,cancelled", "limit": 1}).json()
+    assert both["total"] == 5 and len(both["items"]) == 1 and both["next_offset"] == 1
+    assert client.get("/studies", params={"status": "completed"}).json()["total"] == 0
+
+    study = client.get(f"/studies/{ids[3]}").json()
+    assert study["name"] == "s3" and study["dataset_ids"] == [ds]
+    p = study["progress"]
+    assert p["stage"] == 0 and p["evaluations_planned"] == 20 and p["evaluations_done"] == 0
+    assert p["eta_seconds"] is None  # no rate yet
+    cancelled = client.get(f"/studies/{ids[0]}").json()["progress"]
+    assert cancelled["status"] == "cancelled" and cancelled["eta_seconds"] is None
+    # nothing finished yet: no summary, no samples
+    r = client.get(f"/studies/{ids[3]}/summary")
+    assert r.status_code == 409 and "no finished stage" in detail(r)
+    page = client.get(f"/studies/{ids[3]}/stages/0/samples").json()
+    assert page["total"] == 0 and page["stage_status"] == "planned"
+
+
+def test_pooled_posterior(env) -> None:
+    client, url = env
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+
+    def submit(**body) -> int:
+        r = client.post("/studies", json={"dataset_ids": [ds], **body}, headers=AUTH)
+        assert r.status_code == 201, r.text
+        return r.json()["id"]
+
+    a = submit(case=tiny_case(seed=1))
+    b = submit(case=tiny_case(seed=2), n_samples=30)
+    other = submit(case=tiny_case(seed=3, params=("phi", "J")))
+    running = submit(case=tiny_case(seed=4))
+    for sid in (a, b, other):
+        assert run_inline(url, sid) == "completed"
+
+    r = client.post("/pooled", json={"study_ids": [a, b], "include_samples": True})
+    assert r.status_code == 200, r.text
+    pooled = r.json()
+    assert pooled["n_per_study"] == 20 and pooled["n_samples"] == 40
+    assert pooled["names"] == ["phi", "n"] and len(pooled["samples"]) == 40
+    assert [s["n_samples"] for s in pooled["studies"]] == [20, 30]
+    phi = [p for p in pooled["parameters"] if p["name"] == "phi"][0]
+    assert phi["unit"] == "deg" and 20.0 <= phi["mean"] <= 35.0 and phi["map"] is None
+    assert min(s["mean"]["phi"] for s in pooled["studies"]) <= phi["mean"]
+    assert phi["mean"] <= max(s["mean"]["phi"] for s in pooled["studies"])
+
+    same = client.get("/pooled", params={"study_ids": f"{a},{b}"}).json()
+    assert same["parameters"] == pooled["parameters"]
+    again = client.get("/pooled", params=[("study_ids", a), ("study_ids", b)]).json()
+    assert again["parameters"] == pooled["parameters"]
+
+    for body, words in [
+        ({"study_ids": [a, other]}, ("study_ids", "same parameters")),
+        ({"study_ids": [a, running]}, ("study_ids", "running")),
+        ({"study_ids": [a, a]}, ("study_ids", "twice")),
+        ({"study_ids": []}, ("study_ids",)),
+        ({"study_ids": [a, b], "n_per_study": 25}, ("n_per_study", "20")),
+    ]:
+        r = client.post("/pooled", json=body)
+        assert r.status_code == 422, (body, r.text)
+        assert all(w in detail(r) for w in words), detail(r)
+
+    summary = client.get(f"/studies/{a}/summary").json()
+    assert summary["is_posterior"] and summary["status"] == "completed"
+    assert summary["log_evidence"] is not None and summary["log_evidence_sd"] is not None
+    assert summary["map"] is not None and summary["map_log_posterior"] is not None

@@ -1,0 +1,171 @@
+"""``scm-calib serve`` as a real subprocess on a free port, driven by the Python client and by
+``scm-calib upload``; and serve's refusal of a database at the wrong revision."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+from test_api_support import LOG, LOG2, ROOT, TOKEN, free_port, fresh_database, tiny_case
+
+from services.client import SCMCalibClient, SCMCalibError
+
+START_TIMEOUT = 60.0
+
+
+def _env(tmp: Path, **extra: str) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SCM_CALIB_")}
+    env.update(
+        SCM_CALIB_DATA_DIR=str(tmp / "data"),
+        SCM_CALIB_API_TOKENS=TOKEN,
+        NUMBA_NUM_THREADS="1",
+        PYTHONUNBUFFERED="1",
+        **extra,
+    )
+    return env
+
+
+def _cli(*args: str, env: dict[str, str], cwd: Path, timeout: float = 120.0):
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", *args],
+        env=env,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+@pytest.fixture
+def server(tmp_path: Path):
+    """A fresh embedded ``scm-calib serve`` (new data directory, 2 local workers)."""
+    port = free_port()
+    env = _env(tmp_path)
+    log = open(tmp_path / "serve.log", "w")  # noqa: SIM115 (closed below)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "services.cli", "serve", "--port", str(port), "--workers", "2"],
+        env=env,
+        cwd=tmp_path,  # no .env of the checkout is read
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    base = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + START_TIMEOUT
+    try:
+        while True:
+            try:
+                if httpx.get(base + "/health", timeout=1.0).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                pass
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"serve did not come up:\n{(tmp_path / 'serve.log').read_text()}")
+            time.sleep(0.2)
+        yield base, env, tmp_path
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+                pytest.fail("serve did not stop within 30 s of SIGINT")
+        log.close()
+    assert proc.returncode == 0, (tmp_path / "serve.log").read_text()
+
+
+def test_client_and_upload_cli_against_serve(server) -> None:
+    base, env, tmp = server
+    assert (tmp / "data" / "scm-calib.db").is_file()  # migrated on start
+    with SCMCalibClient(base, token=TOKEN, timeout=30) as api:
+        assert api.health()["mode"] == "embedded"
+        assert api.ready()["status"] == "ready"
+        first = api.upload_log(LOG)  # sends the sidecar wf34_s020.json as metadata
+        assert first["created"] is True and first["name"] == "wf34_s020"
+        assert first["meta"]["true_parameters"]["phi"] == 27.0
+        again = api.upload_log(LOG)
+        assert again["id"] == first["id"] and again["created"] is False
+
+        # the upload command: prints the id; the same file again gives the same id
+        r = _cli("upload", str(LOG2), "--server", base, "--token", TOKEN, env=env, cwd=tmp)
+        assert r.returncode == 0, r.stderr
+        second = int(r.stdout.strip())
+        assert second != first["id"] and "stored" in r.stderr
+        r = _cli("upload", str(LOG2), "--server", base, "--token", TOKEN, env=env, cwd=tmp)
+        assert r.returncode == 0 and int(r.stdout.strip()) == second
+        assert "already stored" in r.stderr
+        assert api.datasets()["total"] == 2
+
+        # a tiny study through the client, run by the server's local pool
+        study = api.create_study(case=tiny_case(), dataset_ids=[first["id"]], seed=11)
+        assert study["seed"] == 11
+        done = api.wait(study["id"], timeout=240, poll=0.5)
+        assert done["status"] == "completed", done
+        post = api.samples(study["id"])
+        assert post.samples.shape == (20, 2) and post.names == ["phi", "n"]
+        summary = api.summary(study["id"])
+        assert summary["is_posterior"] and summary["n_samples"] == 20
+        csv_text = api.samples_csv(study["id"])
+        assert csv_text.splitlines()[0].startswith("sample,phi,n,log_likelihood")
+
+        with pytest.raises(SCMCalibError) as err:
+            api.create_study(preset="9", dataset_ids=[first["id"]])
+        assert err.value.status_code == 422 and str(err.value).startswith("preset:")
+    with SCMCalibClient(base, token="wrong") as api, pytest.raises(SCMCalibError) as err:
+        api.upload_log(LOG)
+    assert err.value.status_code == 401 and "invalid API token" in str(err.value)
+
+
+def test_upload_cli_errors(server) -> None:
+    base, env, tmp = server
+    bad = tmp / "bad.csv"
+    bad.write_bytes(LOG.read_bytes().replace(b"sinkage [m]", b"sinkage [parsec]"))
+    meta = tmp / "meta.json"
+    meta.write_text("[1, 2]")
+    cases = [
+        # (arguments, exit code, words in the one-line message)
+        (["upload", str(tmp / "nope.csv"), "--server", base, "--token", TOKEN], 2, ["no such file"]),
+        (["upload", str(LOG)], 2, ["--server"]),
+        (["upload", str(LOG), "--server", base, "--token", TOKEN, "--meta", str(meta)], 2,
+         ["--meta", "JSON object"]),
+        (["upload", str(LOG), "--server", base, "--token", "wrong"], 1, ["401", "invalid API token"]),
+        (["upload", str(LOG), "--server", base], 1, ["401", "missing API token"]),
+        (["upload", str(bad), "--server", base, "--token", TOKEN], 1,
+         ["422", "file bad.csv", "sinkage [parsec]", "unit"]),
+        (["upload", str(LOG), "--server", f"http://127.0.0.1:{free_port()}", "--token", TOKEN], 1,
+         ["ConnectError"]),
+    ]  # fmt: skip
+    for args, code, words in cases:
+        r = _cli(*args, env=env, cwd=tmp)
+        assert r.returncode == code, (args, r.stdout, r.stderr)
+        assert r.stdout == ""
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error:"), r.stderr
+        assert all(w in lines[0] for w in words), lines[0]
+
+
+def test_serve_refuses_a_database_at_the_wrong_revision(tmp_path: Path) -> None:
+    with fresh_database("postgresql", tmp_path, migrate=False) as url:
+        env = _env(tmp_path, SCM_CALIB_DATABASE_URL=url)
+        r = _cli("serve", "--port", str(free_port()), env=env, cwd=tmp_path, timeout=60)
+        assert r.returncode == 1, r.stderr
+        assert "scm-calib db upgrade" in r.stderr and "base" in r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_upload_cli_prints_json(server) -> None:
+    base, env, tmp = server
+    r = _cli("upload", str(LOG), "--server", base, "--token", TOKEN, "--json", env=env, cwd=tmp)
+    assert r.returncode == 0, r.stderr
+    record = json.loads(r.stdout)
+    assert record["name"] == "wf34_s020" and record["source_kind"] == "timeseries"
+    assert record["filename"] == LOG.name and record["size_bytes"] == LOG.stat().st_size
+    assert str(ROOT) not in r.stdout  # the server sees the file name, not the client's path

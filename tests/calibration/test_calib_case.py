@@ -1,0 +1,206 @@
+"""Case definitions: TOML parsing, one-line validation errors naming the field, Table 2 presets."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+
+from scm_core.calibration import CaseDefinition, CaseError, load_case, preset_case
+from scm_core.inference import TABLE2_NOMINAL, table2_prior
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+BASE = {
+    "name": "t",
+    "seed": 3,
+    "parameters": {
+        "phi": {"dist": "normal", "mean": 30.0, "sd": 5.7, "lower": 11.5, "upper": 37.3},
+        "J": {"dist": "uniform", "lower": 0.001, "upper": 0.1},
+        "sigma_F": {"dist": "uniform", "lower": 0.0, "upper": 5.0},
+    },
+    "nominal": {"sigma_T": 0.5, "sigma_z": 0.001, "R": 0.125},
+    "simulator": {"duration": 12.0, "offset_F": 6.0, "offset_T": 6.0, "offset_z": 6.0},
+}
+
+TOML = """
+name = "toml case"
+seed = 5
+likelihood = "gaussian"
+responses = ["F", "z"]
+
+[parameters]
+k_phi = { dist = "log_uniform", lower = 1e6, upper = 1e8 }
+n = { dist = "normal", mean = 1.1, sd = 0.2, lower = 0.8, upper = 2.0 }
+sigma_z = { dist = "uniform", lower = 0.0, upper = 0.005 }
+
+[nominal]
+sigma_F = 2.0
+phi = 27.0
+
+[simulator]
+dx = 0.01
+
+[sampler]
+n_samples = 300
+moves = "leader"
+max_stages = 12
+
+[data]
+files = ["logs/a.csv", "/abs/b.csv"]
+offset = 30.0
+"""
+
+
+def build(**changes):
+    doc = copy.deepcopy(BASE)
+    for key, value in changes.items():
+        if value is None:
+            doc.pop(key, None)
+        else:
+            doc[key] = value
+    return CaseDefinition.from_dict(doc)
+
+
+def test_toml_case_parses_in_order(tmp_path: Path) -> None:
+    (tmp_path / "c.toml").write_text(TOML)
+    case = load_case(tmp_path / "c.toml")
+    assert case.parameter_names == ("k_phi", "n", "sigma_z")
+    assert case.likelihood == "gaussian" and case.responses == ("F", "z")
+    assert case.sampler.n_samples == 300 and case.tmcmc_settings().moves == "leader"
+    assert case.tmcmc_settings().max_stages == 12
+    assert case.data_paths() == [tmp_path / "logs" / "a.csv", Path("/abs/b.csv")]
+    assert case.sigma_spec() == {"F": ("fixed", 2.0), "z": ("parameter", 2)}
+    prior = case.prior()
+    assert prior.names == case.parameter_names
+    assert prior.dists["k_phi"].kind == "log_uniform"
+    again = CaseDefinition.from_dict(case.to_dict(), tmp_path)
+    assert again.to_dict() == case.to_dict()
+    assert again.fingerprint() == case.fingerprint()
+
+
+def test_fingerprint_ignores_what_does_not_change_samples() -> None:
+    case = build()
+    same = case.with_changes(data={"files": ["x.csv"]}, sampler={"batch_size": 7, "max_stages": 3})
+    assert same.fingerprint() == case.fingerprint()
+    assert case.with_changes(seed=4).fingerprint() != case.fingerprint()
+    assert case.with_changes(sampler={"n_samples": 99}).fingerprint() != case.fingerprint()
+    assert case.with_changes(data={"offset": 30.0}).fingerprint() != case.fingerprint()
+
+
+@pytest.mark.parametrize(
+    ("changes", "needle"),
+    [
+        (
+            {"parameters": {"k_cc": {"dist": "uniform", "lower": 0, "upper": 1}}},
+            "parameters.k_cc: unknown parameter 'k_cc'",
+        ),
+        (
+            {"parameters": {"J": {"dist": "uniform", "lower": 0.1, "upper": 0.001}}},
+            "parameters.J: 'upper' (0.001) must be greater than 'lower' (0.1)",
+        ),
+        (
+            {"parameters": {"J": {"dist": "normal", "mean": 0.01, "lower": 0.0, "upper": 1.0}}},
+            "parameters.J: normal prior is missing 'sd'",
+        ),
+        (
+            {"parameters": {"J": {"dist": "gamma", "lower": 0.0, "upper": 1.0}}},
+            "parameters.J.dist",
+        ),
+        (
+            {"parameters": {"sigma_F": {"dist": "uniform", "lower": -1.0, "upper": 1.0}}},
+            "parameters.sigma_F: a standard deviation needs lower >= 0",
+        ),
+        (
+            {"nominal": {"J": 0.002, "sigma_T": 0.5, "sigma_z": 0.001}},
+            "parameters.J: 'J' is both calibrated and nominal",
+        ),
+        ({"nominal": {"sigma_T": 0.5}}, "sigma_z: response z is used but sigma_z"),
+        ({"nominal": {"sigma_T": 0.5, "sigma_z": 0.0}}, "nominal.sigma_z: must be a number > 0"),
+        (
+            {"nominal": {"sigma_T": 0.5, "sigma_z": 0.001, "bogus": 1}},
+            "nominal.bogus: unknown name 'bogus'",
+        ),
+        (
+            {"nominal": {"sigma_T": 0.5, "sigma_z": 0.001, "n": 9.0}},
+            "nominal.n: Input should be less than or equal to 5",
+        ),
+        ({"simulator": {"dtt": 0.01}}, "simulator.dtt: unknown rig/numerics key 'dtt'"),
+        ({"simulator": {"duration": 5.0}}, "simulator: duration 5 s is not longer than"),
+        ({"simulator": {"duration": 12.0, "J": 0.1}}, "simulator.J: unknown rig/numerics key"),
+        ({"sampler": {"n_samples": 3}}, "sampler.n_samples: Input should be greater than"),
+        ({"sampler": {"moves": "gibbs"}}, "sampler.moves"),
+        ({"sampler": {"n_sample": 30}}, "sampler.n_sample: unknown field"),
+        ({"likelihood": "laplace"}, "likelihood"),
+        ({"responses": ["F", "F"]}, "responses: must be distinct"),
+        ({"colour": "red"}, "colour: unknown field"),
+        ({"name": None}, "name: required field is missing"),
+        ({"parameters": {}}, "parameters: at least one calibrated parameter"),
+        ({"reference": {"zeta": 1.0}}, "reference.zeta: unknown parameter"),
+    ],
+)
+def test_validation_errors_name_the_field(changes: dict, needle: str) -> None:
+    with pytest.raises(CaseError) as info:
+        build(**changes)
+    msg = str(info.value)
+    assert needle in msg, msg
+    assert "\n" not in msg
+
+
+def test_toml_errors_are_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\n[parameters\n')
+    with pytest.raises(CaseError) as info:
+        load_case(bad)
+    assert str(info.value).startswith("bad.toml: case file is not valid TOML")
+    assert "\n" not in str(info.value)
+    with pytest.raises(CaseError, match="cannot read case file"):
+        load_case(tmp_path / "missing.toml")
+    (tmp_path / "unknown.toml").write_text(TOML.replace("k_phi =", "k_phy ="))
+    with pytest.raises(CaseError, match=r"^unknown.toml: parameters.k_phy: unknown parameter"):
+        load_case(tmp_path / "unknown.toml")
+
+
+@pytest.mark.parametrize("key", ["1", "2a", "2b"])
+def test_presets_match_table2(key: str) -> None:
+    case = preset_case(key)
+    table = table2_prior(key)
+    assert case.prior().names == table.names
+    assert case.prior().dists == table.dists
+    assert dict(case.prior().units) == dict(table.units)
+    extra = "J" if key == "1" else "R"
+    assert case.parameter_names == (
+        "k_c",
+        "k_phi",
+        "n",
+        "phi",
+        extra,
+        "sigma_F",
+        "sigma_T",
+        "sigma_z",
+    )
+    fixed = "R" if key == "1" else "J"
+    assert case.nominal == {fixed: TABLE2_NOMINAL[fixed]}
+    assert case.sampler.n_samples == 2000 and case.sampler.moves == "leader"
+    assert case.likelihood == "normalized"
+    assert case.data.offset == 40.0
+    assert (case.simulator["duration"], case.simulator["offset_z"]) == (50.0, 1.0)
+
+
+def test_presets_2a_2b_differ_only_by_seed() -> None:
+    a, b = preset_case("2a").to_dict(), preset_case("2b").to_dict()
+    assert a["seed"] != b["seed"]
+    for doc in (a, b):
+        for key in ("seed", "name", "description"):
+            doc.pop(key)
+    assert a == b
+    with pytest.raises(CaseError, match="unknown preset"):
+        preset_case("3")
+
+
+@pytest.mark.parametrize(("key", "stem"), [("1", "case1"), ("2a", "case2a"), ("2b", "case2b")])
+def test_example_case_files_are_the_presets(key: str, stem: str) -> None:
+    case = load_case(EXAMPLES / f"{stem}.toml")
+    assert case.to_dict() == preset_case(key, ("wf34_s020.csv",)).to_dict()
+    assert all(p.is_file() for p in case.data_paths())

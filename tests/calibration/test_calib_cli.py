@@ -1,0 +1,261 @@
+"""``scm-calib synth``, ``calibrate`` and ``sensitivity``: files, resume, workers, errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+CASE = """
+name = "tiny"
+seed = 4
+likelihood = "gaussian"
+
+[parameters]
+phi = { dist = "normal", mean = 30.0, sd = 5.7, lower = 11.5, upper = 37.3, unit = "deg" }
+n = { dist = "normal", mean = 1.1, sd = 0.2, lower = 0.8, upper = 2.0 }
+
+[nominal]
+J = 0.004
+sigma_F = 3.0
+sigma_T = 0.4
+sigma_z = 0.0005
+
+[simulator]
+duration = 8.0
+dx = 0.015
+dt = 0.05
+offset_F = 4.0
+offset_T = 4.0
+offset_z = 4.0
+
+[sampler]
+n_samples = 60
+moves = "leader"
+
+[data]
+files = ["log.csv"]
+offset = 4.0
+
+[reference]
+phi = 30.0
+n = 1.1
+"""
+
+
+def run_cli(*args, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
+    )
+
+
+def one_line_error(proc: subprocess.CompletedProcess, code: int = 2) -> str:
+    assert proc.returncode == code, (proc.returncode, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    return lines[0]
+
+
+def stage_files(out: Path) -> dict[str, bytes]:
+    files = {p.name: p.read_bytes() for p in sorted((out / "samples").glob("stage_*.csv"))}
+    files["posterior.csv"] = (out / "posterior.csv").read_bytes()
+    return files
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("cli")
+    proc = run_cli(
+        "synth",
+        "--set",
+        "phi=27",
+        "--set",
+        "J=0.004",
+        "--set",
+        "dx=0.015",
+        "--set",
+        "dt=0.05",
+        "--duration",
+        "8",
+        "--ramp",
+        "1",
+        "--seed",
+        "3",
+        "--out",
+        "log.csv",
+        cwd=d,
+    )
+    assert proc.returncode == 0, proc.stderr
+    (d / "tiny.toml").write_text(CASE)
+    return d
+
+
+@pytest.fixture(scope="module")
+def reference(work: Path) -> Path:
+    proc = run_cli("calibrate", "tiny.toml", "--out", "ref", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    assert "completed" in proc.stdout
+    return work / "ref"
+
+
+def test_synth_writes_log_and_sidecar(work: Path) -> None:
+    text = (work / "log.csv").read_text()
+    assert "# slip: 0.2" in text and "time [s],drawbar_pull [N]" in text
+    side = json.loads((work / "log.json").read_text())
+    assert side["true_parameters"]["phi"] == 27.0 and side["seed"] == 3
+    assert len(text.splitlines()) > 8 * 50
+
+
+def test_calibrate_writes_samples_summary_and_figures(reference: Path) -> None:
+    summary = json.loads((reference / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["parameters"] == ["phi", "n"]
+    n_stages = summary["n_stages"]
+    assert n_stages >= 2 and len(summary["stages"]) == n_stages + 1
+    for key in (
+        "exponent",
+        "beta",
+        "acceptance_rate",
+        "ess",
+        "n_unique",
+        "failed_runs",
+        "model_runs",
+        "wall_time_s",
+    ):
+        assert key in summary["stages"][-1]
+    post = summary["posterior"]
+    for key in ("mean", "sd", "credible_interval_95", "map"):
+        assert set(post[key]) == {"phi", "n"}
+    assert set(post["quantiles"]) == {"0.025", "0.25", "0.5", "0.75", "0.975"}
+    assert post["correlation"]["names"] == ["phi", "n"]
+    assert isinstance(summary["log_evidence"], float)
+    assert isinstance(summary["log_evidence_se"], float)
+    assert summary["datasets"][0]["content_hash"] and summary["wall_time_s"] > 0
+    assert summary["settings"]["n_samples"] == 60 and summary["settings"]["tmcmc"]["moves"] == (
+        "leader"
+    )
+    assert summary["map_responses"]["log"]["status"] == "ok"
+    header = (reference / "posterior.csv").read_text().splitlines()[0]
+    assert header == "phi,n,log_likelihood,log_prior,F[log],T[log],z[log]"
+    assert len((reference / "samples" / "stage_00.csv").read_text().splitlines()) == 61
+    assert len(list((reference / "samples").glob("stage_*.csv"))) == n_stages + 1
+    for fig in ("prior_posterior.png", "posterior_pairs.png", "fit_map.png"):
+        assert (reference / "figures" / fig).stat().st_size > 10_000
+    assert (reference / "checkpoints" / "manifest.json").is_file()
+
+
+def test_workers_give_identical_results(work: Path, reference: Path) -> None:
+    proc = run_cli(
+        "calibrate", "tiny.toml", "--out", "w2", "--workers", "2", "--quiet", "--no-plots", cwd=work
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert stage_files(work / "w2") == stage_files(reference)
+
+
+def test_stopped_then_continued_is_identical(work: Path, reference: Path) -> None:
+    proc = run_cli(
+        "calibrate",
+        "tiny.toml",
+        "--out",
+        "part",
+        "--max-stages",
+        "2",
+        "--quiet",
+        "--no-plots",
+        cwd=work,
+    )
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((work / "part" / "summary.json").read_text())
+    assert summary["status"] == "max_stages" and summary["n_stages"] == 2
+    proc = run_cli("calibrate", "tiny.toml", "--out", "part", "--quiet", "--no-plots", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    assert stage_files(work / "part") == stage_files(reference)
+
+
+def test_ctrl_c_then_rerun_resumes_identically(work: Path, reference: Path) -> None:
+    args = [
+        sys.executable,
+        "-m",
+        "services.cli",
+        "calibrate",
+        "tiny.toml",
+        "--out",
+        "intr",
+        "--quiet",
+        "--no-plots",
+    ]
+    proc = subprocess.Popen(
+        args, cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    marker = work / "intr" / "checkpoints" / "stage_001.json"
+    deadline = time.monotonic() + 300
+    while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("interrupted: stages 0-"), err
+    assert "re-run the same command to resume" in lines[0]
+    done = run_cli(*args[3:], cwd=work)
+    assert done.returncode == 0, done.stderr
+    assert stage_files(work / "intr") == stage_files(reference)
+
+
+def test_checkpoints_of_another_study_are_refused(work: Path, reference: Path) -> None:
+    proc = run_cli("calibrate", "tiny.toml", "--out", "ref", "--samples", "70", cwd=work)
+    line = one_line_error(proc)
+    assert "holds checkpoints of another study" in line and "the case" in line
+
+
+def test_sensitivity_writes_json_and_figure(work: Path) -> None:
+    proc = run_cli("sensitivity", "tiny.toml", "--r", "4", "--out", "sens", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((work / "sens" / "sensitivity.json").read_text())
+    names = [f["name"] for f in doc["factors"]]
+    assert names == ["k_star", "n", "c", "phi", "D_soil", "J"] and doc["joint_k"] is True
+    assert doc["n_runs"] == 4 * 7
+    for resp in ("F", "T", "z"):
+        assert set(doc["linear_index"][resp]) == set(names)
+        total = sum(v for v in doc["linear_index"][resp].values() if v is not None)
+        assert total == pytest.approx(1.0)
+    # the case's prior bounds are used for calibrated factors, defaults for the others
+    bounds = {f["name"]: (f["lower"], f["upper"]) for f in doc["factors"]}
+    assert bounds["phi"] == (11.5, 37.3) and bounds["D_soil"] == (0.0, 1.0e6)
+    assert (work / "sens" / "sensitivity.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["calibrate", "missing.toml"], "cannot read case file missing.toml"),
+        (["calibrate", "bad.toml"], "bad.toml: case file is not valid TOML"),
+        (["calibrate", "unknown.toml"], "parameters.k_phy: unknown parameter 'k_phy'"),
+        (["calibrate", "nodata.toml"], "no datasets"),
+        (["calibrate", "tiny.toml", "--data", "nope.csv"], "dataset nope.csv: no such file"),
+        (["calibrate", "tiny.toml", "--data", "garbage.csv"], "garbage.csv: "),
+        (["calibrate", "tiny.toml", "--samples", "3"], "--samples"),
+        (["sensitivity", "tiny.toml", "--levels", "3"], "--levels must be even"),
+        (["sensitivity", "tiny.toml", "--bounds", "c=1"], "--bounds: expected NAME=LOWER:UPPER"),
+        (["sensitivity", "tiny.toml", "--bounds", "K=1:2"], "not screened"),
+        (["synth", "--set", "phi=95", "--out", "x.csv"], "phi"),
+        (["synth", "--out", "x.csv", "--duration", "-1"], "duration"),
+    ],
+)
+def test_bad_inputs_one_line_exit_2(work: Path, args: list[str], needle: str) -> None:
+    (work / "bad.toml").write_text('name = "x"\n[parameters\n')
+    (work / "unknown.toml").write_text(CASE.replace("\nn = {", "\nk_phy = {"))
+    (work / "nodata.toml").write_text(CASE.replace('files = ["log.csv"]', "files = []"))
+    (work / "garbage.csv").write_text("this is not, a log\n1,2\n")
+    line = one_line_error(run_cli(*args, cwd=work))
+    assert line.startswith("error: ") and needle in line, line

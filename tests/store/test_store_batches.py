@@ -1,0 +1,240 @@
+"""Work batches: leases, heartbeats, expiry, the attempt cap, the reaper, idempotent results,
+concurrent leasing and cancellation."""
+
+from __future__ import annotations
+
+import threading
+from datetime import timedelta
+
+import numpy as np
+import pytest
+
+from scm_core.inference.tmcmc_stage import evaluate_points
+from services.store import BatchKey, NotFoundError, Store
+
+
+def started_study(store: Store, toy, n_batches: int = 3) -> int:
+    study = store.studies.create(toy.spec())
+    size = toy.n_samples // n_batches
+    batches = [range(i * size, (i + 1) * size) for i in range(n_batches)]
+    assert store.studies.start(study.id, batches) is not None
+    return study.id
+
+
+def point_result(toy, study_id: int, store: Store, lease_or_key):
+    key = getattr(lease_or_key, "key", lease_or_key)
+    rec = store.batches.get(key)
+    X = toy.initial_points(store.studies.get(study_id).seed)[rec.chain_start : rec.chain_stop]
+    return evaluate_points(X, toy.log_likelihood)
+
+
+def test_lease_order_heartbeat_and_expiry(store: Store, toy, clock) -> None:
+    sid = started_study(store, toy)
+    a = store.batches.lease("w-a")
+    b = store.batches.lease("w-b")
+    assert (a.key.batch_index, b.key.batch_index) == (0, 1)
+    assert a.attempt == 1 and a.chains == range(0, 16)
+    assert a.expires_at == clock.now + timedelta(seconds=store.db.lease_seconds)
+    assert store.stages.get(sid, 0).status == "running"  # first lease starts the stage
+    rec = store.batches.get(a.key)
+    assert rec.status == "leased" and rec.worker_id == "w-a" and rec.attempts == 1
+
+    clock.advance(store.db.lease_seconds * 0.75)
+    assert store.batches.heartbeat(a)  # a keeps its lease alive, b does not
+    clock.advance(store.db.lease_seconds * 0.5)
+    # b expired: the next lease takes it (lowest key first) before the pending batch 2
+    c = store.batches.lease("w-c")
+    assert c.key == b.key and c.attempt == 2 and c.worker_id == "w-c"
+    assert not store.batches.heartbeat(b)  # b's holder lost the lease
+    assert store.batches.heartbeat(a)
+    d = store.batches.lease("w-d")
+    assert d.key.batch_index == 2
+    assert store.batches.lease("w-e") is None  # nothing left to lease
+    kinds = [e.kind for e in store.events.list(sid)]
+    assert kinds.count("batch_retry") == 1
+
+
+def test_claim_specific_batch_once(store: Store, toy, clock) -> None:
+    sid = started_study(store, toy)
+    key = BatchKey(sid, 0, 1)
+    first = store.batches.claim(key, "task-1")
+    assert first is not None and first.key == key
+    assert store.batches.claim(key, "task-2") is None  # duplicate delivery while leased
+    clock.advance(store.db.lease_seconds + 1)
+    again = store.batches.claim(key, "task-2")  # lease expired: re-claimable
+    assert again is not None and again.attempt == 2
+    with pytest.raises(NotFoundError):
+        store.batches.get(BatchKey(sid, 0, 99))
+    assert store.batches.claim(BatchKey(sid, 0, 99), "x") is None
+
+
+def test_attempt_cap_fails_the_study_via_reaper(store: Store, toy, clock) -> None:
+    sid = started_study(store, toy, n_batches=1)
+    for attempt in range(1, store.db.max_attempts + 1):
+        lease = store.batches.lease("w")
+        assert lease is not None and lease.attempt == attempt
+        clock.advance(store.db.lease_seconds + 1)
+        report = store.batches.reap()
+        if attempt < store.db.max_attempts:
+            assert report.requeued == [lease.key] and report.to_dispatch == [lease.key]
+            assert report.failed == [] and store.studies.get(sid).status == "running"
+            assert store.batches.get(lease.key).status == "pending"
+    assert report.failed == [lease.key] and report.failed_studies == [sid]
+    study = store.studies.get(sid)
+    assert study.status == "failed"
+    assert f"after {store.db.max_attempts} attempts" in study.error
+    assert study.finished_at == clock.now
+    assert store.batches.get(lease.key).status == "failed"
+    assert store.batches.lease("w") is None
+    kinds = [e.kind for e in store.events.list(sid)]
+    assert kinds[-4:] == ["lease_expired", "batch_retry", "batch_failed", "study_failed"]
+    # a late result of the failed batch is refused
+    res = store.batches.complete(lease.key, point_result(toy, sid, store, lease))
+    assert res.status == "rejected"
+
+
+def test_lease_skips_expired_batch_at_the_cap(store: Store, toy, clock) -> None:
+    sid = started_study(store, toy, n_batches=1)
+    for _ in range(store.db.max_attempts):
+        assert store.batches.lease("w") is not None
+        clock.advance(store.db.lease_seconds + 1)
+    assert store.batches.lease("w") is None  # left for the reaper to fail
+    assert store.studies.get(sid).status == "running"
+    assert store.batches.reap().failed_studies == [sid]
+
+
+def test_release_requeues_then_fails(store: Store, toy) -> None:
+    sid = started_study(store, toy, n_batches=1)
+    lease = store.batches.lease("w")
+    assert store.batches.release(lease, "boom") == "requeued"
+    assert store.batches.release(lease, "boom") == "lost"  # no longer held
+    rec = store.batches.get(lease.key)
+    assert rec.status == "pending" and rec.error == "boom" and rec.worker_id is None
+    lease2 = store.batches.lease("w")
+    assert lease2.attempt == 2
+    assert store.batches.release(lease2, "boom again") == "failed"
+    study = store.studies.get(sid)
+    assert study.status == "failed" and "boom again" in study.error
+
+
+def test_batch_result_is_stored_once(store: Store, toy, open_store) -> None:
+    sid = started_study(store, toy)
+    lease = store.batches.lease("w1")
+    result = point_result(toy, sid, store, lease)
+    first = store.batches.complete(lease.key, result)
+    assert (first.status, first.done, first.total) == ("stored", 1, 3)
+    assert not first.stage_complete
+
+    other = open_store()  # a second process delivering the same task again
+    altered = evaluate_points(
+        toy.initial_points(toy.seed)[16:32], toy.log_likelihood
+    )  # wrong content for batch 0 must not overwrite the first result
+    again = other.batches.complete(lease.key, result)
+    assert (again.status, again.done, again.total) == ("duplicate", 1, 3)
+    assert other.batches.complete(lease.key, altered).status == "duplicate"
+    stored = store.batches.results(sid, 0)
+    assert len(stored) == 1
+    assert stored[0].log_likelihood.tobytes() == result.log_likelihood.tobytes()
+    assert store.batches.counts(sid, 0) == {"pending": 2, "leased": 0, "done": 1, "failed": 0}
+    assert store.batches.count_done(sid, 0) == 1
+    assert store.batches.claim(lease.key, "w2") is None  # done: not leasable any more
+    assert not store.batches.heartbeat(lease)
+
+    # a result for the wrong number of points is refused outright
+    with pytest.raises(ValueError, match="point evaluations"):
+        store.batches.complete(
+            BatchKey(sid, 0, 1), evaluate_points(np.zeros((3, 2)), toy.log_likelihood)
+        )
+
+
+def test_concurrent_duplicate_deliveries_store_once(store: Store, toy, open_store) -> None:
+    sid = started_study(store, toy)
+    key = BatchKey(sid, 0, 0)
+    result = point_result(toy, sid, store, key)
+    stores = [open_store() for _ in range(4)]
+    barrier = threading.Barrier(len(stores))
+    outcomes: list[str] = []
+
+    def deliver(s: Store) -> None:
+        barrier.wait()
+        outcomes.append(s.batches.complete(key, result).status)
+
+    threads = [threading.Thread(target=deliver, args=(s,)) for s in stores]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(outcomes) == ["duplicate"] * 3 + ["stored"]
+    assert store.batches.count_done(sid, 0) == 1
+
+
+def test_concurrent_leases_are_exclusive(store: Store, toy, open_store) -> None:
+    study = store.studies.create(toy.spec())
+    store.studies.start(study.id, [range(i * 4, (i + 1) * 4) for i in range(12)])
+    stores = [open_store() for _ in range(4)]
+    barrier = threading.Barrier(len(stores))
+    leased: list[BatchKey] = []
+    lock = threading.Lock()
+
+    def work(s: Store, name: str) -> None:
+        barrier.wait()
+        while (lease := s.batches.lease(name)) is not None:
+            with lock:
+                leased.append(lease.key)
+
+    threads = [threading.Thread(target=work, args=(s, f"w{i}")) for i, s in enumerate(stores)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(k.batch_index for k in leased) == list(range(12))  # each exactly once
+
+
+def test_reaper_redispatches_pending_batches_not_picked_up(store: Store, toy, clock) -> None:
+    sid = started_study(store, toy)
+    keys = [BatchKey(sid, 0, i) for i in range(3)]
+    assert store.batches.reap().to_dispatch == []  # just created: not stale yet
+    store.batches.mark_dispatched(keys[:2])
+    clock.advance(store.db.lease_seconds / 2)
+    assert store.batches.reap().to_dispatch == []
+    store.batches.lease("w")  # takes batch 0
+    clock.advance(store.db.lease_seconds / 2 + 1)
+    report = store.batches.reap()
+    # batch 0 is leased (live lease); 1 and 2 were never picked up
+    assert report.to_dispatch == keys[1:] and report.requeued == []
+    assert store.batches.get(keys[1]).dispatched_at == clock.now
+    assert store.batches.reap().to_dispatch == []  # just re-dispatched
+    assert store.batches.reap(redispatch_after=0.0).to_dispatch == []  # strictly older only
+    clock.advance(1)
+    assert store.batches.reap(redispatch_after=0.5).to_dispatch == keys[1:]
+
+
+def test_reaper_lists_stages_ready_to_advance(store: Store, toy) -> None:
+    sid = started_study(store, toy)
+    for i in range(3):
+        key = BatchKey(sid, 0, i)
+        store.batches.complete(key, point_result(toy, sid, store, key))  # without a lease too
+    assert store.batches.reap().ready_stages == [(sid, 0)]
+    assert store.stages.ready() == [(sid, 0)]
+    assert store.stages.advance(sid, 0, toy.reduce).status == "advanced"
+    assert store.stages.ready() == []
+
+
+def test_cancel_stops_leases_heartbeats_and_results(store: Store, toy) -> None:
+    sid = started_study(store, toy)
+    lease = store.batches.lease("w")
+    assert store.studies.cancel(sid, "user asked")
+    assert not store.studies.cancel(sid)  # once
+    study = store.studies.get(sid)
+    assert study.status == "cancelled" and study.error == "user asked"
+    assert study.finished_at is not None
+    assert not store.batches.heartbeat(lease)
+    assert store.batches.lease("w") is None
+    assert store.batches.claim(BatchKey(sid, 0, 1), "w") is None
+    res = store.batches.complete(lease.key, point_result(toy, sid, store, lease))
+    assert res.status == "rejected" and res.done == 0
+    assert store.stages.advance(sid, 0, toy.reduce).status == "inactive"
+    assert store.batches.reap().to_dispatch == []
+    assert [e.kind for e in store.events.list(sid)][-1] == "study_cancelled"
+    assert store.events.list(sid)[-1].payload == {"reason": "user asked"}
+    assert not store.studies.fail(sid, "too late")
