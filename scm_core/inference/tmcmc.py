@@ -24,16 +24,30 @@ from scm_core.inference.tmcmc_stage import (
     StageState,
     TMCMCSettings,
     chain_batches,
-    initial_stage,
+    evaluate_points,
+    initial_samples,
+    initial_state,
     plan_stage,
     reduce_stage,
     run_chains,
     stage_status,
 )
 
-__all__ = ["TMCMCResult", "tmcmc", "tmcmc_batched"]
+__all__ = ["StageStart", "TMCMCResult", "tmcmc", "tmcmc_batched"]
 
 MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
+
+
+@dataclass(frozen=True)
+class StageStart:
+    """A stage is about to run: its index, tempering exponent and the number of planned
+    evaluations (prior points at stage 0, Metropolis proposals after; proposals outside the
+    prior support are rejected without a model run, so model runs <= planned)."""
+
+    stage: int
+    exponent: float
+    planned: int
+    n_batches: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,15 +177,19 @@ def tmcmc_batched(
     callback: Callable[[StageState], Any] | None = None,
     resume_from: Sequence[StageState] | None = None,
     settings: TMCMCSettings | None = None,
+    on_stage_start: Callable[[StageStart], Any] | None = None,
+    on_batch: Callable[[int], Any] | None = None,
 ) -> TMCMCResult:
     """Sample the posterior prior(theta) L(theta) / Z with TMCMC and estimate log Z.
 
     ``log_likelihood_batch(X)`` takes X (m, d) in ``prior.names`` order and returns log L (m,)
     (-inf/NaN allowed: counted as failed runs) or (log L (m,), responses (m, k)). Chains of a
     stage are split into batches of ``batch_size`` (None: one batch) and run through
-    ``map(func, batches)``. ``callback(state)`` runs after every finished stage, stage 0
-    included; passing the saved stages back as ``resume_from`` (with the same seed, n_samples and
-    settings; not called again for those stages) continues the run bit-identically.
+    ``map(func, batches)``. Hooks for progress displays: ``on_stage_start(StageStart)`` before a
+    stage runs, ``on_batch(k)`` after each batch with its number of evaluations.
+    ``callback(state)`` runs after every finished stage, stage 0 included; passing the saved
+    stages back as ``resume_from`` (with the same seed, n_samples and settings; not called again
+    for those stages) continues the run bit-identically.
     ``moves``, ``n_steps``, ``target_cov`` and ``max_stages`` override, when not None, the
     fields of ``settings`` (see :class:`TMCMCSettings`; defaults "resample-move", adaptive
     n_steps, 1.0, 50).
@@ -194,16 +212,32 @@ def tmcmc_batched(
         stages = list(resume_from)
         _check_resume(stages, prior, n_samples, seed)
     else:
-        stages = [
-            initial_stage(prior, n_samples, seed, log_likelihood_batch, map, batch_size, settings)
-        ]
+        X = initial_samples(prior, n_samples, seed)
+        batches = chain_batches(n_samples, batch_size)
+        if on_stage_start is not None:
+            on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))
+        func = partial(evaluate_points, log_likelihood_batch=log_likelihood_batch)
+        evals = []
+        for r, ev in zip(batches, map(func, [X[r.start : r.stop] for r in batches]), strict=True):
+            evals.append(ev)
+            if on_batch is not None:
+                on_batch(len(r))
+        stages = [initial_state(prior, X, evals, seed, settings)]
         if callback is not None:
             callback(stages[0])
 
     while (status := stage_status(stages[-1], settings)) is None:
         plan = plan_stage(stages[-1], prior, settings)
+        batches = chain_batches(plan.n_chains, batch_size)
+        if on_stage_start is not None:
+            planned = int(np.sum(plan.chain_length))
+            on_stage_start(StageStart(plan.stage, float(plan.exponent), planned, len(batches)))
         func = partial(run_chains, plan, log_likelihood_batch=log_likelihood_batch)
-        results = list(map(func, chain_batches(plan.n_chains, batch_size)))
+        results = []
+        for res in map(func, batches):  # consumed lazily: on_batch fires batch by batch
+            results.append(res)
+            if on_batch is not None:
+                on_batch(int(np.sum(res.proposed)))
         stages.append(reduce_stage(plan, results))
         if callback is not None:
             callback(stages[-1])
