@@ -118,15 +118,23 @@ def _install_error_handlers(app: FastAPI) -> None:
     async def _schema(request: Request, exc: SchemaVersionError) -> JSONResponse:
         return _error(503, str(exc))
 
-    @app.exception_handler(sqlalchemy.exc.DBAPIError)
-    async def _database(request: Request, exc: sqlalchemy.exc.DBAPIError) -> JSONResponse:
+    async def _database(request: Request, exc: Exception) -> JSONResponse:
         log.exception("database error on %s %s", request.method, request.url.path)
-        first = str(exc.orig or exc).strip().splitlines()[0] if str(exc.orig or exc) else ""
+        orig = getattr(exc, "orig", None) or exc
+        lines = str(orig).strip().splitlines()
+        reason = f"{type(orig).__name__}: {lines[0]}" if lines else type(orig).__name__
         return _error(
             503,
-            f"database unavailable or not at the code's schema revision ({first}); "
+            f"database unavailable or not at the code's schema revision ({reason}); "
             "see GET /health/ready",
         )
+
+    for cls in (
+        sqlalchemy.exc.OperationalError,  # unreachable, locked, SQLite table missing
+        sqlalchemy.exc.ProgrammingError,  # PostgreSQL table missing (schema downgraded)
+        sqlalchemy.exc.InterfaceError,
+    ):
+        app.add_exception_handler(cls, _database)
 
     @app.exception_handler(Exception)
     async def _internal(request: Request, exc: Exception) -> JSONResponse:

@@ -2,22 +2,39 @@
 
 from __future__ import annotations
 
+import importlib
 import sys
 
 import click
 
-from .calibrate import calibrate
-from .db import db
-from .sensitivity import sensitivity
-from .serve import serve
-from .simulate import simulate
-from .synth import synth
-from .upload import upload
-from .worker_cmd import reaper, worker
+# command name -> "module:attribute", imported only when the command runs (numba, scipy and the
+# web stack are slow to import; `scm-calib upload` should not pay for them)
+COMMANDS = {
+    "simulate": "services.cli.simulate:simulate",
+    "synth": "services.cli.synth:synth",
+    "calibrate": "services.cli.calibrate:calibrate",
+    "sensitivity": "services.cli.sensitivity:sensitivity",
+    "db": "services.cli.db:db",
+    "serve": "services.cli.serve:serve",
+    "worker": "services.cli.worker_cmd:worker",
+    "reaper": "services.cli.worker_cmd:reaper",
+    "upload": "services.cli.upload:upload",
+}
 
 
 class _Group(click.Group):
-    """Click group whose usage errors are one line on stderr with exit code 2."""
+    """Click group with lazily imported commands whose usage errors are one line on stderr
+    with exit code 2."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        target = COMMANDS.get(name)
+        if target is None:
+            return None
+        module, attr = target.split(":")
+        return getattr(importlib.import_module(module), attr)
 
     def main(self, *args, **kwargs):  # type: ignore[override]
         kwargs.setdefault("standalone_mode", False)
@@ -37,14 +54,3 @@ class _Group(click.Group):
 @click.version_option(package_name="scm-calib")
 def cli() -> None:
     """Calibrate SCM wheel-soil contact models from single-wheel tests (Bayesian TMCMC)."""
-
-
-cli.add_command(simulate)
-cli.add_command(synth)
-cli.add_command(calibrate)
-cli.add_command(sensitivity)
-cli.add_command(db)
-cli.add_command(worker)
-cli.add_command(reaper)
-cli.add_command(serve)
-cli.add_command(upload)

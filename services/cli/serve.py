@@ -2,7 +2,7 @@
 
 Embedded (the default): the SQLite file of the settings (``scm-calib-data/scm-calib.db``) and a
 local process pool that runs every study; the database is created or migrated on start, so a
-fresh machine needs no other step. Distributed: when ``SCM_CALIB_BROKER_URL`` is set explicitly
+fresh machine needs no other step. Distributed: when ``SCM_CALIB_BROKER_URL`` is set
 (environment, ``.env`` or the config file), the API only dispatches work to Celery workers
 (``scm-calib worker``; run ``scm-calib reaper`` too); a database other than SQLite must already
 be at the code's schema revision (``scm-calib db upgrade``).
@@ -76,14 +76,9 @@ def serve(host: str, port: int, workers: int | None, no_local_workers: bool, log
         settings = get_settings()
     except Exception as exc:
         raise click.ClickException(f"settings: {' '.join(str(exc).split())}") from None
-    distributed = "broker_url" in settings.model_fields_set and bool(settings.broker_url)
-    update: dict = {}
-    if not distributed:
-        update["broker_url"] = None
+    distributed = not settings.embedded
     if workers is not None:
-        update["worker_concurrency"] = workers
-    if update:
-        settings = settings.model_copy(update=update)
+        settings = settings.model_copy(update={"worker_concurrency": workers})
     _prepare_database(settings.database_url)
 
     import uvicorn
@@ -93,8 +88,8 @@ def serve(host: str, port: int, workers: int | None, no_local_workers: bool, log
 
     if distributed:
         mode = f"distributed: work goes to Celery at {safe_url(settings.broker_url or '')}"
-        if workers is not None or no_local_workers:
-            click.echo("note: --workers/--no-local-workers apply to the embedded mode", err=True)
+        if workers is not None:
+            click.echo("note: --workers applies to the embedded mode; ignored", err=True)
     elif no_local_workers:
         mode = "embedded, no local workers: studies are recorded but not run here"
     else:

@@ -77,7 +77,7 @@ def test_study_runs_to_its_end(finished) -> None:
     # the progress blocks moved forward while it ran
     stages = [s["stage"] for s in seen if s["stage"] is not None]
     assert stages == sorted(stages) and stages[-1] == 2
-    assert seen[0]["evaluations_planned"] == 60 and seen[0]["stage"] == 0
+    assert all(s["evaluations_planned"] == 60 for s in seen if s["stage"] == 0)
 
 
 def test_stages_and_events(finished) -> None:
@@ -90,9 +90,7 @@ def test_stages_and_events(finished) -> None:
     kinds = [e["kind"] for e in client.get(f"/studies/{study_id}/events").json()]
     assert kinds[0] == "study_created" and kinds.count("stage_done") == 3
     events = client.get(f"/studies/{study_id}/events", params={"limit": 2}).json()
-    rest = client.get(
-        f"/studies/{study_id}/events", params={"after_id": events[-1]["id"]}
-    ).json()
+    rest = client.get(f"/studies/{study_id}/events", params={"after_id": events[-1]["id"]}).json()
     assert [e["kind"] for e in events + rest] == kinds
 
 

@@ -119,7 +119,7 @@ def test_pooled_posterior(env) -> None:
     assert pooled["n_per_study"] == 20 and pooled["n_samples"] == 40
     assert pooled["names"] == ["phi", "n"] and len(pooled["samples"]) == 40
     assert [s["n_samples"] for s in pooled["studies"]] == [20, 30]
-    phi = [p for p in pooled["parameters"] if p["name"] == "phi"][0]
+    phi = next(p for p in pooled["parameters"] if p["name"] == "phi")
     assert phi["unit"] == "deg" and 20.0 <= phi["mean"] <= 35.0 and phi["map"] is None
     assert min(s["mean"]["phi"] for s in pooled["studies"]) <= phi["mean"]
     assert phi["mean"] <= max(s["mean"]["phi"] for s in pooled["studies"])

@@ -13,8 +13,10 @@ from pathlib import Path
 
 import httpx
 import pytest
+from click.testing import CliRunner
 from test_api_support import LOG, LOG2, ROOT, TOKEN, free_port, fresh_database, tiny_case
 
+from services.cli.main import cli
 from services.client import SCMCalibClient, SCMCalibError
 
 START_TIMEOUT = 60.0
@@ -43,9 +45,11 @@ def _cli(*args: str, env: dict[str, str], cwd: Path, timeout: float = 120.0):
     )
 
 
-@pytest.fixture
-def server(tmp_path: Path):
-    """A fresh embedded ``scm-calib serve`` (new data directory, 2 local workers)."""
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory):
+    """A fresh embedded ``scm-calib serve`` (new data directory, 2 local workers), shared by
+    the tests of this module and stopped with SIGINT at the end (exit code 0)."""
+    tmp_path = tmp_path_factory.mktemp("serve")
     port = free_port()
     env = _env(tmp_path)
     log = open(tmp_path / "serve.log", "w")  # noqa: SIM115 (closed below)
@@ -89,7 +93,7 @@ def test_client_and_upload_cli_against_serve(server) -> None:
         assert api.health()["mode"] == "embedded"
         assert api.ready()["status"] == "ready"
         first = api.upload_log(LOG)  # sends the sidecar wf34_s020.json as metadata
-        assert first["created"] is True and first["name"] == "wf34_s020"
+        assert first["name"] == "wf34_s020"
         assert first["meta"]["true_parameters"]["phi"] == 27.0
         again = api.upload_log(LOG)
         assert again["id"] == first["id"] and again["created"] is False
@@ -98,11 +102,12 @@ def test_client_and_upload_cli_against_serve(server) -> None:
         r = _cli("upload", str(LOG2), "--server", base, "--token", TOKEN, env=env, cwd=tmp)
         assert r.returncode == 0, r.stderr
         second = int(r.stdout.strip())
-        assert second != first["id"] and "stored" in r.stderr
+        assert second != first["id"] and f"dataset {second} (wf34_s050)" in r.stderr
         r = _cli("upload", str(LOG2), "--server", base, "--token", TOKEN, env=env, cwd=tmp)
         assert r.returncode == 0 and int(r.stdout.strip()) == second
         assert "already stored" in r.stderr
-        assert api.datasets()["total"] == 2
+        listed = {d["id"] for d in api.datasets()["items"]}
+        assert {first["id"], second} <= listed
 
         # a tiny study through the client, run by the server's local pool
         study = api.create_study(case=tiny_case(), dataset_ids=[first["id"]], seed=11)
@@ -125,30 +130,32 @@ def test_client_and_upload_cli_against_serve(server) -> None:
 
 
 def test_upload_cli_errors(server) -> None:
-    base, env, tmp = server
+    base, _, tmp = server
     bad = tmp / "bad.csv"
     bad.write_bytes(LOG.read_bytes().replace(b"sinkage [m]", b"sinkage [parsec]"))
     meta = tmp / "meta.json"
     meta.write_text("[1, 2]")
+    up = ["upload", str(LOG), "--server", base]
     cases = [
         # (arguments, exit code, words in the one-line message)
-        (["upload", str(tmp / "nope.csv"), "--server", base, "--token", TOKEN], 2, ["no such file"]),
+        (["upload", str(tmp / "nope.csv"), "--server", base], 2, ["no such file"]),
         (["upload", str(LOG)], 2, ["--server"]),
-        (["upload", str(LOG), "--server", base, "--token", TOKEN, "--meta", str(meta)], 2,
-         ["--meta", "JSON object"]),
-        (["upload", str(LOG), "--server", base, "--token", "wrong"], 1, ["401", "invalid API token"]),
-        (["upload", str(LOG), "--server", base], 1, ["401", "missing API token"]),
+        ([*up, "--token", TOKEN, "--meta", str(meta)], 2, ["--meta", "JSON object"]),
+        ([*up, "--token", "wrong"], 1, ["401", "invalid API token"]),
+        (up, 1, ["401", "missing API token"]),
         (["upload", str(bad), "--server", base, "--token", TOKEN], 1,
          ["422", "file bad.csv", "sinkage [parsec]", "unit"]),
-        (["upload", str(LOG), "--server", f"http://127.0.0.1:{free_port()}", "--token", TOKEN], 1,
+        (["upload", str(LOG), "--server", f"http://127.0.0.1:{free_port()}"], 1,
          ["ConnectError"]),
     ]  # fmt: skip
+    runner = CliRunner()  # in-process command line, real server
     for args, code, words in cases:
-        r = _cli(*args, env=env, cwd=tmp)
-        assert r.returncode == code, (args, r.stdout, r.stderr)
-        assert r.stdout == ""
-        lines = r.stderr.strip().splitlines()
-        assert len(lines) == 1 and lines[0].startswith("error:"), r.stderr
+        r = runner.invoke(cli, args, env={"SCM_CALIB_SERVER": None, "SCM_CALIB_TOKEN": None})
+        stdout, stderr = r.stdout, r.stderr
+        assert r.exit_code == code, (args, stdout, stderr)
+        assert stdout == ""
+        lines = stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error:"), stderr
         assert all(w in lines[0] for w in words), lines[0]
 
 

@@ -105,7 +105,8 @@ def row_counts(url: str) -> dict[str, int]:
     engine = make_engine(url)
     try:
         with engine.connect() as conn:
-            return {t: int(conn.execute(sa.text(f"SELECT count(*) FROM {t}")).scalar()) for t in TABLES}
+            count = "SELECT count(*) FROM {}"
+            return {t: int(conn.execute(sa.text(count.format(t))).scalar()) for t in TABLES}
     finally:
         engine.dispose()
 
@@ -145,7 +146,8 @@ def upload_file(client: TestClient, path: Path = LOG, headers: dict | None = Non
     if "metadata" not in data and sidecar.is_file():
         data["metadata"] = sidecar.read_text()
     files = {"file": (path.name, path.read_bytes(), "text/csv")}
-    return client.post("/datasets", files=files, data=data, headers=AUTH if headers is None else headers)
+    headers = AUTH if headers is None else headers
+    return client.post("/datasets", files=files, data=data, headers=headers)
 
 
 def summary_doc(shift: float = 0.0, name: str | None = None) -> dict[str, Any]:

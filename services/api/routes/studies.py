@@ -102,7 +102,10 @@ def precheck(store: Store, case: CaseDefinition, dataset_ids: list[int]) -> None
     """Refuse a case whose simulator configuration cannot be built at the prior medians on
     the datasets' test conditions (the study would fail on its first batch)."""
     datasets = [store.datasets.load(d) for d in dataset_ids]
-    model = StudyModel(case, datasets)
+    try:
+        model = StudyModel(case, datasets)
+    except (ValidationError, ValueError) as exc:
+        raise _unprocessable(f"dataset_ids: {exc}") from None
     theta = case.prior().ppf(np.full(len(case.parameters), 0.5))
     for k, d in enumerate(model.datasets):
         try:
