@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import LEASE_SECONDS, add_example_dataset, service_env
+from svc_support import LEASE_SECONDS, add_example_dataset, service_env
 
 from services.config import Settings
 from services.store import Store

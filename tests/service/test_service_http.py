@@ -13,7 +13,7 @@ import time
 import httpx
 import numpy as np
 import pytest
-from conftest import CASE_FILE, LEASE_SECONDS, LOG_FILE, ROOT, free_port, service_env
+from svc_support import CASE_FILE, LEASE_SECONDS, LOG_FILE, ROOT, free_port, service_env
 
 from services.client import SCMCalibClient
 from services.config import new_token

@@ -1,0 +1,209 @@
+"""Real PostgreSQL, Redis and Celery worker processes for the distributed-mode tests (helpers
+and fixtures; the fixtures are registered by conftest.py)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import psycopg
+import pytest
+import redis
+
+from scm_core.calibration import load_case
+from scm_core.signals import load_log
+from services.store import Store
+from services.store.migrate import upgrade
+
+HERE = Path(__file__).parent
+ROOT = HERE.parent.parent
+CASE_FILE = HERE / "data" / "svc_case.toml"
+LOG_FILE = ROOT / "examples" / "wf34_s020.csv"
+PG_ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"
+LEASE_SECONDS = 4.0
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def pg_url():
+    """A fresh PostgreSQL database at the schema's head revision, dropped afterwards."""
+    name = f"scm_calib_svc_{uuid.uuid4().hex[:10]}"
+    try:
+        with psycopg.connect(PG_ADMIN, autocommit=True) as conn:
+            conn.execute(f'CREATE DATABASE "{name}"')
+    except psycopg.OperationalError as exc:  # CI starts PostgreSQL: a skip would hide a failure
+        pytest.fail(f"PostgreSQL at 127.0.0.1:5432 is needed for this test: {exc}")
+    url = f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
+    upgrade(url)
+    yield url
+    with psycopg.connect(PG_ADMIN, autocommit=True) as conn:
+        conn.execute(
+            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s", (name,)
+        )
+        conn.execute(f'DROP DATABASE IF EXISTS "{name}"')
+
+
+class RedisServer:
+    """A throwaway redis-server on its own port (no persistence): can be killed and restarted."""
+
+    def __init__(self) -> None:
+        self.port = free_port()
+        self.proc: subprocess.Popen | None = None
+
+    @property
+    def url(self) -> str:
+        return f"redis://127.0.0.1:{self.port}/0"
+
+    def start(self) -> None:
+        exe = shutil.which("redis-server")
+        if exe is None:
+            pytest.fail("redis-server is needed for this test")
+        self.proc = subprocess.Popen(
+            [
+                exe,
+                "--port",
+                str(self.port),
+                "--bind",
+                "127.0.0.1",
+                "--save",
+                "",
+                "--appendonly",
+                "no",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        client = redis.Redis(port=self.port)
+        for _ in range(100):
+            try:
+                if client.ping():
+                    return
+            except redis.ConnectionError:
+                time.sleep(0.05)
+        pytest.fail("throwaway redis-server did not start")
+
+    def stop(self) -> None:
+        if self.proc is not None:
+            self.proc.kill()
+            self.proc.wait()
+            self.proc = None
+
+
+@pytest.fixture
+def redis_server():
+    server = RedisServer()
+    server.start()
+    yield server
+    server.stop()
+
+
+def service_env(db_url: str, broker_url: str) -> dict[str, str]:
+    env = dict(os.environ)
+    env.update(
+        SCM_CALIB_DATABASE_URL=db_url,
+        SCM_CALIB_BROKER_URL=broker_url,
+        SCM_CALIB_LEASE_SECONDS=str(LEASE_SECONDS),
+        SCM_CALIB_MAX_ATTEMPTS="5",
+        NUMBA_NUM_THREADS="1",
+        PYTHONUNBUFFERED="1",
+    )
+    return env
+
+
+class Processes:
+    """Child processes of a test (workers, reaper, API), all killed at the end."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.tmp = tmp
+        self.procs: list[subprocess.Popen] = []
+
+    def start(self, name: str, args: list[str], env: dict[str, str]) -> subprocess.Popen:
+        log = open(self.tmp / f"{name}.log", "w")  # noqa: SIM115 (closed with the process)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "services.cli", *args],
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            cwd=ROOT,
+        )
+        self.procs.append(proc)
+        return proc
+
+    def worker(self, env: dict[str, str], name: str) -> subprocess.Popen:
+        return self.start(name, ["worker", "--pool", "solo", "--concurrency", "1"], env)
+
+    def reaper(self, env: dict[str, str]) -> subprocess.Popen:
+        return self.start("reaper", ["reaper", "--interval", "1"], env)
+
+    def logs(self) -> str:
+        return "\n".join(
+            f"--- {p.name}\n{p.read_text()[-3000:]}" for p in sorted(self.tmp.glob("*.log"))
+        )
+
+    def stop_all(self) -> None:
+        for p in self.procs:
+            if p.poll() is None:
+                p.kill()
+        for p in self.procs:
+            p.wait(timeout=30)
+
+
+@pytest.fixture
+def processes(tmp_path):
+    procs = Processes(tmp_path)
+    yield procs
+    procs.stop_all()
+
+
+@pytest.fixture(scope="session")
+def svc_case():
+    return load_case(CASE_FILE)
+
+
+def add_example_dataset(store: Store, case) -> int:
+    raw = LOG_FILE.read_bytes()
+    meta = json.loads(LOG_FILE.with_suffix(".json").read_text())
+    ds = load_log(raw, metadata=meta, offset=case.data.offset)
+    rec, _ = store.datasets.add(ds, raw, meta=meta, filename=LOG_FILE.name)
+    return rec.id
+
+
+@pytest.fixture(scope="session")
+def reference_samples(tmp_path_factory, svc_case):
+    """Final samples of the same study run by ``scm-calib calibrate`` (bit-exact checkpoint)."""
+    out = tmp_path_factory.mktemp("calibrate")
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.cli",
+            "calibrate",
+            str(CASE_FILE),
+            "--out",
+            str(out),
+            "--no-plots",
+            "--quiet",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stderr
+    from scm_core.inference import StageState
+
+    checkpoints = sorted((out / "checkpoints").glob("stage_*.json"))
+    final = StageState.from_dict(json.loads(checkpoints[-1].read_text())["state"])
+    return final
