@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Protocol
 
 from scm_core.calibration import CaseDefinition, StudyModel
@@ -115,10 +116,17 @@ class StudyContext:
     case: CaseDefinition
     model: StudyModel
     settings: Any  # TMCMCSettings
+    n_samples: int
+    seed: int
 
-    @property
+    @cached_property
     def prior(self):
         return self.case.prior()
+
+    @cached_property
+    def initial_points(self):
+        """Stage-0 prior draws (all chains), drawn once per process."""
+        return initial_samples(self.prior, self.n_samples, self.seed)
 
 
 def load_datasets(store: Store, case: CaseDefinition, dataset_ids: Sequence[int]) -> list:
@@ -160,7 +168,11 @@ class ContextCache:
         case = CaseDefinition.from_dict(study.case)
         datasets = load_datasets(store, case, study.dataset_ids)
         ctx = StudyContext(
-            case=case, model=StudyModel(case, datasets), settings=case.tmcmc_settings()
+            case=case,
+            model=StudyModel(case, datasets),
+            settings=case.tmcmc_settings(),
+            n_samples=study.n_samples,
+            seed=study.seed,
         )
         with self._lock:
             if len(self._items) >= self._maxsize:
@@ -221,9 +233,8 @@ def compute_batch(store: Store, lease: BatchLease, ctx: StudyContext, likelihood
     key = lease.key
     likelihood = likelihood or ctx.model.log_likelihood_batch
     if key.stage_index == 0:
-        study = store.studies.get(key.study_id)
-        X = initial_samples(ctx.prior, study.n_samples, study.seed)
-        return evaluate_points(X[lease.chain_start : lease.chain_stop], likelihood)
+        X = ctx.initial_points[lease.chain_start : lease.chain_stop]
+        return evaluate_points(X, likelihood)
     plan = store.stages.plan(key.study_id, key.stage_index)
     return run_chains(plan, lease.chains, likelihood)
 
@@ -280,8 +291,9 @@ def reducer(ctx: StudyContext):
     def reduce(inp: ReduceInput) -> StageAdvance:
         study = inp.study
         if inp.stage.stage_index == 0:
-            X = initial_samples(ctx.prior, study.n_samples, study.seed)
-            state = initial_state(ctx.prior, X, inp.results, study.seed, ctx.settings)
+            state = initial_state(
+                ctx.prior, ctx.initial_points, inp.results, study.seed, ctx.settings
+            )
         else:
             state = reduce_stage(inp.plan, inp.results)
         status = stage_status(state, ctx.settings)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -32,15 +31,11 @@ def celery_dispatcher(settings: Settings):
     return CeleryDispatcher(make_celery(settings))
 
 
-_lock = threading.Lock()
-
-
 @lru_cache(maxsize=1)
 def process_runtime() -> Runtime:
     """The runtime of a Celery worker process (settings from the environment)."""
     settings = get_settings()
-    with _lock:
-        return Runtime(Store.from_settings(settings), celery_dispatcher(settings))
+    return Runtime(Store.from_settings(settings), celery_dispatcher(settings))
 
 
 _local_runtimes: dict[str, Runtime] = {}
