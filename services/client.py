@@ -222,12 +222,42 @@ class SCMCalibClient:
         return self._json("POST", "/studies", json=body)
 
     def studies(
-        self, status: str | None = None, limit: int = 50, offset: int = 0
+        self, status: str | None = None, limit: int = 50, offset: int = 0, kind: str | None = None
     ) -> dict[str, Any]:
+        """A page of studies, newest first; ``kind``: "tmcmc" or "morris" (default: both)."""
         params: dict[str, Any] = {"limit": limit, "offset": offset}
         if status:
             params["status"] = status
+        if kind:
+            params["kind"] = kind
         return self._json("GET", "/studies", params=params)
+
+    def create_sensitivity(
+        self,
+        dataset_id: int,
+        case: Mapping[str, Any] | str | Path | Any | None = None,
+        preset: str | None = None,
+        **options: Any,
+    ) -> dict[str, Any]:
+        """Submit a Morris sensitivity study under the test conditions of ``dataset_id``:
+        ``preset`` or ``case`` as in :meth:`create_study`, and options r, levels, seed,
+        separate_k, bounds ({name: (lower, upper)}), name, batch_size. Wait for it with
+        :meth:`wait`; read it with :meth:`sensitivity`."""
+        body: dict[str, Any] = {"dataset_id": int(dataset_id)}
+        if preset is not None:
+            body["preset"] = str(preset)
+        if case is not None:
+            body["case"] = _case_document(case)
+        if options.get("bounds") is not None:
+            options["bounds"] = {
+                k: [float(v[0]), float(v[1])] for k, v in options["bounds"].items()
+            }
+        body.update({k: v for k, v in options.items() if v is not None})
+        return self._json("POST", "/sensitivity", json=body)
+
+    def sensitivity(self, study_id: int) -> dict[str, Any]:
+        """A sensitivity study: design, progress and (once completed) its Morris ``result``."""
+        return self._json("GET", f"/sensitivity/{int(study_id)}")
 
     def get_study(self, study_id: int) -> dict[str, Any]:
         """The study with its ``progress`` block."""

@@ -31,8 +31,17 @@ from scm_core.inference.tmcmc_stage import (
 )
 from scm_core.signals import SWTDataset, load_log, load_summary
 from services.store import Store
+from services.store.codec import BatchResult
 from services.store.errors import NotFoundError
-from services.store.records import BatchKey, BatchLease, ReduceInput, StageAdvance, StudySpec
+from services.store.records import (
+    BatchKey,
+    BatchLease,
+    ReduceInput,
+    Reducer,
+    StageAdvance,
+    StudyRecord,
+    StudySpec,
+)
 
 log = logging.getLogger(__name__)
 
@@ -111,7 +120,8 @@ def _dispatch_stage(store: Store, study_id: int, stage_index: int, dispatcher: D
 
 @dataclass
 class StudyContext:
-    """What running a study's batches needs; rebuilt from the database, cached per process."""
+    """What running a calibration's batches needs; rebuilt from the database, cached per
+    process. The Morris counterpart is :class:`worker.morris_study.MorrisContext`."""
 
     case: CaseDefinition
     model: StudyModel
@@ -127,6 +137,51 @@ class StudyContext:
     def initial_points(self):
         """Stage-0 prior draws (all chains), drawn once per process."""
         return initial_samples(self.prior, self.n_samples, self.seed)
+
+    @property
+    def model_function(self):
+        """The function whose time is simulator time: points (m, d) -> log-likelihoods."""
+        return self.model.log_likelihood_batch
+
+    def compute(self, store: Store, lease: BatchLease, model_function) -> BatchResult:
+        """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""
+        if lease.key.stage_index == 0:
+            X = self.initial_points[lease.chain_start : lease.chain_stop]
+            return evaluate_points(X, model_function)
+        plan = store.stages.plan(lease.key.study_id, lease.key.stage_index)
+        return run_chains(plan, lease.chains, model_function)
+
+    def reducer(self) -> Reducer:
+        """The store's reducer: the stage's population, then the next plan or the end."""
+
+        def reduce(inp: ReduceInput) -> StageAdvance:
+            study = inp.study
+            if inp.stage.stage_index == 0:
+                state = initial_state(
+                    self.prior, self.initial_points, inp.results, study.seed, self.settings
+                )
+            else:
+                state = reduce_stage(inp.plan, inp.results)
+            status = stage_status(state, self.settings)
+            if status is None:
+                plan = plan_stage(state, self.prior, self.settings)
+                return StageAdvance(state, plan, chain_batches(plan.n_chains, study.batch_size))
+            if status == "completed":
+                return StageAdvance(state, final_status="completed")
+            return StageAdvance(state, final_status="stalled", error=f"TMCMC stopped: {status}")
+
+        return reduce
+
+
+class RunnableStudy(Protocol):
+    """A study kind's computation: a batch's work and the reducer of its stages."""
+
+    @property
+    def model_function(self) -> Any: ...
+
+    def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchResult: ...
+
+    def reducer(self) -> Reducer: ...
 
 
 def load_datasets(store: Store, case: CaseDefinition, dataset_ids: Sequence[int]) -> list:
@@ -151,29 +206,37 @@ def load_datasets(store: Store, case: CaseDefinition, dataset_ids: Sequence[int]
     return out
 
 
+def build_context(store: Store, study: StudyRecord) -> RunnableStudy:
+    """The computation of ``study`` (by its kind), with its datasets loaded from the store."""
+    case = CaseDefinition.from_dict(study.case)
+    datasets = load_datasets(store, case, study.dataset_ids)
+    if study.kind == "morris":
+        from .morris_study import MorrisContext
+
+        return MorrisContext.from_study(study, case, datasets[0])
+    return StudyContext(
+        case=case,
+        model=StudyModel(case, datasets),
+        settings=case.tmcmc_settings(),
+        n_samples=study.n_samples,
+        seed=study.seed,
+    )
+
+
 class ContextCache:
-    """Per-process cache of :class:`StudyContext` by study id (thread-safe)."""
+    """Per-process cache of study computations by study id (thread-safe)."""
 
     def __init__(self, maxsize: int = 8) -> None:
-        self._items: dict[int, StudyContext] = {}
+        self._items: dict[int, RunnableStudy] = {}
         self._lock = threading.Lock()
         self._maxsize = maxsize
 
-    def get(self, store: Store, study_id: int) -> StudyContext:
+    def get(self, store: Store, study_id: int) -> RunnableStudy:
         with self._lock:
             ctx = self._items.get(study_id)
         if ctx is not None:
             return ctx
-        study = store.studies.get(study_id)
-        case = CaseDefinition.from_dict(study.case)
-        datasets = load_datasets(store, case, study.dataset_ids)
-        ctx = StudyContext(
-            case=case,
-            model=StudyModel(case, datasets),
-            settings=case.tmcmc_settings(),
-            n_samples=study.n_samples,
-            seed=study.seed,
-        )
+        ctx = build_context(store, store.studies.get(study_id))
         with self._lock:
             if len(self._items) >= self._maxsize:
                 self._items.pop(next(iter(self._items)))
@@ -228,17 +291,6 @@ class _TimedLikelihood:
             self.seconds += time.perf_counter() - t0
 
 
-def compute_batch(store: Store, lease: BatchLease, ctx: StudyContext, likelihood=None):
-    """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""
-    key = lease.key
-    likelihood = likelihood or ctx.model.log_likelihood_batch
-    if key.stage_index == 0:
-        X = ctx.initial_points[lease.chain_start : lease.chain_stop]
-        return evaluate_points(X, likelihood)
-    plan = store.stages.plan(key.study_id, key.stage_index)
-    return run_chains(plan, lease.chains, likelihood)
-
-
 def execute_batch(
     store: Store,
     key: BatchKey,
@@ -258,10 +310,10 @@ def execute_batch(
     t0 = time.perf_counter()
     try:
         ctx = cache.get(store, key.study_id)
-        timed = _TimedLikelihood(ctx.model.log_likelihood_batch)
+        timed = _TimedLikelihood(ctx.model_function)
         every = heartbeat_every or max(0.2, store.db.lease_seconds / 4.0)
         with _Heartbeat(store, lease, every):
-            result = compute_batch(store, lease, ctx, timed)
+            result = ctx.compute(store, lease, timed)
     except Exception as exc:
         log.exception("batch %s failed", key)
         store.batches.release(lease, f"{type(exc).__name__}: {exc}")
@@ -285,28 +337,6 @@ def execute_batch(
     return outcome.status
 
 
-def reducer(ctx: StudyContext):
-    """The store's reducer for a study: the stage's population, then the next plan or the end."""
-
-    def reduce(inp: ReduceInput) -> StageAdvance:
-        study = inp.study
-        if inp.stage.stage_index == 0:
-            state = initial_state(
-                ctx.prior, ctx.initial_points, inp.results, study.seed, ctx.settings
-            )
-        else:
-            state = reduce_stage(inp.plan, inp.results)
-        status = stage_status(state, ctx.settings)
-        if status is None:
-            plan = plan_stage(state, ctx.prior, ctx.settings)
-            return StageAdvance(state, plan, chain_batches(plan.n_chains, study.batch_size))
-        if status == "completed":
-            return StageAdvance(state, final_status="completed")
-        return StageAdvance(state, final_status="stalled", error=f"TMCMC stopped: {status}")
-
-    return reduce
-
-
 def advance(
     store: Store,
     study_id: int,
@@ -316,7 +346,7 @@ def advance(
 ) -> str:
     """Advance a finished stage (exactly once across all processes) and dispatch the next one."""
     ctx = cache.get(store, study_id)
-    outcome = store.stages.advance(study_id, stage_index, reducer(ctx))
+    outcome = store.stages.advance(study_id, stage_index, ctx.reducer())
     if outcome.status == "advanced" and dispatcher is not None:
         _dispatch_stage(store, study_id, stage_index + 1, dispatcher)
     return outcome.status

@@ -21,17 +21,22 @@ from .model import DatasetTerms, StudyModel, build_configs, dataset_terms
 from .report import stage_table, study_summary
 from .sensitivity import (
     DEFAULT_BOUNDS,
+    FACTOR_UNITS,
     TABLE1_PARAMETERS,
     MorrisModel,
+    SensitivityDesign,
     SensitivityResult,
+    analyze_sensitivity,
     run_sensitivity,
     screening_factors,
+    sensitivity_design,
 )
 from .synthetic import NoiseModel, SyntheticError, SyntheticLog, synthesize_log
 
 __all__ = [
     "CALIBRATABLE",
     "DEFAULT_BOUNDS",
+    "FACTOR_UNITS",
     "PRESETS",
     "RESPONSES",
     "SIGMA_NAMES",
@@ -44,11 +49,13 @@ __all__ = [
     "NoiseModel",
     "PriorSpec",
     "SamplerSettings",
+    "SensitivityDesign",
     "SensitivityResult",
     "StageStart",
     "StudyModel",
     "SyntheticError",
     "SyntheticLog",
+    "analyze_sensitivity",
     "build_configs",
     "dataset_terms",
     "load_case",
@@ -56,6 +63,7 @@ __all__ = [
     "run_sensitivity",
     "run_tmcmc",
     "screening_factors",
+    "sensitivity_design",
     "stage_table",
     "study_summary",
     "synthesize_log",

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import ValidationError
 
-from scm_core.inference.morris import morris_analyze, morris_design
+from scm_core.inference.morris import MorrisDesign, morris_analyze, morris_design
 from scm_core.signals import SWTDataset
 from scm_core.simulator import simulate_packed
 from scm_core.simulator.layout import N_PARAMS, pack
@@ -45,11 +45,15 @@ from .model import DatasetTerms, build_configs, dataset_terms
 
 __all__ = [
     "DEFAULT_BOUNDS",
+    "FACTOR_UNITS",
     "TABLE1_PARAMETERS",
     "MorrisModel",
+    "SensitivityDesign",
     "SensitivityResult",
+    "analyze_sensitivity",
     "run_sensitivity",
     "screening_factors",
+    "sensitivity_design",
 ]
 
 TABLE1_PARAMETERS = ("k_c", "k_phi", "n", "c", "phi", "D_soil", "J")
@@ -65,6 +69,16 @@ DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
     "J": (0.001, 0.1),
 }
 LOG_SCALE = ("k_star", "k_phi")
+FACTOR_UNITS: dict[str, str] = {
+    "k_star": "N/m^(n+2)",
+    "k_c": "N/m^(n+1)",
+    "k_phi": "N/m^(n+2)",
+    "n": "-",
+    "c": "Pa",
+    "phi": "deg",
+    "D_soil": "N s/m^3",
+    "J": "m/s",
+}
 
 MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
 
@@ -245,6 +259,74 @@ def _normalise(a: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(s > 0, a / s, 0.0)
 
 
+@dataclass(frozen=True, eq=False)
+class SensitivityDesign:
+    """A Morris screening, designed but not yet run: the factors and the trajectory points.
+
+    The points (``design.points``, shape (r (d + 1), d)) can be evaluated anywhere, in any
+    chunks (a local map, a process pool, Celery work batches): the outputs depend only on the
+    point, so :func:`analyze_sensitivity` gives the same result however they were run.
+    """
+
+    names: tuple[str, ...]
+    bounds: NDArray[np.float64]
+    log_scale: NDArray[np.bool_]
+    design: MorrisDesign
+    seed: int
+
+    @property
+    def points(self) -> NDArray[np.float64]:
+        return self.design.points
+
+    @property
+    def n_points(self) -> int:
+        return int(self.design.points.shape[0])
+
+
+def sensitivity_design(
+    case: CaseDefinition | None = None,
+    r: int = 20,
+    levels: int = 4,
+    seed: int = 0,
+    joint_k: bool = True,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+) -> SensitivityDesign:
+    """The factors (see :func:`screening_factors`) and r Morris trajectories on a ``levels``
+    grid (seeded). Raises ValueError naming the bad bound, ``r`` or ``levels``."""
+    names, b, log = screening_factors(case, joint_k, bounds)
+    _, design = morris_design(b, r=r, levels=levels, seed=seed, names=names, log_scale=log)
+    return SensitivityDesign(names=names, bounds=b, log_scale=log, design=design, seed=int(seed))
+
+
+def analyze_sensitivity(
+    design: SensitivityDesign, outputs: ArrayLike, dataset: str = ""
+) -> SensitivityResult:
+    """Morris statistics from the outputs (n_points, 3) of the design's points, in order
+    (NaN rows for failed runs: the elementary effects that touch them are left out)."""
+    Y = np.asarray(outputs, dtype=float)
+    if Y.shape != (design.n_points, len(RESPONSES)):
+        raise ValueError(f"outputs have shape {Y.shape}, expected ({design.n_points}, 3)")
+    ee = morris_analyze(design.design, Y).ee  # NaN where a run failed
+    mu, mu_star, sigma, count = _nan_stats(ee)
+    return SensitivityResult(
+        names=design.names,
+        bounds=design.bounds,
+        log_scale=design.log_scale,
+        mu=mu,
+        mu_star=mu_star,
+        sigma=sigma,
+        linear_index=_normalise(mu_star),
+        nonlinear_index=_normalise(sigma),
+        n_effects=count.astype(np.int64),
+        points=design.points,
+        outputs=Y,
+        r=design.design.r,
+        levels=design.design.levels,
+        seed=design.seed,
+        dataset=dataset,
+    )
+
+
 def run_sensitivity(
     dataset: SWTDataset | DatasetTerms,
     case: CaseDefinition | None = None,
@@ -258,29 +340,11 @@ def run_sensitivity(
 ) -> SensitivityResult:
     """Morris screening (r trajectories on a ``levels`` grid) of the soil parameters under the
     conditions of ``dataset``, with the case's nominal values and simulator settings."""
-    names, b, log = screening_factors(case, joint_k, bounds)
-    points, design = morris_design(b, r=r, levels=levels, seed=seed, names=names, log_scale=log)
-    model = MorrisModel(names, case, dataset)
+    design = sensitivity_design(case, r, levels, seed, joint_k, bounds)
+    model = MorrisModel(design.names, case, dataset)
+    points = design.points
     n = points.shape[0]
     size = n if batch_size is None else int(batch_size)
     chunks = [points[i : i + size] for i in range(0, n, size)]
     Y = np.concatenate([np.asarray(y) for y in map(model, chunks)], axis=0)
-    ee = morris_analyze(design, Y).ee  # NaN where a run failed
-    mu, mu_star, sigma, count = _nan_stats(ee)
-    return SensitivityResult(
-        names=names,
-        bounds=b,
-        log_scale=log,
-        mu=mu,
-        mu_star=mu_star,
-        sigma=sigma,
-        linear_index=_normalise(mu_star),
-        nonlinear_index=_normalise(sigma),
-        n_effects=count.astype(np.int64),
-        points=points,
-        outputs=Y,
-        r=int(r),
-        levels=int(levels),
-        seed=int(seed),
-        dataset=model.dataset.name,
-    )
+    return analyze_sensitivity(design, Y, model.dataset.name)

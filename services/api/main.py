@@ -29,7 +29,7 @@ from fastapi.responses import JSONResponse
 from services.config import Settings, get_settings
 from services.store import NotFoundError, SchemaVersionError, Store
 
-from .routes import datasets, health, pooled, presets, studies
+from .routes import datasets, health, pooled, presets, sensitivity, studies
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +45,8 @@ Bayesian (TMCMC) calibration of Soil Contact Model parameters from single-wheel 
 
 Upload SWT logs (`POST /datasets`), submit a study (`POST /studies`, a preset of the paper or a
 case document), follow its progress (`GET /studies/{id}`), then read the posterior
-(`.../summary`, `.../stages/{j}/samples`). Write endpoints need `Authorization: Bearer <token>`.
+(`.../summary`, `.../stages/{j}/samples`). Screen the soil parameters first with a Morris
+sensitivity study (`POST /sensitivity`). Write endpoints need `Authorization: Bearer <token>`.
 Errors are `{"detail": "..."}`.
 """
 
@@ -256,6 +257,6 @@ def create_app(
 
     app.add_middleware(BodyLimitMiddleware, limit_for=limit_for)
     _install_error_handlers(app)
-    for module in (health, datasets, presets, studies, pooled):
+    for module in (health, datasets, presets, studies, sensitivity, pooled):
         app.include_router(module.router)
     return app

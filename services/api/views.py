@@ -18,7 +18,15 @@ from scm_core.calibration import RESPONSES
 from scm_core.inference.posterior import credible_interval, summarize
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 
-from .schemas import ParameterSummary, ProgressOut, StageOut, StudyBrief, StudyOut
+from .schemas import (
+    FactorOut,
+    ParameterSummary,
+    ProgressOut,
+    SensitivityOut,
+    StageOut,
+    StudyBrief,
+    StudyOut,
+)
 
 ACTIVE = ("queued", "running")
 FINISHED_OK = ("completed", "stalled")
@@ -75,6 +83,7 @@ def response_names(store: Store, study: StudyRecord) -> list[str]:
 def study_brief(study: StudyRecord) -> StudyBrief:
     return StudyBrief(
         id=study.id,
+        kind=study.kind,
         name=study.name,
         status=study.status,
         error=study.error,
@@ -102,6 +111,39 @@ def study_out(store: Store, study: StudyRecord) -> StudyOut:
         priors=study.priors,
         sampler=study.sampler,
         progress=study_progress(store, study),
+    )
+
+
+def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
+    """A Morris study (kind "morris") as ``GET /sensitivity/{id}`` shows it."""
+    cfg = study.sampler
+    return SensitivityOut(
+        id=study.id,
+        name=study.name,
+        status=study.status,
+        error=study.error,
+        dataset_id=study.dataset_ids[0],
+        seed=study.seed,
+        r=int(cfg["r"]),
+        levels=int(cfg["levels"]),
+        joint_k=bool(cfg["joint_k"]),
+        factors=[
+            FactorOut(
+                name=p["name"],
+                lower=p["lower"],
+                upper=p["upper"],
+                log_scale=p["dist"] == "log_uniform",
+                unit=p.get("unit"),
+            )
+            for p in study.priors["parameters"]
+        ],
+        n_points=study.n_samples,
+        batch_size=study.batch_size,
+        created_at=study.created_at,
+        started_at=study.started_at,
+        finished_at=study.finished_at,
+        progress=study_progress(store, study),
+        result=study.result,
     )
 
 

@@ -22,6 +22,7 @@ __all__ = [
     "STAGE_STATUSES",
     "STUDY_ACTIVE",
     "STUDY_FINAL",
+    "STUDY_KINDS",
     "STUDY_STATUSES",
     "Base",
     "Dataset",
@@ -33,6 +34,7 @@ __all__ = [
     "WorkBatch",
 ]
 
+STUDY_KINDS = ("tmcmc", "morris")
 STUDY_STATUSES = ("queued", "running", "completed", "failed", "cancelled", "stalled")
 STUDY_ACTIVE = ("queued", "running")
 STUDY_FINAL = ("completed", "failed", "cancelled", "stalled")
@@ -77,15 +79,23 @@ class Dataset(Base):
 
 
 class Study(Base):
-    """A calibration: case, priors, datasets, sampler settings, seed and progress."""
+    """A study: case, priors, datasets, sampler settings, seed and progress.
+
+    kind "tmcmc": a calibration (stages of TMCMC chains). kind "morris": a sensitivity
+    screening (one stage whose "chains" are the Morris design points; ``priors`` holds the
+    factor box, ``sampler`` the design settings and ``result`` the Morris statistics).
+    """
 
     __tablename__ = "studies"
     __table_args__ = (
         sa.CheckConstraint(_in("status", STUDY_STATUSES), name="status"),
+        sa.CheckConstraint(_in("kind", STUDY_KINDS), name="kind"),
         sa.Index("ix_studies_status_id", "status", "id"),
+        sa.Index("ix_studies_kind_id", "kind", "id"),
     )
 
     id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
+    kind: Mapped[str] = mapped_column(sa.String(16), default="tmcmc", server_default="tmcmc")
     name: Mapped[str] = mapped_column(sa.String(200))
     status: Mapped[str] = mapped_column(sa.String(16), default="queued")
     case_spec: Mapped[dict[str, Any]] = mapped_column(JSONType)
@@ -101,6 +111,7 @@ class Study(Base):
     model_runs: Mapped[int] = mapped_column(sa.BigInteger, default=0)
     failed_runs: Mapped[int] = mapped_column(sa.BigInteger, default=0)
     error: Mapped[str | None] = mapped_column(sa.Text)
+    result: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)

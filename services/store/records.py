@@ -82,6 +82,8 @@ class StudySpec:
     priors: ``JointPrior.to_dict()``; sampler: ``TMCMCSettings.to_dict()`` (plus whatever the
     orchestrator needs); case and simulator: free JSON. ``dataset_ids`` in likelihood order.
     seed: 0 <= seed < 2**63. batch_size: chains per work batch (None: orchestrator decides).
+    kind: "tmcmc" (a calibration) or "morris" (a sensitivity study: n_samples design points,
+    priors the factor box, sampler the design settings).
     """
 
     name: str
@@ -93,11 +95,15 @@ class StudySpec:
     sampler: Mapping[str, Any] = field(default_factory=dict)
     simulator: Mapping[str, Any] = field(default_factory=dict)
     batch_size: int | None = None
+    kind: str = "tmcmc"
 
 
 @dataclass(frozen=True)
 class StudyRecord:
+    """A study; ``result``: the Morris statistics of a finished sensitivity study (else None)."""
+
     id: int
+    kind: str
     name: str
     status: str
     case: dict[str, Any]
@@ -118,6 +124,7 @@ class StudyRecord:
     updated_at: datetime
     started_at: datetime | None
     finished_at: datetime | None
+    result: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -278,7 +285,8 @@ class StageAdvance:
     next_plan with next_batches (consecutive ranges covering chains 0..n_chains-1) opens
     stage + 1. With next_plan None the study ends with ``final_status`` ("completed",
     "stalled" or "failed", with ``error``). ``payload``: extra fields for the "stage_done"
-    event (strict JSON after non-finite floats become strings).
+    event (strict JSON after non-finite floats become strings). ``result``: a JSON document
+    stored on the study when it ends (the Morris statistics of a sensitivity study).
     """
 
     state: StageState
@@ -287,6 +295,7 @@ class StageAdvance:
     final_status: str | None = None
     error: str | None = None
     payload: Mapping[str, Any] | None = None
+    result: Mapping[str, Any] | None = None
 
 
 Reducer = Callable[[ReduceInput], StageAdvance]

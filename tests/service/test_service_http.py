@@ -4,6 +4,7 @@ server killed and restarted in the middle of a study. Final samples are compared
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -15,6 +16,8 @@ import numpy as np
 import pytest
 from svc_support import CASE_FILE, LEASE_SECONDS, LOG_FILE, ROOT, free_port, service_env
 
+from scm_core.calibration import load_case, run_sensitivity
+from scm_core.signals import load_log
 from services.client import SCMCalibClient
 from services.config import new_token
 
@@ -60,7 +63,20 @@ def test_api_and_two_celery_workers(pg_url, redis_server, processes, reference_s
         final = client.wait(study["id"], timeout=TIMEOUT, poll=0.5)
         assert final["status"] == "completed", (final, processes.logs())
         got = _final_samples(client, study["id"])
+
+        # a Morris sensitivity study on the same workers (its design points as work batches)
+        sens = client.create_sensitivity(ds["id"], case=CASE_FILE, r=3, seed=4, batch_size=4)
+        assert client.wait(sens["id"], timeout=TIMEOUT, poll=0.5)["status"] == "completed"
+        result = client.sensitivity(sens["id"])["result"]
+        events = client.events(sens["id"], limit=1000)
+        workers = {e["payload"]["worker"] for e in events if e["kind"] == "batch_done"}
     assert got.tobytes() == reference_samples.samples.tobytes()
+    case = load_case(CASE_FILE)
+    meta = json.loads(LOG_FILE.with_suffix(".json").read_text())
+    dataset = load_log(LOG_FILE.read_bytes(), metadata=meta, offset=case.data.offset)
+    ref = run_sensitivity(dataset, case, r=3, seed=4)
+    assert result == json.loads(json.dumps(ref.to_dict()))  # bit-identical to one process
+    assert len({w.split(":")[1] for w in workers}) == 2  # both Celery workers ran points
 
 
 def test_embedded_server_killed_and_restarted(tmp_path, processes, reference_samples):

@@ -30,7 +30,8 @@ def _tables(url: str) -> set[str]:
 
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
-    assert head_revision() == "0001"
+    assert (migrations_dir() / "versions" / "0002_study_kind.py").is_file()
+    assert head_revision() == "0002"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -70,14 +71,14 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0001") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0002") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0001"
+    assert info.value.current == "ffff" and info.value.head == "0002"
 
     engine = make_engine(empty_url)
     try:
         with engine.begin() as conn:
-            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0001'"))
+            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0002'"))
     finally:
         engine.dispose()
     with Store.open(empty_url) as store:
@@ -92,13 +93,13 @@ def test_cli_db_commands(empty_url: str) -> None:
 
     res = runner.invoke(cli, ["db", "upgrade", "--url", empty_url])
     assert res.exit_code == 0, res.output
-    assert "base -> 0001" in res.output
+    assert "base -> 0002" in res.output
 
     res = runner.invoke(cli, ["db", "current", "--url", empty_url])
-    assert res.exit_code == 0 and "revision 0001" in res.output and "up to date" in res.output
+    assert res.exit_code == 0 and "revision 0002" in res.output and "up to date" in res.output
 
     res = runner.invoke(cli, ["db", "downgrade", "base", "--url", empty_url])
-    assert res.exit_code == 0 and "0001 -> base" in res.output
+    assert res.exit_code == 0 and "0002 -> base" in res.output
     assert current_revision(empty_url) is None
 
 
@@ -111,6 +112,30 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0001"
+        assert current_revision(url) == "0002"
     finally:
         get_settings.cache_clear()
+
+
+def test_upgrade_0001_to_0002_keeps_studies_as_calibrations(empty_url: str) -> None:
+    """Studies stored before sensitivity studies existed become kind "tmcmc"; the downgrade
+    keeps them too."""
+    upgrade(empty_url, "0001")
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO studies (name, status, case_spec, priors, sampler, simulator, seed, "
+        "n_samples, model_runs, failed_runs, created_at, updated_at) VALUES ('old', 'completed', "
+        "'{}', '{}', '{}', '{}', 3, 10, 0, 0, :t, :t)"
+    )
+    try:
+        with engine.begin() as conn:
+            conn.execute(insert, {"t": "2025-01-01 00:00:00"})
+        upgrade(empty_url)
+        with engine.connect() as conn:
+            row = conn.execute(sa.text("SELECT name, kind, result FROM studies")).one()
+        assert tuple(row) == ("old", "tmcmc", None)
+        downgrade(empty_url, "0001")
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT name FROM studies")).scalars().all() == ["old"]
+    finally:
+        engine.dispose()

@@ -40,6 +40,10 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
             study = store.studies.get(sid)
         except NotFoundError:
             raise _unprocessable(f"study_ids: no study with id {sid}") from None
+        if study.kind != "tmcmc":
+            raise _unprocessable(
+                f"study_ids: study {sid} is a {study.kind} sensitivity study, not a calibration"
+            )
         if study.status != "completed":
             raise _unprocessable(
                 f"study_ids: study {sid} is {study.status}; only completed studies are pooled"

@@ -12,7 +12,7 @@ import io
 import logging
 import math
 from collections.abc import Iterator
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, Body, Depends, HTTPException, Query, Response
@@ -68,24 +68,29 @@ def _unprocessable(message: str) -> HTTPException:
 # ---------------------------------------------------------------------------- submission
 
 
-def build_case(body: StudyCreate) -> CaseDefinition:
-    """The case of a request: the preset or the case document, with the overrides applied;
-    422 naming the field (``preset``, ``case.parameters.k_phi``, ``n_samples`` ...)."""
-    if (body.preset is None) == (body.case is None):
+def base_case(preset: str | None, document: dict[str, Any] | None) -> CaseDefinition:
+    """The case named by a request: a preset of the paper or a case document (exactly one);
+    422 naming the field (``preset``, ``case.parameters.k_phi`` ...)."""
+    if (preset is None) == (document is None):
         raise _unprocessable(
             "preset: give exactly one of 'preset' (a name: 1, 2a, 2b) or 'case' (a case document)"
         )
-    if body.preset is not None:
+    if preset is not None:
         try:
-            case = preset_case(body.preset)
+            return preset_case(preset)
         except CaseError as exc:
             raise _unprocessable(f"preset: {exc}") from None
-    else:
-        try:
-            case = CaseDefinition.from_dict(body.case or {})
-        except CaseError as exc:
-            text = str(exc)
-            raise _unprocessable(text if text.startswith("case") else f"case.{text}") from None
+    try:
+        return CaseDefinition.from_dict(document or {})
+    except CaseError as exc:
+        text = str(exc)
+        raise _unprocessable(text if text.startswith("case") else f"case.{text}") from None
+
+
+def build_case(body: StudyCreate) -> CaseDefinition:
+    """The case of a request: the preset or the case document, with the overrides applied;
+    422 naming the field (``preset``, ``case.parameters.k_phi``, ``n_samples`` ...)."""
+    case = base_case(body.preset, body.case)
     sampler = {k: getattr(body, k) for k in _SAMPLER_OVERRIDES if getattr(body, k) is not None}
     top = {k: getattr(body, k) for k in _TOP_OVERRIDES if getattr(body, k) is not None}
     if sampler or top:
@@ -157,25 +162,35 @@ def create_study(
 # ---------------------------------------------------------------------------- reading
 
 
+def parse_statuses(status: str | None) -> list[str] | None:
+    """``?status=a,b`` as a list (None: all); 422 naming ``query.status`` for an unknown one."""
+    if not status:
+        return None
+    statuses = [s.strip() for s in status.split(",") if s.strip()]
+    unknown = [s for s in statuses if s not in STUDY_STATUSES]
+    if unknown:
+        raise _unprocessable(
+            f"query.status: unknown status {unknown[0]!r}; one of {', '.join(STUDY_STATUSES)}"
+        )
+    return statuses
+
+
 @router.get("", response_model=StudyPage, summary="List studies", responses=errors(401, 422))
 def list_studies(
     store: StoreDep,
     status: Annotated[
         str | None, Query(description="Filter: one status or several, comma-separated.")
     ] = None,
+    kind: Annotated[
+        Literal["tmcmc", "morris"] | None,
+        Query(description="Filter: calibrations (tmcmc) or sensitivity studies (morris)."),
+    ] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
     offset: Annotated[int, Query(ge=0)] = 0,
 ) -> StudyPage:
-    """Studies, newest first."""
-    statuses = None
-    if status:
-        statuses = [s.strip() for s in status.split(",") if s.strip()]
-        unknown = [s for s in statuses if s not in STUDY_STATUSES]
-        if unknown:
-            raise _unprocessable(
-                f"query.status: unknown status {unknown[0]!r}; one of {', '.join(STUDY_STATUSES)}"
-            )
-    page = store.studies.list(statuses, limit=limit, offset=offset)
+    """Studies of both kinds, newest first."""
+    statuses = parse_statuses(status)
+    page = store.studies.list(statuses, kind=kind, limit=limit, offset=offset)
     return StudyPage(
         items=[study_brief(s) for s in page.items],
         total=page.total,
@@ -335,6 +350,12 @@ def get_summary(study_id: int, store: StoreDep) -> SummaryOut:
     """Mean, sd, quantiles, 95 % interval, correlations and MAP sample of the last finished
     stage (the posterior when ``is_posterior``: exponent 1), with the log evidence."""
     study = store.studies.get(study_id)
+    if study.kind != "tmcmc":
+        raise HTTPException(
+            409,
+            f"study {study_id} is a {study.kind} sensitivity study: its result is at "
+            f"GET /sensitivity/{study_id}",
+        )
     st = resolve_stage(store, study_id, -1)
     a = store.samples.arrays(study_id, st.stage_index)
     if len(a) < 2:

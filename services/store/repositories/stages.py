@@ -33,6 +33,7 @@ from sqlalchemy.orm import Session
 from scm_core.inference.tmcmc_stage import StagePlan, StageState
 
 from .. import codec
+from ..engine import jsonable
 from ..errors import InvalidStateError, NotFoundError
 from ..models import Stage, Study, WorkBatch
 from ..records import AdvanceOutcome, ReduceInput, Reducer, StageAdvance, StageRecord
@@ -363,6 +364,8 @@ class StageRepository:
             create_stage(s, study_id, nxt, adv.next_plan, adv.next_batches, now)
             return AdvanceOutcome("advanced", "running", nxt)
         final = str(adv.final_status)
+        if adv.result is not None:
+            counters["result"] = jsonable(dict(adv.result))
         if not set_study_status(
             s, study_id, final, now, from_=("running",), error=adv.error, **counters
         ):

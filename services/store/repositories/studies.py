@@ -18,7 +18,7 @@ from scm_core.inference.tmcmc_stage import StagePlan
 
 from ..engine import jsonable
 from ..errors import NotFoundError
-from ..models import STUDY_ACTIVE, STUDY_STATUSES, Dataset, Study, StudyDataset
+from ..models import STUDY_ACTIVE, STUDY_KINDS, STUDY_STATUSES, Dataset, Study, StudyDataset
 from ..records import Page, StageRecord, StudyRecord, StudySpec
 from .base import Database
 from .events import append_event
@@ -45,6 +45,7 @@ def _dataset_ids(session: Session, study_ids: Iterable[int]) -> dict[int, tuple[
 def _record(st: Study, dataset_ids: tuple[int, ...]) -> StudyRecord:
     return StudyRecord(
         id=st.id,
+        kind=st.kind,
         name=st.name,
         status=st.status,
         case=dict(st.case_spec),
@@ -65,6 +66,7 @@ def _record(st: Study, dataset_ids: tuple[int, ...]) -> StudyRecord:
         updated_at=st.updated_at,
         started_at=st.started_at,
         finished_at=st.finished_at,
+        result=None if st.result is None else dict(st.result),
     )
 
 
@@ -118,6 +120,8 @@ class StudyRepository:
         """Insert a queued study with its datasets (in order) and a "study_created" event."""
         if not 0 <= int(spec.seed) < _SEED_LIMIT:
             raise ValueError(f"seed must satisfy 0 <= seed < 2**63, got {spec.seed}")
+        if spec.kind not in STUDY_KINDS:
+            raise ValueError(f"unknown study kind {spec.kind!r}; one of {STUDY_KINDS}")
         if int(spec.n_samples) < 1:
             raise ValueError(f"n_samples must be >= 1, got {spec.n_samples}")
         if spec.batch_size is not None and int(spec.batch_size) < 1:
@@ -133,6 +137,7 @@ class StudyRepository:
                 if missing:
                     raise NotFoundError(f"datasets not found: {missing}")
             st = Study(
+                kind=spec.kind,
                 name=spec.name[:200],
                 status="queued",
                 case_spec=jsonable(dict(spec.case)),
@@ -154,7 +159,11 @@ class StudyRepository:
                 for i, d in enumerate(dataset_ids)
             )
             append_event(
-                s, st.id, "study_created", {"name": st.name, "dataset_ids": dataset_ids}, now
+                s,
+                st.id,
+                "study_created",
+                {"name": st.name, "kind": st.kind, "dataset_ids": dataset_ids},
+                now,
             )
             s.flush()
             return _record(st, tuple(dataset_ids))
@@ -167,11 +176,16 @@ class StudyRepository:
         self,
         status: str | Sequence[str] | None = None,
         *,
+        kind: str | None = None,
         limit: int = 50,
         offset: int = 0,
     ) -> Page[StudyRecord]:
-        """Studies, newest first, optionally only those with the given status(es)."""
+        """Studies, newest first, optionally only those with the given status(es) or kind."""
         where = []
+        if kind is not None:
+            if kind not in STUDY_KINDS:
+                raise ValueError(f"unknown study kind {kind!r}; one of {STUDY_KINDS}")
+            where.append(Study.kind == kind)
         if status is not None:
             statuses = [status] if isinstance(status, str) else list(status)
             unknown = set(statuses) - set(STUDY_STATUSES)

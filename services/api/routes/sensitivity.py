@@ -1,0 +1,124 @@
+"""Sensitivity studies: Morris screening of the SCM soil parameters (paper section 4.4).
+
+A sensitivity study is a study of kind "morris" (see :mod:`worker.morris_study`): its design
+points run as work batches like TMCMC chains (locally or on Celery workers) and the Morris
+analysis is stored when the last batch is in. Cancel it with ``POST /studies/{id}/cancel``;
+its design points and steady F, T, z are the samples of its stage 0
+(``GET /studies/{id}/stages/0/samples.csv``).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, HTTPException, Query, Response
+
+from services.store import Store, StudyRecord
+from worker.morris_study import SensitivityInputError, sensitivity_spec
+from worker.orchestrator import start_study
+
+from ..deps import DispatcherDep, StoreDep, require_read, require_write
+from ..schemas import SensitivityCreate, SensitivityOut, SensitivityPage
+from ..views import sensitivity_out
+from . import errors
+from .studies import base_case, parse_statuses
+
+log = logging.getLogger(__name__)
+
+router = APIRouter(
+    prefix="/sensitivity", tags=["sensitivity"], dependencies=[Depends(require_read)]
+)
+
+
+def _unprocessable(message: str) -> HTTPException:
+    return HTTPException(422, " ".join(str(message).split()))
+
+
+def _get(store: Store, study_id: int) -> StudyRecord:
+    study = store.studies.get(study_id)
+    if study.kind != "morris":
+        raise HTTPException(
+            404, f"sensitivity study {study_id} not found (study {study_id} is a calibration)"
+        )
+    return study
+
+
+@router.post(
+    "",
+    response_model=SensitivityOut,
+    status_code=201,
+    summary="Submit a Morris sensitivity study",
+    dependencies=[Depends(require_write)],
+    responses=errors(401, 413, 422),
+)
+def create_sensitivity(
+    body: SensitivityCreate, response: Response, store: StoreDep, dispatcher: DispatcherDep
+) -> SensitivityOut:
+    """Screen the 7 soil parameters of Table 1 (k_c and k_phi jointly through k*, eq. 11,
+    unless ``separate_k``) with r Morris trajectories under the test conditions of
+    ``dataset_id``, with the case's nominal values and simulator settings. Bounds: ``bounds``,
+    else the case's prior for a calibrated factor, else the defaults (Table 2 for n, phi, J).
+    Any problem answers 422 naming the field, and nothing is stored."""
+    case = base_case(body.preset, body.case)
+    try:
+        spec = sensitivity_spec(
+            store,
+            case,
+            body.dataset_id,
+            r=body.r,
+            levels=body.levels,
+            seed=body.seed,
+            joint_k=not body.separate_k,
+            bounds=body.bounds,
+            batch_size=body.batch_size,
+            name=body.name,
+        )
+    except SensitivityInputError as exc:
+        raise _unprocessable(str(exc)) from None
+    record = store.studies.create(spec)
+    try:
+        start_study(store, record.id, dispatcher)
+    except Exception:  # the batches stay pending: the reaper / local loop dispatches them
+        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
+    response.headers["Location"] = f"/sensitivity/{record.id}"
+    return sensitivity_out(store, store.studies.get(record.id))
+
+
+@router.get(
+    "",
+    response_model=SensitivityPage,
+    summary="List sensitivity studies",
+    responses=errors(401, 422),
+)
+def list_sensitivity(
+    store: StoreDep,
+    status: Annotated[
+        str | None, Query(description="Filter: one status or several, comma-separated.")
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> SensitivityPage:
+    """Sensitivity studies, newest first, with their results."""
+    page = store.studies.list(parse_statuses(status), kind="morris", limit=limit, offset=offset)
+    return SensitivityPage(
+        items=[sensitivity_out(store, s) for s in page.items],
+        total=page.total,
+        limit=limit,
+        offset=offset,
+        next_offset=page.next_offset,
+    )
+
+
+@router.get(
+    "/{study_id}",
+    response_model=SensitivityOut,
+    summary="A sensitivity study: progress and Morris statistics",
+    responses=errors(401, 404),
+)
+def get_sensitivity(study_id: int, store: StoreDep) -> SensitivityOut:
+    """The design (factors, bounds, r, levels), the progress block (evaluations are design
+    points) and, once completed, the Morris statistics: mu, mu*, sigma and the normalised
+    linear (mu* / sum mu*) and non-linear (sigma / sum sigma) indices of Figure 4, per
+    response F [N], T [N m], z [m]."""
+    return sensitivity_out(store, _get(store, study_id))

@@ -1,0 +1,235 @@
+"""Morris sensitivity studies in the service (paper section 4.4): the design points are the
+work batches' "chains", the Morris analysis is the reducer of the study's only stage.
+
+A sensitivity study is a study of kind "morris" on one dataset (whose test conditions are
+simulated; its measurements are not used). Stored: ``sampler`` = the design settings with every
+factor's bounds resolved (so the design can be rebuilt exactly, whatever later defaults become),
+``priors`` = the factor box (names, bounds, scale, units: the columns of the stage's samples),
+``n_samples`` = the number of design points r (d + 1), ``seed`` = the design seed. The stage's
+samples are the design points with their steady F, T, z; the study's ``result`` is
+:meth:`scm_core.calibration.SensitivityResult.to_dict`. Outputs depend only on the point, so
+the result is bit-identical to ``run_sensitivity`` however the points were batched.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from scm_core.calibration import (
+    FACTOR_UNITS,
+    CaseDefinition,
+    MorrisModel,
+    SensitivityDesign,
+    analyze_sensitivity,
+    build_configs,
+    sensitivity_design,
+)
+from scm_core.inference.tmcmc_stage import PointEvaluation, StageState
+from scm_core.signals import SWTDataset
+from services.store import Store
+from services.store.errors import NotFoundError
+from services.store.records import (
+    BatchLease,
+    ReduceInput,
+    Reducer,
+    StageAdvance,
+    StudyRecord,
+    StudySpec,
+)
+
+__all__ = [
+    "DEFAULT_POINTS_PER_BATCH",
+    "MorrisContext",
+    "SensitivityInputError",
+    "design_of",
+    "sensitivity_spec",
+]
+
+#: design points per work batch: ~1 min of simulator time at the default numerics
+DEFAULT_POINTS_PER_BATCH = 14
+
+
+class SensitivityInputError(ValueError):
+    """A sensitivity study cannot be made from the request; the message names the field."""
+
+
+def _settings(design: SensitivityDesign, joint_k: bool) -> dict[str, Any]:
+    return {
+        "method": "morris",
+        "r": design.design.r,
+        "levels": design.design.levels,
+        "joint_k": bool(joint_k),
+        "bounds": {
+            n: [float(design.bounds[i, 0]), float(design.bounds[i, 1])]
+            for i, n in enumerate(design.names)
+        },
+    }
+
+
+def _factor_box(design: SensitivityDesign) -> dict[str, Any]:
+    return {
+        "parameters": [
+            {
+                "name": n,
+                "dist": "log_uniform" if design.log_scale[i] else "uniform",
+                "lower": float(design.bounds[i, 0]),
+                "upper": float(design.bounds[i, 1]),
+                "unit": FACTOR_UNITS.get(n),
+            }
+            for i, n in enumerate(design.names)
+        ]
+    }
+
+
+def sensitivity_spec(
+    store: Store,
+    case: CaseDefinition,
+    dataset_id: int,
+    *,
+    r: int = 20,
+    levels: int = 4,
+    seed: int = 0,
+    joint_k: bool = True,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    batch_size: int | None = None,
+    name: str | None = None,
+) -> StudySpec:
+    """A validated :class:`StudySpec` of kind "morris"; SensitivityInputError names the field
+    (``dataset_id``, ``bounds.<factor>``, ``r``, ``levels``)."""
+    try:
+        store.datasets.get(int(dataset_id))
+    except NotFoundError:
+        raise SensitivityInputError(f"dataset_id: no dataset with id {dataset_id}") from None
+    if r < 2:
+        raise SensitivityInputError(f"r: need at least 2 trajectories, got {r}")
+    if levels < 2 or levels % 2:
+        raise SensitivityInputError(f"levels: must be an even integer >= 2, got {levels}")
+    try:
+        design = sensitivity_design(case, r, levels, seed, joint_k, bounds)
+    except ValueError as exc:
+        text = str(exc)
+        if text.startswith("bounds of "):
+            factor, _, rest = text.removeprefix("bounds of ").partition(": ")
+            text = f"bounds.{factor}: {rest}"
+        elif text.startswith("bounds given for"):
+            text = f"bounds: {text.removeprefix('bounds given for ')}"
+        raise SensitivityInputError(text) from None
+    _check_configuration(store, case, int(dataset_id), design)
+    return StudySpec(
+        name=name or f"{case.name} sensitivity",
+        case=case.to_dict(),
+        priors=_factor_box(design),
+        dataset_ids=[int(dataset_id)],
+        seed=int(seed),
+        n_samples=design.n_points,
+        sampler=_settings(design, joint_k),
+        simulator=dict(case.simulator),
+        batch_size=batch_size or DEFAULT_POINTS_PER_BATCH,
+        kind="morris",
+    )
+
+
+def _check_configuration(
+    store: Store, case: CaseDefinition, dataset_id: int, design: SensitivityDesign
+) -> None:
+    """Refuse a screening whose simulator configuration cannot be built at the centre of the
+    factor box on the dataset's test conditions (every run would fail)."""
+    model = MorrisModel(design.names, case, store.datasets.load(dataset_id))
+    lo, hi = design.bounds[:, 0], design.bounds[:, 1]
+    log = design.log_scale
+    centre = np.where(log, np.sqrt(np.abs(lo * hi)), 0.5 * (lo + hi))
+    try:
+        build_configs(
+            model.nominal, model.simulator, model.dataset.conditions, model.values(centre)
+        )
+    except (ValidationError, ValueError) as exc:
+        field = f"dataset_id: dataset {dataset_id}"
+        if isinstance(exc, ValidationError):
+            err = exc.errors()[0]
+            loc = [str(p) for p in err.get("loc", ())]
+            text = f"{'.'.join(loc)}: {str(err.get('msg', '')).removeprefix('Value error, ')}"
+            factor = (
+                "k_star"
+                if loc and loc[-1] in ("k_c", "k_phi") and design.names[0] == "k_star"
+                else (loc[-1] if loc else "")
+            )
+            if factor in design.names:
+                field = f"bounds.{factor}"
+        else:
+            text = str(exc)
+        raise SensitivityInputError(
+            f"{field}: invalid simulator configuration at the centre of the factor box: {text}"
+        ) from None
+
+
+def design_of(study: StudyRecord, case: CaseDefinition) -> SensitivityDesign:
+    """The study's Morris design, rebuilt from its stored settings."""
+    cfg = study.sampler
+    bounds = {k: (float(v[0]), float(v[1])) for k, v in cfg["bounds"].items()}
+    return sensitivity_design(
+        case, int(cfg["r"]), int(cfg["levels"]), study.seed, bool(cfg["joint_k"]), bounds
+    )
+
+
+@dataclass
+class MorrisContext:
+    """A sensitivity study's computation (see the module doc); cached per process."""
+
+    design: SensitivityDesign
+    model: MorrisModel
+    seed: int
+
+    @classmethod
+    def from_study(
+        cls, study: StudyRecord, case: CaseDefinition, dataset: SWTDataset
+    ) -> MorrisContext:
+        design = design_of(study, case)
+        return cls(design, MorrisModel(design.names, case, dataset), study.seed)
+
+    @property
+    def model_function(self):
+        """Points (m, d) -> steady means (m, 3) [N, N m, m]; NaN rows for failed runs."""
+        return self.model
+
+    def compute(self, store: Store, lease: BatchLease, model_function) -> PointEvaluation:
+        X = self.design.points[lease.chain_start : lease.chain_stop]
+        Y = np.asarray(model_function(X), dtype=float)
+        failed = int(np.count_nonzero(~np.all(np.isfinite(Y), axis=1)))
+        return PointEvaluation(np.full(X.shape[0], np.nan), Y, failed)
+
+    def reducer(self) -> Reducer:
+        def reduce(inp: ReduceInput) -> StageAdvance:
+            Y = np.concatenate([np.asarray(r.responses) for r in inp.results], axis=0)
+            result = analyze_sensitivity(self.design, Y, self.model.dataset.name)
+            n = self.design.n_points
+            state = StageState(
+                stage=0,
+                exponent=math.nan,
+                samples=self.design.points,
+                log_likelihood=np.full(n, np.nan),
+                log_prior=np.full(n, np.nan),
+                responses=Y,
+                beta=math.nan,
+                acceptance_rate=math.nan,
+                log_evidence=math.nan,
+                log_evidence_var=math.nan,
+                model_runs=n,
+                failed_runs=result.n_failed,
+                proposals=0,
+                accepted=0,
+                out_of_support=0,
+                n_chains=0,
+                n_steps=0,
+                ess=math.nan,
+                stall_count=0,
+                seed=self.seed,
+            )
+            return StageAdvance(state, final_status="completed", result=result.to_dict())
+
+        return reduce
