@@ -30,6 +30,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CASE = ROOT / "benchmarks" / "bench_case.toml"
 LOG = ROOT / "examples" / "wf34_s020.csv"
 ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"
+SHARES = ("overhead", "in_batch", "bookkeeping", "startup", "transitions", "barrier")
 
 
 def free_port() -> int:
@@ -83,18 +84,9 @@ def run_once(n_workers: int, tmp: Path, case_file: Path) -> dict[str, float]:
         study = submit_study(store, case, [rec.id], dispatcher)
         final = wait_for_study(store, study.id, timeout=1800, poll=0.2)
         assert final.status in ("completed", "stalled"), final.error
-        wall = (final.finished_at - final.started_at).total_seconds()
-        done = [e.payload for e in store.events.list(study.id, kinds=["batch_done"], limit=100000)]
-        model = sum(p["model_s"] for p in done)
-        compute = sum(p["compute_s"] for p in done)
+        row = breakdown(store, final, n_workers)
         store.close()
-        return {
-            "wall": wall,
-            "model": model,
-            "compute": compute,
-            "runs": final.model_runs,
-            "overhead": 1.0 - model / (n_workers * wall),
-        }
+        return row
     finally:
         for p in procs:
             p.kill()
@@ -109,28 +101,84 @@ def run_once(n_workers: int, tmp: Path, case_file: Path) -> dict[str, float]:
             conn.execute(f'DROP DATABASE IF EXISTS "{name}"')
 
 
+def breakdown(store, study, n_workers: int) -> dict[str, float]:
+    """Where the workers' time went (seconds of worker time, n_workers x wall in all).
+
+    simulator: inside the model function; in_batch: the rest of a batch's computation (plan
+    fetch, chain bookkeeping); bookkeeping: lease to stored result minus computation (claim,
+    encode, store); startup: study start to first lease; transitions: from the last result
+    of a stage to the first lease of the next (reduce, plan, dispatch, pick-up), all workers;
+    barrier: the rest, i.e. workers idle while others finish a stage's last batches.
+    """
+    wall = (study.finished_at - study.started_at).total_seconds()
+    done = {
+        (p["stage"], p["batch"]): p
+        for p in (
+            e.payload for e in store.events.list(study.id, kinds=["batch_done"], limit=100000)
+        )
+    }
+    batches = [b for b in store.batches.list(study.id) if b.status == "done"]
+    model = sum(p["model_s"] for p in done.values())
+    compute = sum(p["compute_s"] for p in done.values())
+    held = sum((b.finished_at - b.leased_at).total_seconds() for b in batches)
+    by_stage: dict[int, list] = {}
+    for b in batches:
+        by_stage.setdefault(b.key.stage_index, []).append(b)
+    stages = sorted(by_stage)
+    first = min(b.leased_at for b in by_stage[stages[0]])
+    startup = (first - study.started_at).total_seconds()
+    transitions = sum(
+        (
+            min(b.leased_at for b in by_stage[k]) - max(b.finished_at for b in by_stage[k - 1])
+        ).total_seconds()
+        for k in stages[1:]
+    )
+    tail = (study.finished_at - max(b.finished_at for b in by_stage[stages[-1]])).total_seconds()
+    total = n_workers * wall
+    fixed = n_workers * (startup + transitions + tail)
+    return {
+        "wall": wall,
+        "model": model,
+        "compute": compute,
+        "runs": study.model_runs,
+        "batches": len(batches),
+        "overhead": 1.0 - model / total,
+        "in_batch": (compute - model) / total,
+        "bookkeeping": (held - compute) / total,
+        "startup": n_workers * startup / total,
+        "transitions": n_workers * (transitions + tail) / total,
+        "barrier": (total - held - fixed) / total,
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--case", type=Path, default=CASE, help="study case file (TOML)")
+    ap.add_argument("--verbose", action="store_true", help="print every run's breakdown")
     args = ap.parse_args()
     table = Table(title=f"{args.case.name} on Celery workers (median of {args.repeats})")
-    for col in ("workers", "wall [s]", "simulator [s]", "batch compute [s]", "model runs",
-                "outside simulator"):  # fmt: skip
+    for col in ("workers", "wall [s]", "simulator [s]", "model runs", "batches",
+                "outside simulator", "in batch", "claim/store", "startup", "stage transitions",
+                "idle at barriers"):  # fmt: skip
         table.add_column(col, justify="right")
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.workers:
             rows = [run_once(n, Path(tmp), args.case) for _ in range(args.repeats)]
             med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}
+            pct = [f"{100 * med[k]:.1f} %" for k in SHARES]
             table.add_row(
                 str(n),
                 f"{med['wall']:.2f}",
                 f"{med['model']:.2f}",
-                f"{med['compute']:.2f}",
                 f"{med['runs']:.0f}",
-                f"{100 * med['overhead']:.1f} %",
+                f"{med['batches']:.0f}",
+                *pct,
             )
+            if args.verbose:
+                for r in rows:
+                    print(n, {k: round(v, 4) for k, v in r.items()})
     Console().print(table)
 
 
