@@ -179,7 +179,7 @@ def main() -> None:
             if args.verbose:
                 for r in rows:
                     print(n, {k: round(v, 4) for k, v in r.items()})
-    Console().print(table)
+    Console(width=200).print(table)
 
 
 if __name__ == "__main__":

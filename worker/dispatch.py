@@ -35,8 +35,14 @@ class LocalDispatcher:
         target: Callable[[tuple, tuple[int, int, int]], str],
         store_args: tuple,
         on_done: Callable[[], None] | None = None,
+        initializer: Callable[[tuple], None] | None = None,
     ) -> None:
-        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"))
+        self._pool = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=get_context("spawn"),
+            initializer=initializer,
+            initargs=(store_args,) if initializer is not None else (),
+        )
         self._target = target
         self._store_args = store_args
         self._inflight: set[BatchKey] = set()

@@ -10,7 +10,7 @@ from services.store import Store
 
 from .dispatch import LocalDispatcher
 from .orchestrator import ContextCache, reap_once
-from .runtime import run_local_batch
+from .runtime import init_local_process, run_local_batch
 
 log = logging.getLogger(__name__)
 
@@ -32,6 +32,7 @@ class LocalRuntime:
             run_local_batch,
             (settings.database_url, settings.lease_seconds, settings.max_attempts),
             on_done=self._wake.set,
+            initializer=init_local_process,
         )
         self._thread = threading.Thread(target=self._loop, name="scm-calib-local", daemon=True)
 

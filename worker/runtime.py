@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -41,12 +42,28 @@ def process_runtime() -> Runtime:
 _local_runtimes: dict[str, Runtime] = {}
 
 
-def run_local_batch(store_args: tuple[str, float, int], key: tuple[int, int, int]) -> str:
-    """Entry point of the embedded pool's processes: run one batch (no dispatcher: the
-    parent's loop dispatches the next stage). store_args: (url, lease_seconds, max_attempts)."""
+def _local_runtime(store_args: tuple[str, float, int]) -> Runtime:
     rt = _local_runtimes.get(store_args[0])
     if rt is None:
         url, lease, attempts = store_args
         rt = Runtime(Store.open(url, lease_seconds=lease, max_attempts=attempts), None)
         _local_runtimes[url] = rt
-    return rt.execute(BatchKey(*key))
+    return rt
+
+
+def init_local_process(store_args: tuple[str, float, int]) -> None:
+    """Initializer of the embedded pool's processes: open the store and load the compiled
+    simulator before the first batch arrives (failures surface again in the batch)."""
+    from scm_core.simulator import warm_up
+
+    try:
+        _local_runtime(store_args)
+        warm_up()
+    except Exception:
+        logging.getLogger(__name__).exception("local worker process start-up failed")
+
+
+def run_local_batch(store_args: tuple[str, float, int], key: tuple[int, int, int]) -> str:
+    """Entry point of the embedded pool's processes: run one batch (no dispatcher: the
+    parent's loop dispatches the next stage). store_args: (url, lease_seconds, max_attempts)."""
+    return _local_runtime(store_args).execute(BatchKey(*key))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 
 from celery import shared_task
+from celery.signals import worker_process_init
 
 from services.store.records import BatchKey
 
@@ -23,3 +24,17 @@ def run_batch(self, study_id: int, stage_index: int, batch_index: int) -> str:
     except Exception as exc:  # released in the store (attempt counted); the reaper re-dispatches
         log.warning("batch %s failed: %s", key, exc)
         return "failed"
+
+
+@worker_process_init.connect
+def warm_up_process(**_: object) -> None:
+    """In every pool process at start (prefork children; the solo pool's own process): open
+    the store (a database at the wrong schema revision is reported now, not at the first
+    task) and load the compiled simulator, so the first batch starts at once."""
+    from scm_core.simulator import warm_up
+
+    try:
+        process_runtime()
+        log.info("simulator ready in %.2f s", warm_up())
+    except Exception:  # tasks report it again; the worker stays up for the next attempt
+        log.exception("worker process start-up failed")

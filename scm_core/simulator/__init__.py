@@ -11,6 +11,7 @@ from .swt import (
     simulate_batch,
     simulate_packed,
     simulate_swt,
+    warm_up,
 )
 
 __all__ = [
@@ -26,4 +27,5 @@ __all__ = [
     "simulate_batch",
     "simulate_packed",
     "simulate_swt",
+    "warm_up",
 ]

@@ -151,6 +151,15 @@ def simulate_packed(prms: np.ndarray) -> BatchResult:
     return BatchResult(means=means, status=[STATUS_NAMES[s] for s in status], wall_time_s=wall)
 
 
+def warm_up() -> float:
+    """Load the compiled batch kernel (from numba's disk cache, or compile it) with a ten-step
+    run, so that the first real batch starts at once; returns the seconds it took."""
+    t0 = time.perf_counter()
+    rig = RigConfig(duration=0.2, dt=0.02, offset_F=0.0, offset_T=0.0, offset_z=0.0)
+    simulate_batch([SoilParams()], rigs=rig)
+    return time.perf_counter() - t0
+
+
 def _broadcast(item, n: int, name: str) -> list:
     if isinstance(item, WheelGeometry | RigConfig):
         return [item] * n

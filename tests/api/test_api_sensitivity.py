@@ -17,7 +17,7 @@ from test_api_support import AUTH, TOKEN, api_client, fresh_database, upload_fil
 from scm_core.calibration import CaseDefinition, run_sensitivity
 from services.client import SCMCalibClient
 from services.store import Store
-from worker.orchestrator import load_datasets
+from worker.orchestrator import load_datasets, work_batches
 
 TIMEOUT = 300.0
 CASE = {
@@ -90,7 +90,8 @@ def test_statistics_are_those_of_run_sensitivity(finished) -> None:
 
     p = body["progress"]
     assert p["evaluations_done"] == p["evaluations_planned"] == 28
-    assert p["batches_done"] == p["batches_total"] == 5 and p["eta_seconds"] == 0.0
+    assert p["batches_done"] == p["batches_total"] == len(work_batches(28, 6))
+    assert p["eta_seconds"] == 0.0
     assert p["model_runs"] == 28 and p["exponent"] is None
     assert all(s["progress"]["evaluations_planned"] == 28 for s in seen)
 

@@ -121,7 +121,7 @@ def test_batch_result_is_stored_once(store: Store, toy, open_store) -> None:
     sid = started_study(store, toy)
     lease = store.batches.lease("w1")
     result = point_result(toy, sid, store, lease)
-    first = store.batches.complete(lease.key, result)
+    first = store.batches.complete(lease.key, result, event={"worker": "w1", "model_s": 0.5})
     assert (first.status, first.done, first.total) == ("stored", 1, 3)
     assert not first.stage_complete
 
@@ -129,9 +129,12 @@ def test_batch_result_is_stored_once(store: Store, toy, open_store) -> None:
     altered = evaluate_points(
         toy.initial_points(toy.seed)[16:32], toy.log_likelihood
     )  # wrong content for batch 0 must not overwrite the first result
-    again = other.batches.complete(lease.key, result)
+    again = other.batches.complete(lease.key, result, event={"worker": "w2", "model_s": 0.4})
     assert (again.status, again.done, again.total) == ("duplicate", 1, 3)
     assert other.batches.complete(lease.key, altered).status == "duplicate"
+    # the "batch_done" event is written with the first result only, in its transaction
+    done = store.events.list(sid, kinds=["batch_done"])
+    assert [e.payload for e in done] == [{"stage": 0, "batch": 0, "worker": "w1", "model_s": 0.5}]
     stored = store.batches.results(sid, 0)
     assert len(stored) == 1
     assert stored[0].log_likelihood.tobytes() == result.log_likelihood.tobytes()

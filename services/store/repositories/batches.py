@@ -18,7 +18,7 @@ a worker whose lease had expired is as good as any and is accepted.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from datetime import datetime
 from typing import Any, Literal
 
@@ -322,11 +322,16 @@ class BatchRepository:
     # ---- results -------------------------------------------------------------------------
 
     def complete(
-        self, key: BatchKey, result: ChainBatchResult | PointEvaluation
+        self,
+        key: BatchKey,
+        result: ChainBatchResult | PointEvaluation,
+        event: Mapping[str, Any] | None = None,
     ) -> CompleteOutcome:
         """Store a batch result idempotently: the first delivery is "stored", any later one
         is a "duplicate" and changes nothing; "rejected" if the batch failed or the study is
-        not running. Returns the stage's done/total batch counts after the call."""
+        not running. ``event``: payload of a "batch_done" event appended in the same
+        transaction when the result is stored (stage and batch added). Returns the stage's
+        done/total batch counts after the call."""
         blob = codec.encode(result)
         now = self.db.now()
         with self.db.write() as s:
@@ -352,6 +357,9 @@ class BatchRepository:
             )
             if res.rowcount == 1:
                 status: Literal["stored", "duplicate", "rejected"] = "stored"
+                if event is not None:
+                    info = {"stage": key.stage_index, "batch": key.batch_index, **event}
+                    append_event(s, key.study_id, "batch_done", info, now)
             else:
                 current = s.scalar(sa.select(WorkBatch.status).where(WorkBatch.id == row.id))
                 status = "duplicate" if current == "done" else "rejected"
