@@ -1,11 +1,16 @@
-"""Service benchmark: a fixed reduced study on 1 and 2 Celery workers (real PostgreSQL and Redis).
+"""Service benchmark: fixed reduced studies on 1 and 2 Celery workers (real PostgreSQL, Redis).
 
-Run: ``python benchmarks/bench_service.py [--workers 1 2] [--repeats 3]``. Needs PostgreSQL at
-127.0.0.1:5432 (trust) and ``redis-server`` on PATH; makes a temporary database and a throwaway
-Redis, both removed afterwards. Reports the study's wall time (start to finish in the database),
-the simulator time summed over all batches, and the share of worker time spent outside the
-simulator: 1 - simulator time / (workers x wall time). That share holds queueing, database and
-serialisation, and the idle time of workers at stage barriers.
+Run: ``python benchmarks/bench_service.py [--workers 1 2] [--repeats 3] [--case FILE ...]``.
+Needs PostgreSQL at 127.0.0.1:5432 (trust) and ``redis-server`` on PATH; makes a temporary
+database and a throwaway Redis, both removed afterwards. Cases: ``bench_case.toml`` (32 samples
+per stage, 5 stages) and ``bench_case_128.toml`` (128 samples per stage, 3 stages), both with
+the default (paper) simulator numerics. Reports the study's wall time (start to finish in the
+database), the simulator time summed over all batches, and the share of worker time spent
+outside the simulator, 1 - simulator time / (workers x wall time), split into: the rest of the
+batch computation, claiming and storing batches, start-up, stage transitions (reduce, plan,
+dispatch, pick-up) and idle time at stage barriers (with the pick-up gaps between batches).
+The barrier share falls as 1 / (samples per stage): a worker waits for about half of the
+last chain still running.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from rich.console import Console
 from rich.table import Table
 
 ROOT = Path(__file__).resolve().parent.parent
-CASE = ROOT / "benchmarks" / "bench_case.toml"
+CASES = [ROOT / "benchmarks" / "bench_case.toml", ROOT / "benchmarks" / "bench_case_128.toml"]
 LOG = ROOT / "examples" / "wf34_s020.csv"
 ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"
 SHARES = ("overhead", "in_batch", "bookkeeping", "startup", "transitions", "barrier")
@@ -155,31 +160,32 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--case", type=Path, default=CASE, help="study case file (TOML)")
+    ap.add_argument("--case", type=Path, nargs="+", default=CASES, help="study case files (TOML)")
     ap.add_argument("--verbose", action="store_true", help="print every run's breakdown")
     args = ap.parse_args()
-    table = Table(title=f"{args.case.name} on Celery workers (median of {args.repeats})")
-    for col in ("workers", "wall [s]", "simulator [s]", "model runs", "batches",
-                "outside simulator", "in batch", "claim/store", "startup", "stage transitions",
-                "idle at barriers"):  # fmt: skip
-        table.add_column(col, justify="right")
-    with tempfile.TemporaryDirectory() as tmp:
-        for n in args.workers:
-            rows = [run_once(n, Path(tmp), args.case) for _ in range(args.repeats)]
-            med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}
-            pct = [f"{100 * med[k]:.1f} %" for k in SHARES]
-            table.add_row(
-                str(n),
-                f"{med['wall']:.2f}",
-                f"{med['model']:.2f}",
-                f"{med['runs']:.0f}",
-                f"{med['batches']:.0f}",
-                *pct,
-            )
-            if args.verbose:
-                for r in rows:
-                    print(n, {k: round(v, 4) for k, v in r.items()})
-    Console(width=200).print(table)
+    for case in args.case:
+        table = Table(title=f"{case.name} on Celery workers (median of {args.repeats})")
+        for col in ("workers", "wall [s]", "simulator [s]", "model runs", "batches",
+                    "outside simulator", "in batch", "claim/store", "startup",
+                    "stage transitions", "idle at barriers"):  # fmt: skip
+            table.add_column(col, justify="right")
+        with tempfile.TemporaryDirectory() as tmp:
+            for n in args.workers:
+                rows = [run_once(n, Path(tmp), case) for _ in range(args.repeats)]
+                med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}
+                pct = [f"{100 * med[k]:.1f} %" for k in SHARES]
+                table.add_row(
+                    str(n),
+                    f"{med['wall']:.2f}",
+                    f"{med['model']:.2f}",
+                    f"{med['runs']:.0f}",
+                    f"{med['batches']:.0f}",
+                    *pct,
+                )
+                if args.verbose:
+                    for r in rows:
+                        print(case.name, n, {k: round(v, 4) for k, v in r.items()})
+        Console(width=200).print(table)
 
 
 if __name__ == "__main__":

@@ -203,7 +203,9 @@ class MorrisContext:
         failed = int(np.count_nonzero(~np.all(np.isfinite(Y), axis=1)))
         return PointEvaluation(np.full(X.shape[0], np.nan), Y, failed)
 
-    def reducer(self) -> Reducer:
+    def reducer(self, workers: int = 1) -> Reducer:
+        """The Morris analysis of the study's only stage (``workers`` is not needed)."""
+
         def reduce(inp: ReduceInput) -> StageAdvance:
             Y = np.concatenate([np.asarray(r.responses) for r in inp.results], axis=0)
             result = analyze_sensitivity(self.design, Y, self.model.dataset.name)

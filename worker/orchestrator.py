@@ -47,8 +47,8 @@ from services.store.records import (
 log = logging.getLogger(__name__)
 
 DEFAULT_BATCH_SIZE = 50  # chains per work batch: ~1-2 min of simulator time at the defaults
-#: a stage's work shrinks to batches of remaining / TAIL_DIVISOR (about 2 per worker of 2)
-TAIL_DIVISOR = 4
+#: workers assumed for a study's first stage (later stages count those of the previous one)
+DEFAULT_WORKERS = 2
 
 
 class Dispatcher(Protocol):
@@ -64,17 +64,20 @@ class StudyInputError(ValueError):
 # ---------------------------------------------------------------------------- studies
 
 
-def work_batches(n: int, batch_size: int | None, min_size: int | None = None) -> list[range]:
+def work_batches(
+    n: int, batch_size: int | None, workers: int = DEFAULT_WORKERS, min_size: int | None = None
+) -> list[range]:
     """Consecutive ranges covering chains (or points) 0..n-1: the work batches of a stage.
 
-    Batches have ``batch_size`` items while much work remains, then shrink to a quarter of
-    what remains (at least ``min_size``, default an eighth of ``batch_size``), so a stage ends
-    with short batches: workers take batches in order, and one that finishes early picks a
-    short batch instead of idling at the stage barrier while another runs a long one (guided
-    self-scheduling; Polychronopoulos and Kuck 1987). The idle time at a barrier is about half
-    the duration of the last batches, while each extra batch costs ~15 ms of bookkeeping
-    (docs/store.md, "Where the time goes"). Results do not depend on the split: chains are
-    seeded by (study seed, stage, chain index). ``batch_size`` None: one batch.
+    Guided self-scheduling (Polychronopoulos and Kuck 1987): each batch takes what remains
+    divided by the number of ``workers``, capped at ``batch_size`` and at least ``min_size``
+    (default an eighth of ``batch_size``). A stage thus ends with short batches: workers take
+    batches in order, and one that finishes early picks a short batch instead of idling at the
+    stage barrier while another runs a long one. The idle time at a barrier is about half the
+    duration of the last batches; each extra batch costs ~15 ms of bookkeeping (docs/store.md,
+    "Where the time goes"). One worker: plain batches of ``batch_size``. Results do not depend
+    on the split: chains are seeded by (study seed, stage, chain index). ``batch_size`` None:
+    one batch.
     """
     if n < 1:
         raise ValueError(f"a stage needs at least one chain, got n={n}")
@@ -83,11 +86,12 @@ def work_batches(n: int, batch_size: int | None, min_size: int | None = None) ->
     size = int(batch_size)
     if size < 1:
         raise ValueError(f"'batch_size' must be >= 1 or None, got {batch_size!r}")
+    workers = max(1, int(workers))
     smallest = max(1, min(size, -(-size // 8) if min_size is None else int(min_size)))
     out: list[range] = []
     start = 0
     while start < n:
-        k = min(size, max(smallest, math.ceil((n - start) / TAIL_DIVISOR)), n - start)
+        k = min(size, max(smallest, math.ceil((n - start) / workers)), n - start)
         out.append(range(start, start + k))
         start += k
     return out
@@ -192,8 +196,9 @@ class StudyContext:
             self._plans = {key.stage_index: plan}
         return plan
 
-    def reducer(self) -> Reducer:
-        """The store's reducer: the stage's population, then the next plan or the end."""
+    def reducer(self, workers: int = DEFAULT_WORKERS) -> Reducer:
+        """The store's reducer: the stage's population, then the next plan or the end (its
+        batches cut for ``workers`` workers, see :func:`work_batches`)."""
 
         def reduce(inp: ReduceInput) -> StageAdvance:
             study = inp.study
@@ -206,7 +211,8 @@ class StudyContext:
             status = stage_status(state, self.settings)
             if status is None:
                 plan = plan_stage(state, self.prior, self.settings)
-                return StageAdvance(state, plan, work_batches(plan.n_chains, study.batch_size))
+                batches = work_batches(plan.n_chains, study.batch_size, workers)
+                return StageAdvance(state, plan, batches)
             if status == "completed":
                 return StageAdvance(state, final_status="completed")
             return StageAdvance(state, final_status="stalled", error=f"TMCMC stopped: {status}")
@@ -222,7 +228,7 @@ class RunnableStudy(Protocol):
 
     def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchResult: ...
 
-    def reducer(self) -> Reducer: ...
+    def reducer(self, workers: int = DEFAULT_WORKERS) -> Reducer: ...
 
 
 def load_datasets(store: Store, case: CaseDefinition, dataset_ids: Sequence[int]) -> list:
@@ -376,7 +382,8 @@ def advance(
 ) -> str:
     """Advance a finished stage (exactly once across all processes) and dispatch the next one."""
     ctx = cache.get(store, study_id)
-    outcome = store.stages.advance(study_id, stage_index, ctx.reducer())
+    workers = store.batches.worker_count(study_id, stage_index) or DEFAULT_WORKERS
+    outcome = store.stages.advance(study_id, stage_index, ctx.reducer(workers))
     if outcome.status == "advanced" and dispatcher is not None:
         _dispatch_stage(store, study_id, stage_index + 1, dispatcher)
     return outcome.status

@@ -133,7 +133,9 @@ class StudyCreate(_In):
     n_steps: int | None = Field(None, description="Metropolis steps per chain (resample-move).")
     max_stages: int | None = Field(None, description="Stop after this many tempering stages.")
     likelihood: Literal["normalized", "gaussian"] | None = None
-    batch_size: int | None = Field(None, ge=1, description="Chains per work batch.")
+    batch_size: int | None = Field(
+        None, ge=1, description="Chains per work batch (at most; shorter at a stage's end)."
+    )
 
 
 class CancelRequest(_In):
@@ -220,7 +222,9 @@ class SensitivityCreate(_In):
         None, description="Factor bounds {name: [lower, upper]} replacing the defaults."
     )
     name: str | None = Field(None, min_length=1, max_length=200)
-    batch_size: int | None = Field(None, ge=1, description="Design points per work batch.")
+    batch_size: int | None = Field(
+        None, ge=1, description="Design points per work batch (at most; shorter at the end)."
+    )
 
 
 class FactorOut(BaseModel):

@@ -241,3 +241,14 @@ def test_cancel_stops_leases_heartbeats_and_results(store: Store, toy) -> None:
     assert [e.kind for e in store.events.list(sid)][-1] == "study_cancelled"
     assert store.events.list(sid)[-1].payload == {"reason": "user asked"}
     assert not store.studies.fail(sid, "too late")
+
+
+def test_worker_count_of_a_stage(store: Store, toy) -> None:
+    """Distinct holders of the stage's done batches (the orchestrator cuts the next stage's
+    batches for that many workers)."""
+    sid = started_study(store, toy)
+    assert store.batches.worker_count(sid, 0) == 0
+    for worker in ("w-a", "w-b", "w-a"):
+        lease = store.batches.lease(worker)
+        store.batches.complete(lease.key, point_result(toy, sid, store, lease))
+    assert store.batches.worker_count(sid, 0) == 2

@@ -62,9 +62,9 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     start_study(store, study.id, None)
     cache = ContextCache()
     keys = [b.key for b in store.batches.list(study.id, 0)]
-    assert len(keys) == len(work_batches(21, 4)) == 9  # 4 points, then fewer
+    assert len(keys) == len(work_batches(21, 4)) == 7  # 4 points, then fewer
     outcomes = [execute_batch(store, k, cache, None) for k in keys]
-    assert outcomes == ["stored"] * 9
+    assert outcomes == ["stored"] * 7
 
     done = store.studies.get(study.id)
     assert done.status == "completed" and done.kind == "morris"

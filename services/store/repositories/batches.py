@@ -142,6 +142,18 @@ class BatchRepository:
             out[status] = int(n)
         return out
 
+    def worker_count(self, study_id: int, stage_index: int) -> int:
+        """How many workers (distinct lease holders) ran the stage's done batches."""
+        with self.db.read() as s:
+            n = s.scalar(
+                sa.select(sa.func.count(sa.distinct(WorkBatch.worker_id))).where(
+                    WorkBatch.study_id == study_id,
+                    WorkBatch.stage_index == stage_index,
+                    WorkBatch.status == "done",
+                )
+            )
+        return int(n or 0)
+
     def results(self, study_id: int, stage_index: int) -> list[Any]:
         """Decoded results of the stage's done batches, in batch order."""
         with self.db.read() as s:
