@@ -10,7 +10,11 @@ outside the simulator, 1 - simulator time / (workers x wall time), split into: t
 batch computation, claiming and storing batches, start-up, stage transitions (reduce, plan,
 dispatch, pick-up) and idle time at stage barriers (with the pick-up gaps between batches).
 The barrier share falls as 1 / (samples per stage): a worker waits for about half of the
-last chain still running.
+last chain still running. Two more columns separate what the service adds from what
+synchronous TMCMC stages cost by themselves: "TMCMC idle (no service)" is the idle share of
+the same batches scheduled in order on the same workers with no service at all (each batch
+taking exactly its simulator time), and "service share" is 1 - that ideal wall time / the
+measured wall time: the wall time added by queueing, database, serialisation and dispatch.
 """
 
 from __future__ import annotations
@@ -35,7 +39,16 @@ ROOT = Path(__file__).resolve().parent.parent
 CASES = [ROOT / "benchmarks" / "bench_case.toml", ROOT / "benchmarks" / "bench_case_128.toml"]
 LOG = ROOT / "examples" / "wf34_s020.csv"
 ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"
-SHARES = ("overhead", "in_batch", "bookkeeping", "startup", "transitions", "barrier")
+SHARES = (
+    "overhead",
+    "in_batch",
+    "bookkeeping",
+    "startup",
+    "transitions",
+    "barrier",
+    "service",
+    "tmcmc_idle",
+)
 
 
 def free_port() -> int:
@@ -139,6 +152,16 @@ def breakdown(store, study, n_workers: int) -> dict[str, float]:
         for k in stages[1:]
     )
     tail = (study.finished_at - max(b.finished_at for b in by_stage[stages[-1]])).total_seconds()
+    # the same batches on n_workers with no service at all (each batch takes its simulator
+    # time, workers take batches in order, stages one after another): what synchronous TMCMC
+    # stages cost by themselves; the service adds the rest of the wall time
+    ideal = 0.0
+    for k in stages:
+        free = [0.0] * n_workers
+        for b in sorted(by_stage[k], key=lambda b: b.key.batch_index):
+            w = free.index(min(free))
+            free[w] += done[(k, b.key.batch_index)]["model_s"]
+        ideal += max(free)
     total = n_workers * wall
     fixed = n_workers * (startup + transitions + tail)
     return {
@@ -153,6 +176,9 @@ def breakdown(store, study, n_workers: int) -> dict[str, float]:
         "startup": n_workers * startup / total,
         "transitions": n_workers * (transitions + tail) / total,
         "barrier": (total - held - fixed) / total,
+        "ideal_wall": ideal,
+        "tmcmc_idle": 1.0 - model / (n_workers * ideal),
+        "service": 1.0 - ideal / wall,
     }
 
 
@@ -167,7 +193,8 @@ def main() -> None:
         table = Table(title=f"{case.name} on Celery workers (median of {args.repeats})")
         for col in ("workers", "wall [s]", "simulator [s]", "model runs", "batches",
                     "outside simulator", "in batch", "claim/store", "startup",
-                    "stage transitions", "idle at barriers"):  # fmt: skip
+                    "stage transitions", "idle at barriers", "service share",
+                    "TMCMC idle (no service)"):  # fmt: skip
             table.add_column(col, justify="right")
         with tempfile.TemporaryDirectory() as tmp:
             for n in args.workers:

@@ -252,3 +252,35 @@ def test_worker_count_of_a_stage(store: Store, toy) -> None:
         lease = store.batches.lease(worker)
         store.batches.complete(lease.key, point_result(toy, sid, store, lease))
     assert store.batches.worker_count(sid, 0) == 2
+
+
+def test_exactly_one_of_simultaneous_last_results_completes_the_stage(
+    store: Store, toy, open_store
+) -> None:
+    """The last batches of a stage stored at the same moment by different workers: exactly one
+    of them is told the stage is complete (and advances it). Under READ COMMITTED each
+    transaction alone would count the other's result as not done yet, and neither would."""
+    for _ in range(12):
+        sid = started_study(store, toy, n_batches=4)
+        stores = [open_store() for _ in range(4)]
+        leases = [s.batches.lease(f"w{i}") for i, s in enumerate(stores)]
+        results = [point_result(toy, sid, store, lease) for lease in leases]
+        barrier = threading.Barrier(len(stores))
+        outcomes = []
+
+        def deliver(s: Store, lease, result) -> None:
+            barrier.wait()
+            outcomes.append(s.batches.complete(lease.key, result))
+
+        threads = [
+            threading.Thread(target=deliver, args=args)
+            for args in zip(stores, leases, results, strict=True)
+        ]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert sorted(o.done for o in outcomes)[-1] == 4
+        assert sum(o.stage_complete for o in outcomes) == 1, outcomes
+        for s in stores:
+            s.close()

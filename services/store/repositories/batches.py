@@ -375,6 +375,15 @@ class BatchRepository:
             else:
                 current = s.scalar(sa.select(WorkBatch.status).where(WorkBatch.id == row.id))
                 status = "duplicate" if current == "done" else "rejected"
+            # Count under the stage's row lock: of several last results stored at once, each
+            # transaction counts only after the previous one committed, so exactly one sees
+            # the stage complete (READ COMMITTED alone would let each miss the others').
+            # Lock order as everywhere: batch row, then stage row.
+            s.execute(
+                sa.select(Stage.id)
+                .where(Stage.study_id == key.study_id, Stage.stage_index == key.stage_index)
+                .with_for_update()
+            )
             counts = self._counts(s, key.study_id, key.stage_index)
         return CompleteOutcome(status, counts["done"], sum(counts.values()))
 
