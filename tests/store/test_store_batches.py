@@ -254,6 +254,11 @@ def test_worker_count_of_a_stage(store: Store, toy) -> None:
     assert store.batches.worker_count(sid, 0) == 2
 
 
+def _deliver_at_once(s: Store, lease, result, barrier: threading.Barrier, out: list) -> None:
+    barrier.wait()
+    out.append(s.batches.complete(lease.key, result))
+
+
 def test_exactly_one_of_simultaneous_last_results_completes_the_stage(
     store: Store, toy, open_store
 ) -> None:
@@ -266,14 +271,9 @@ def test_exactly_one_of_simultaneous_last_results_completes_the_stage(
         leases = [s.batches.lease(f"w{i}") for i, s in enumerate(stores)]
         results = [point_result(toy, sid, store, lease) for lease in leases]
         barrier = threading.Barrier(len(stores))
-        outcomes = []
-
-        def deliver(s: Store, lease, result) -> None:
-            barrier.wait()
-            outcomes.append(s.batches.complete(lease.key, result))
-
+        outcomes: list = []
         threads = [
-            threading.Thread(target=deliver, args=args)
+            threading.Thread(target=_deliver_at_once, args=(*args, barrier, outcomes))
             for args in zip(stores, leases, results, strict=True)
         ]
         for t in threads:
