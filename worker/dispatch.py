@@ -74,4 +74,12 @@ class LocalDispatcher:
             return len(self._inflight)
 
     def shutdown(self) -> None:
+        """Stop at once: queued batches are dropped and running ones abandoned (their leases
+        expire and the next server re-runs them; the store keeps every finished result)."""
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
         self._pool.shutdown(wait=False, cancel_futures=True)
+        for proc in processes:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in processes:
+            proc.join(timeout=5)

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import ctypes
 import logging
+import os
+import signal
+import sys
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -51,11 +55,27 @@ def _local_runtime(store_args: tuple[str, float, int]) -> Runtime:
     return rt
 
 
+def _exit_with_parent() -> None:
+    """Linux: have the kernel send SIGTERM to this process when its parent (the server) dies,
+    even by SIGKILL, so that no orphaned pool process is left behind (elsewhere: no-op)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() == 1:  # the parent died before prctl took effect
+        os._exit(0)
+
+
 def init_local_process(store_args: tuple[str, float, int]) -> None:
-    """Initializer of the embedded pool's processes: open the store and load the compiled
-    simulator before the first batch arrives (failures surface again in the batch)."""
+    """Initializer of the embedded pool's processes: exit with the server, open the store and
+    load the compiled simulator before the first batch arrives (failures surface again in the
+    batch)."""
     from scm_core.simulator import warm_up
 
+    _exit_with_parent()
     try:
         _local_runtime(store_args)
         warm_up()

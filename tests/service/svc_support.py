@@ -153,11 +153,16 @@ class Processes:
         )
 
     def stop_all(self) -> None:
+        """SIGTERM (a server stops its local pool), then SIGKILL what is left after 10 s."""
         for p in self.procs:
             if p.poll() is None:
-                p.kill()
+                p.terminate()
         for p in self.procs:
-            p.wait(timeout=30)
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=30)
 
 
 @pytest.fixture
