@@ -9,22 +9,18 @@ its design points and steady F, T, z are the samples of its stage 0
 
 from __future__ import annotations
 
-import logging
 from typing import Annotated
 
 from fastapi import APIRouter, Depends, HTTPException, Query, Response
 
 from services.store import Store, StudyRecord
 from worker.morris_study import SensitivityInputError, sensitivity_spec
-from worker.orchestrator import start_study
 
 from ..deps import DispatcherDep, StoreDep, require_read, require_write
 from ..schemas import SensitivityCreate, SensitivityOut, SensitivityPage
 from ..views import sensitivity_out
 from . import errors
-from .studies import base_case, parse_statuses
-
-log = logging.getLogger(__name__)
+from .studies import base_case, create_and_start, parse_statuses
 
 router = APIRouter(
     prefix="/sensitivity", tags=["sensitivity"], dependencies=[Depends(require_read)]
@@ -76,13 +72,9 @@ def create_sensitivity(
         )
     except SensitivityInputError as exc:
         raise _unprocessable(str(exc)) from None
-    record = store.studies.create(spec)
-    try:
-        start_study(store, record.id, dispatcher)
-    except Exception:  # the batches stay pending: the reaper / local loop dispatches them
-        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
-    response.headers["Location"] = f"/sensitivity/{record.id}"
-    return sensitivity_out(store, store.studies.get(record.id))
+    study_id = create_and_start(store, spec, dispatcher)
+    response.headers["Location"] = f"/sensitivity/{study_id}"
+    return sensitivity_out(store, store.studies.get(study_id))
 
 
 @router.get(

@@ -20,7 +20,7 @@ from fastapi.responses import StreamingResponse
 from pydantic import ValidationError
 
 from scm_core.calibration import CaseDefinition, CaseError, StudyModel, preset_case
-from services.store import Store
+from services.store import Store, StudySpec
 from services.store.models import STUDY_STATUSES
 from worker.orchestrator import StudyInputError, start_study, study_spec
 
@@ -129,6 +129,17 @@ def precheck(store: Store, case: CaseDefinition, dataset_ids: list[int]) -> None
             ) from None
 
 
+def create_and_start(store: Store, spec: StudySpec, dispatcher: Any) -> int:
+    """Store a validated study and start it; returns its id. A failed dispatch is logged and
+    not an error: the batches stay pending and the reaper (or the local loop) sends them."""
+    record = store.studies.create(spec)
+    try:
+        start_study(store, record.id, dispatcher)
+    except Exception:
+        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
+    return record.id
+
+
 @router.post(
     "",
     response_model=StudyOut,
@@ -150,13 +161,9 @@ def create_study(
     except StudyInputError as exc:
         raise _unprocessable(str(exc)) from None
     precheck(store, case, list(spec.dataset_ids))
-    record = store.studies.create(spec)
-    try:
-        start_study(store, record.id, dispatcher)
-    except Exception:  # the batches stay pending: the reaper / local loop dispatches them
-        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
-    response.headers["Location"] = f"/studies/{record.id}"
-    return study_out(store, store.studies.get(record.id))
+    study_id = create_and_start(store, spec, dispatcher)
+    response.headers["Location"] = f"/studies/{study_id}"
+    return study_out(store, store.studies.get(study_id))
 
 
 # ---------------------------------------------------------------------------- reading
