@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import logging
+import multiprocessing
 import os
 import signal
 import sys
@@ -58,14 +59,17 @@ def _local_runtime(store_args: tuple[str, float, int]) -> Runtime:
 def _exit_with_parent() -> None:
     """Linux: have the kernel send SIGTERM to this process when its parent (the server) dies,
     even by SIGKILL, so that no orphaned pool process is left behind (elsewhere: no-op)."""
-    if not sys.platform.startswith("linux"):
+    parent = multiprocessing.parent_process()
+    if not sys.platform.startswith("linux") or parent is None:
         return
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         return
-    if os.getppid() == 1:  # the parent died before prctl took effect
+    # the server died before prctl took effect (compare pids: the server may itself be pid 1,
+    # as in the Docker image)
+    if os.getppid() != parent.pid:
         os._exit(0)
 
 
