@@ -19,12 +19,26 @@ import numba
 from rich.console import Console
 from rich.table import Table
 
-from scm_core.simulator import RigConfig, SoilParams, simulate_batch, simulate_swt
+from scm_core.simulator import (
+    RigConfig,
+    SoilParams,
+    WheelGeometry,
+    resolve_rig,
+    simulate_batch,
+    simulate_swt,
+)
 
 _FIRST_CALL = """
 import time
 t0 = time.perf_counter()
-from scm_core.simulator import RigConfig, SoilParams, simulate_batch, simulate_swt
+from scm_core.simulator import (
+    RigConfig,
+    SoilParams,
+    WheelGeometry,
+    resolve_rig,
+    simulate_batch,
+    simulate_swt,
+)
 simulate_swt(rig=RigConfig(duration=2.0, offset_F=1.0, offset_T=1.0, offset_z=0.5))
 simulate_batch([SoilParams()], rigs=RigConfig(duration=2.0, offset_F=1.0, offset_T=1.0,
                offset_z=0.5))
@@ -75,7 +89,7 @@ def main() -> None:
     one = batch_throughput(args.batch, 1, max(3, args.repeats // 2))
     cores = numba.config.NUMBA_NUM_THREADS
     many = batch_throughput(args.batch, cores, max(3, args.repeats // 2))
-    rig = RigConfig()
+    rig = resolve_rig(WheelGeometry(), RigConfig())
     table = Table(
         title=f"SCM SWT simulator (default run: {rig.duration:g} s, dt {rig.dt:g} s, "
         f"dx {rig.dx * 1000:g} mm)"

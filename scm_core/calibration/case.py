@@ -81,6 +81,10 @@ __all__ = [
 RESPONSES = ("F", "T", "z")
 SIGMA_NAMES = {"F": "sigma_F", "T": "sigma_T", "z": "sigma_z"}
 SIGMA_UNITS = {"sigma_F": "N", "sigma_T": "N m", "sigma_z": "m"}
+#: measurement offsets: measured = simulated + offset (a datum the rig does not know exactly,
+#: e.g. the sinkage zero of a log); calibrated or fixed like the sigmas, shared by all datasets
+OFFSET_NAMES = {"z": "z_offset"}
+OFFSET_UNITS = {"z_offset": "m"}
 
 
 def _float_fields(cls: type[BaseModel]) -> tuple[str, ...]:
@@ -100,9 +104,16 @@ CALIBRATABLE: dict[str, str] = {
     **{n: "soil" for n in _float_fields(SoilParams)},
     **{n: "wheel" for n in _float_fields(WheelGeometry)},
     **{s: "sigma" for s in SIGMA_NAMES.values()},
+    **{s: "offset" for s in OFFSET_NAMES.values()},
 }
 #: every name accepted in [nominal]
-NOMINAL_NAMES = (*SOIL_FIELDS, *WHEEL_FIELDS, *RIG_FIELDS, *SIGMA_NAMES.values())
+NOMINAL_NAMES = (
+    *SOIL_FIELDS,
+    *WHEEL_FIELDS,
+    *RIG_FIELDS,
+    *SIGMA_NAMES.values(),
+    *OFFSET_NAMES.values(),
+)
 
 
 class CaseError(ValueError):
@@ -254,7 +265,7 @@ class CaseDefinition(_Strict):
             if name not in NOMINAL_NAMES:
                 raise CaseError(
                     f"nominal.{name}: unknown name {name!r}; accepted: simulator keys "
-                    "(see `scm-calib simulate` keys) or sigma_F, sigma_T, sigma_z"
+                    "(see `scm-calib simulate` keys), sigma_F, sigma_T, sigma_z or z_offset"
                 )
         for name in self.simulator:
             if name not in RIG_FIELDS:
@@ -278,6 +289,10 @@ class CaseDefinition(_Strict):
             value = self.nominal[sig]
             if isinstance(value, bool | str) or not (math.isfinite(value) and value > 0):
                 raise CaseError(f"nominal.{sig}: must be a number > 0, got {value!r}")
+        for name in OFFSET_NAMES.values():
+            value = self.nominal.get(name, 0.0)
+            if isinstance(value, bool | str) or not math.isfinite(value):
+                raise CaseError(f"nominal.{name}: must be a number, got {value!r}")
         # nominal values and simulator settings must build valid configurations
         for cls, fields, label in (
             (SoilParams, SOIL_FIELDS, "nominal"),
@@ -315,6 +330,18 @@ class CaseDefinition(_Strict):
         """Dataset paths of ``data.files``, resolved against the case file's directory."""
         base = self._base_dir or Path.cwd()
         return [Path(f) if Path(f).is_absolute() else base / f for f in self.data.files]
+
+    def offset_spec(self) -> dict[str, tuple[str, float | int]]:
+        """Per response with a measurement offset in the case: ("parameter", column index) or
+        ("fixed", value); responses without one are left out."""
+        names = self.parameter_names
+        out: dict[str, tuple[str, float | int]] = {}
+        for resp, name in OFFSET_NAMES.items():
+            if name in self.parameters:
+                out[resp] = ("parameter", names.index(name))
+            elif name in self.nominal:
+                out[resp] = ("fixed", float(self.nominal[name]))
+        return out
 
     def sigma_spec(self) -> dict[str, tuple[str, float | int]]:
         """Per used response: ("parameter", column index) or ("fixed", value)."""

@@ -41,7 +41,7 @@ from scm_core.simulator import (
 )
 from scm_core.simulator.layout import N_PARAMS, pack
 
-from .case import RESPONSES, RIG_FIELDS, SOIL_FIELDS, WHEEL_FIELDS, CaseDefinition
+from .case import CALIBRATABLE, RESPONSES, RIG_FIELDS, SOIL_FIELDS, WHEEL_FIELDS, CaseDefinition
 
 __all__ = ["DatasetTerms", "StudyModel", "dataset_terms"]
 
@@ -53,9 +53,14 @@ class DatasetTerms:
     z m)."""
 
     name: str
-    conditions: dict[str, float | int]
-    means: tuple[float, float, float]
+    conditions: dict[str, float | int | str]
+    means: tuple[float, float, float]  # NaN for a response the dataset did not measure
     content_hash: str = ""
+
+    @property
+    def measured(self) -> tuple[str, ...]:
+        """The responses (F, T, z) this dataset measured."""
+        return tuple(r for r, x in zip(RESPONSES, self.means, strict=True) if np.isfinite(x))
 
 
 def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
@@ -66,7 +71,7 @@ def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
     return DatasetTerms(
         name=dataset.name,
         conditions=dict(dataset.conditions.to_sim_config()),
-        means=(float(m["F"]), float(m["T"]), float(m["z"])),
+        means=tuple(float(m.get(r, np.nan)) for r in RESPONSES),
         content_hash=dataset.content_hash,
     )
 
@@ -132,14 +137,29 @@ class StudyModel:
             for i in self.used
         )
         self.physical: tuple[tuple[int, str], ...] = tuple(
-            (j, n) for j, n in enumerate(self.names) if not n.startswith("sigma_")
+            (j, n) for j, n in enumerate(self.names) if CALIBRATABLE[n] in ("soil", "wheel")
         )
         self.nominal: dict[str, Any] = {
-            k: v for k, v in case.nominal.items() if not k.startswith("sigma_")
+            k: v for k, v in case.nominal.items() if CALIBRATABLE.get(k) not in ("sigma", "offset")
         }
+        #: measurement offsets (response index, column or None, fixed value)
+        self.offsets: tuple[tuple[int, int | None, float], ...] = tuple(
+            (
+                RESPONSES.index(r),
+                int(v) if kind == "parameter" else None,
+                float(v) if kind == "fixed" else 0.0,
+            )
+            for r, (kind, v) in case.offset_spec().items()
+        )
         self.simulator: dict[str, Any] = dict(case.simulator)
         self.datasets: tuple[DatasetTerms, ...] = tuple(dataset_terms(d) for d in datasets)
         self.x_exp: NDArray[np.float64] = np.array([d.means for d in self.datasets], dtype=float)
+        #: per dataset, the positions in ``used`` of the responses it measured: a response a
+        #: dataset lacks is absent from its likelihood terms
+        self.likelihood_columns: tuple[tuple[int, ...], ...] = tuple(
+            tuple(u for u, i in enumerate(self.used) if np.isfinite(self.x_exp[k, i]))
+            for k in range(len(self.datasets))
+        )
 
     # ------------------------------------------------------------------ configurations
 
@@ -185,9 +205,18 @@ class StudyModel:
 
     # ------------------------------------------------------------------ evaluation
 
+    def measurement_offsets(self, theta: ArrayLike) -> dict[str, float]:
+        """Measurement offsets of one parameter vector, e.g. {"z": z_offset} [SI]."""
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        return {
+            RESPONSES[i]: float(theta[col]) if col is not None else fixed
+            for i, col, fixed in self.offsets
+        }
+
     def simulate_means(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """Steady means (m, n_datasets, 3) (NaN where a run failed or was invalid) and the
-        per-row ok mask (m, n_datasets)."""
+        """Steady means (m, n_datasets, 3) as the lab would measure them (simulated plus the
+        measurement offsets; NaN where a run failed or was invalid) and the per-row ok mask
+        (m, n_datasets)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         m, n = X.shape[0], self.n_datasets
         prms, valid = self.pack_rows(X)
@@ -199,7 +228,10 @@ class StudyModel:
             means[rows] = batch.means
             ok[rows] = batch.ok
         means[~ok] = np.nan
-        return means.reshape(m, n, 3), ok.reshape(m, n)
+        means = means.reshape(m, n, 3)
+        for i, col, fixed in self.offsets:
+            means[:, :, i] += (X[:, col] if col is not None else fixed)[:, None]
+        return means, ok.reshape(m, n)
 
     def sigmas(self, X: ArrayLike) -> NDArray[np.float64]:
         """Prediction-error sigmas (m, n_used) of the used responses."""
@@ -215,11 +247,14 @@ class StudyModel:
         """log L (m,) from simulated means (m, n_datasets, 3) and sigmas (m, n_used); summed
         over datasets in order (row results independent of m)."""
         func = LIKELIHOODS[self.likelihood]
-        used = list(self.used)
         total = np.zeros(means.shape[0])
         for k in range(self.n_datasets):
-            ll = np.asarray(func(self.x_exp[k, used], means[:, k, used], sigma), dtype=float)
-            total = total + ll.reshape(-1)
+            cols = self.likelihood_columns[k]
+            if not cols:
+                continue
+            resp = [self.used[u] for u in cols]
+            ll = func(self.x_exp[k, resp], means[:, k, resp], sigma[:, cols])
+            total = total + np.asarray(ll, dtype=float).reshape(-1)
         return np.where(np.isnan(total), -np.inf, total)
 
     def log_likelihood_batch(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

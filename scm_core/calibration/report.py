@@ -73,7 +73,9 @@ def study_summary(
                 "name": d.name,
                 "content_hash": d.content_hash,
                 "conditions": d.conditions,
-                "means": dict(zip(RESPONSES, map(float, model.x_exp[k]), strict=True)),
+                "means": {
+                    r: finite_or_none(x) for r, x in zip(RESPONSES, model.x_exp[k], strict=True)
+                },
             }
         )
     summary: dict[str, Any] = {

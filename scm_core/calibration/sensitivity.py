@@ -40,7 +40,7 @@ from scm_core.signals import SWTDataset
 from scm_core.simulator import simulate_packed
 from scm_core.simulator.layout import N_PARAMS, pack
 
-from .case import RESPONSES, CaseDefinition
+from .case import CALIBRATABLE, RESPONSES, CaseDefinition
 from .model import DatasetTerms, build_configs, dataset_terms
 
 __all__ = [
@@ -127,7 +127,13 @@ class MorrisModel:
     ):
         self.names = tuple(names)
         self.nominal = (
-            {k: v for k, v in case.nominal.items() if not k.startswith("sigma_")} if case else {}
+            {
+                k: v
+                for k, v in case.nominal.items()
+                if CALIBRATABLE.get(k) not in ("sigma", "offset")
+            }
+            if case
+            else {}
         )
         self.simulator = dict(case.simulator) if case else {}
         self.dataset = dataset_terms(dataset)

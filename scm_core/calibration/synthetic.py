@@ -128,8 +128,9 @@ def synthesize_log(
 ) -> SyntheticLog:
     """Simulate ``duration`` s of an SWT with known parameters and turn it into a lab log.
 
-    ``rig``'s numerics (dt, dx) and conditions (W, slip, omega, slip_radius) are used; its
-    duration and averaging offsets are replaced (``duration``; offsets play no role here).
+    ``rig``'s numerics (dt, dx) and conditions (W, kinematics, slip_radius) are used; its
+    duration and averaging offsets are replaced (``duration``; offsets play no role here). The
+    log's slip column holds the symmetric lab slip.
     Raises :class:`SyntheticError` if the run does not finish with status "ok".
     """
     soil = soil or SoilParams()
@@ -175,23 +176,35 @@ def synthesize_log(
         x = x + _ou(rng, n, 1.0 / rate_hz, noise.drift_time_s, drift)
         out[ch] = x
 
+    res = result.rig
+    if rig.slip is not None:  # the slip as given, in its convention
+        slip, convention = rig.slip, rig.slip_convention or "drive"
+    elif res.slip >= 0:
+        slip, convention = res.slip, "drive"
+    else:
+        slip, convention = res.slip_symmetric, "symmetric"
     conditions = {
         "W": rig.W,
-        "slip": rig.slip,
-        "omega": rig.omega,
-        "R": rig.slip_radius,
+        "slip": slip,
+        "R": res.slip_radius,
         "b": wheel.b,
         "n_grousers": wheel.n_grousers,
         "grouser_height": wheel.grouser_height,
     }
+    if convention != "drive" or slip < 0:
+        conditions["slip_convention"] = convention
+    if res.omega > 0:
+        conditions["omega"] = res.omega
+    else:
+        conditions["carriage_speed"] = res.carriage_speed
     truth = {"soil": soil.model_dump(), "wheel": wheel.model_dump(), "rig": sim_rig.model_dump()}
     provenance = {
-        "name": name or f"synthetic s={rig.slip:g}",
+        "name": name or f"synthetic s={slip:g}",
         "soil": "synthetic",
         "generator": "scm_core.calibration.synthesize_log",
         "seed": int(seed),
         "true_parameters": {**truth["soil"], "R": wheel.R},
-        "simulator_numerics": {"dt": rig.dt, "dx": rig.dx, "duration": duration},
+        "simulator_numerics": {"dt": res.dt, "dx": res.dx, "duration": duration},
         "noise": {**noise.to_dict(), "ramp_s": ramp_s, "rate_hz": rate_hz},
     }
     return SyntheticLog(
@@ -200,7 +213,7 @@ def synthesize_log(
         T=out["T"],
         z=out["z"],
         normal_force=out["normal_force"],
-        slip=np.full(n, rig.slip),
+        slip=np.full(n, slip if convention == "symmetric" or slip >= 0 else res.slip_symmetric),
         metadata={**conditions, **provenance},
         truth=truth,
         simulation=result,

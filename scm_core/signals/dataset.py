@@ -13,7 +13,7 @@ from .processing import ResponseStat
 SourceKind = Literal["timeseries", "summary"]
 RESPONSE_KEYS = ("F", "T", "z")
 DICT_FORMAT = "scm-swt-dataset"
-DICT_VERSION = 1
+DICT_VERSION = 2  # 2: conditions hold both slips and speeds (version 1: drive slip only)
 
 
 def _frozen(x: Any) -> np.ndarray:
@@ -52,7 +52,8 @@ class SWTSeries:
 
 @dataclass(frozen=True)
 class SWTDataset:
-    """One SWT dataset: conditions, steady responses F (N), T (Nm), z (m) and provenance.
+    """One SWT dataset: conditions, steady responses F (N), T (Nm), z (m) (those measured: at
+    least one) and provenance.
 
     ``source_kind`` "timeseries": from a log, with ``window`` (s), ``n_samples``, ``rate_hz``,
     ``offset`` (s), ``cutoff_hz`` and usually ``series``. "summary": reported means and sds with
@@ -75,13 +76,14 @@ class SWTDataset:
 
     @property
     def means(self) -> dict[str, float]:
-        """Steady means ``{"F": N, "T": Nm, "z": m}`` (the experimental means of eq. (15))."""
-        return {k: self.responses[k].mean for k in RESPONSE_KEYS}
+        """Steady means ``{"F": N, "T": Nm, "z": m}`` (the experimental means of eq. (15)) of
+        the responses the dataset measured."""
+        return {k: self.responses[k].mean for k in RESPONSE_KEYS if k in self.responses}
 
     @property
     def standard_errors(self) -> dict[str, float]:
         """Standard errors of the means, same units."""
-        return {k: self.responses[k].se for k in RESPONSE_KEYS}
+        return {k: self.responses[k].se for k in RESPONSE_KEYS if k in self.responses}
 
     def to_dict(self, include_series: bool = True) -> dict[str, Any]:
         """JSON-compatible dict (arrays as lists); inverse of :meth:`from_dict`."""
@@ -117,13 +119,20 @@ class SWTDataset:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "SWTDataset":
         """Rebuild from :meth:`to_dict` output, validating conditions and responses."""
-        if d.get("format") != DICT_FORMAT or d.get("version") != DICT_VERSION:
+        if d.get("format") != DICT_FORMAT or d.get("version") not in (1, DICT_VERSION):
             raise LogFormatError(
-                f"not an {DICT_FORMAT} v{DICT_VERSION} dict "
+                f"not an {DICT_FORMAT} v1 or v{DICT_VERSION} dict "
                 f"(format={d.get('format')!r}, version={d.get('version')!r})"
             )
         try:
-            responses = {k: ResponseStat(**d["responses"][k]) for k in RESPONSE_KEYS}
+            conditions = dict(d["conditions"])
+            if d["version"] == 1:  # its slip was 1 - v/(omega r), whatever its sign
+                conditions.setdefault("slip_convention", "drive")
+            responses = {
+                k: ResponseStat(**d["responses"][k]) for k in RESPONSE_KEYS if k in d["responses"]
+            }
+            if not responses:
+                raise LogFormatError("dataset dict: no response (F, T or z)")
             kind = d["source_kind"]
             if kind not in ("timeseries", "summary"):
                 raise LogFormatError(f"unknown source_kind {kind!r}")
@@ -131,7 +140,7 @@ class SWTDataset:
             window = d.get("window")
             return cls(
                 name=str(d["name"]),
-                conditions=make_conditions(dict(d["conditions"]), "conditions"),
+                conditions=make_conditions(conditions, "conditions"),
                 responses=responses,
                 source_kind=kind,
                 content_hash=str(d["content_hash"]),

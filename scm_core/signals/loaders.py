@@ -89,8 +89,9 @@ def load_log(
         raise LogFormatError(f"{label}: {exc}") from None
     cols = table.columns
     steady = steady_response(
-        t, cols["drawbar_pull"], cols["torque"], cols["sinkage"], offset, cutoff_hz, order
-    )
+        t, cols.get("drawbar_pull"), cols.get("torque"), cols.get("sinkage"), offset, cutoff_hz,
+        order,
+    )  # fmt: skip
     series = None
     if keep_series:
         raw = {k: v for k, v in cols.items() if k != "time"}

@@ -27,7 +27,9 @@ COLUMNS: dict[str, tuple[str, tuple[str, ...]]] = {
     "normal_force": ("force", ("normal_force", "fz", "fn", "normal_load")),
     "slip": ("slip", ("slip", "slip_ratio", "s")),
 }
-REQUIRED_COLUMNS = ("time", "drawbar_pull", "torque", "sinkage")
+REQUIRED_COLUMNS = ("time",)
+#: measured responses: a log carries at least one of them
+RESPONSE_COLUMNS = ("drawbar_pull", "torque", "sinkage")
 #: case-sensitive single-letter aliases that differ only by case
 _EXACT = {"t": "time", "T": "torque"}
 _ALIASES = {alias: name for name, (_, aliases) in COLUMNS.items() for alias in aliases}
@@ -86,11 +88,12 @@ def _parse_header(table: CsvTable) -> dict[str, tuple[int, str]]:
             )
         found[name] = (i, unit)
     missing = [c for c in REQUIRED_COLUMNS if c not in found]
-    if missing:
+    if missing or not any(c in found for c in RESPONSE_COLUMNS):
         raise LogFormatError(
-            f"line {line}: missing required column(s) {', '.join(missing)} "
-            f"(header has: {', '.join(table.header)}; required: {', '.join(REQUIRED_COLUMNS)} "
-            "or t, F, T, z, each with its unit in brackets)"
+            f"line {line}: missing required column(s) "
+            f"{', '.join(missing) or 'drawbar_pull, torque or sinkage'} (header has: "
+            f"{', '.join(table.header)}; required: time and at least one of drawbar_pull, "
+            "torque, sinkage, or t and F, T, z, each with its unit in brackets)"
         )
     return found
 
@@ -143,7 +146,7 @@ def parse_log_text(data: bytes | str) -> LogTable:
 
 
 def _meta_value(key: str, value: Any) -> str:
-    if key in CONDITION_KEYS:
+    if key in CONDITION_KEYS and CONDITION_KEYS[key][0] != "text":
         unit = SI_UNIT[CONDITION_KEYS[key][0]]
         number = repr(int(value)) if key == "n_grousers" else repr(float(value))
         return f"{number} {unit}".rstrip() if unit not in ("-", "") else number

@@ -20,8 +20,11 @@ from .units import parse_value
 CONDITION_KEYS: dict[str, tuple[str, tuple[str, ...]]] = {
     "W": ("force", ("w", "normal_load", "load", "wheel_load", "vertical_load")),
     "slip": ("slip", ("slip", "slip_ratio")),
+    "slip_symmetric": ("slip", ("slip_symmetric", "slip_lab")),
+    "slip_convention": ("text", ("slip_convention", "slip_definition")),
     "omega": ("angular_velocity", ("omega", "angular_velocity", "wheel_angular_velocity")),
     "carriage_speed": ("speed", ("carriage_speed", "v", "speed", "translational_speed")),
+    "rim_speed": ("speed", ("rim_speed", "v_rim", "wheel_speed", "circumferential_speed")),
     "R": ("length", ("r", "wheel_radius", "radius")),
     "b": ("length", ("b", "wheel_width", "width")),
     "n_grousers": ("count", ("n_grousers", "grousers", "grouser_count", "n_g")),
@@ -72,8 +75,12 @@ def _flatten(raw: Mapping[str, Any]) -> dict[str, Any]:
     return flat
 
 
-def _condition_value(name: str, value: Any, unit: str | None, where: str) -> float | int:
+def _condition_value(name: str, value: Any, unit: str | None, where: str) -> float | int | str:
     quantity = CONDITION_KEYS[name][0]
+    if quantity == "text":
+        if not isinstance(value, str):
+            raise LogFormatError(f"{where}: expected a name, got {value!r}")
+        return value.strip()
     if isinstance(value, bool) or not isinstance(value, int | float | str):
         raise LogFormatError(f"{where}: expected a number, got {value!r}")
     if isinstance(value, str):
@@ -113,6 +120,12 @@ def parse_metadata_source(raw: Mapping[str, Any], source: str) -> tuple[dict, di
     return conditions, provenance
 
 
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, str) or isinstance(b, str):
+        return str(a) == str(b)
+    return math.isclose(a, b, rel_tol=1e-9)
+
+
 def merge_metadata(sources: Iterable[tuple[str, Mapping[str, Any]]]) -> Metadata:
     """Merge metadata sources (name, dict), later sources overriding earlier provenance.
 
@@ -126,7 +139,7 @@ def merge_metadata(sources: Iterable[tuple[str, Mapping[str, Any]]]) -> Metadata
             continue
         cond, prov = parse_metadata_source(raw, source)
         for key, value in cond.items():
-            if key in conditions and not math.isclose(conditions[key], value, rel_tol=1e-9):
+            if key in conditions and not _same(conditions[key], value):
                 raise LogFormatError(
                     f"metadata '{key}' conflicts: {conditions[key]!r} in the {origin[key]}, "
                     f"{value!r} in the {source}"

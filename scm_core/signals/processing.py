@@ -36,19 +36,20 @@ class ResponseStat:
 
 @dataclass(frozen=True)
 class SteadyResponse:
-    """Steady F (N), T (Nm), z (m) over the window [t0, t1] (s) of ``n_samples`` samples."""
+    """Steady F (N), T (Nm), z (m) over the window [t0, t1] (s) of ``n_samples`` samples; a
+    response the log does not carry is None."""
 
-    F: ResponseStat
-    T: ResponseStat
-    z: ResponseStat
+    F: ResponseStat | None
+    T: ResponseStat | None
+    z: ResponseStat | None
     window: tuple[float, float]
     n_samples: int
     rate_hz: float
     cutoff_hz: float
 
     def stats(self) -> dict[str, ResponseStat]:
-        """``{"F": ..., "T": ..., "z": ...}``."""
-        return {"F": self.F, "T": self.T, "z": self.z}
+        """``{"F": ..., "T": ..., "z": ...}`` of the responses present."""
+        return {k: v for k, v in (("F", self.F), ("T", self.T), ("z", self.z)) if v is not None}
 
 
 def sample_rate(t: np.ndarray) -> float:
@@ -144,14 +145,15 @@ def steady_stat(raw: np.ndarray, filtered: np.ndarray, mask: np.ndarray) -> Resp
 
 def steady_response(
     t: np.ndarray,
-    F: np.ndarray,
-    T: np.ndarray,
-    z: np.ndarray,
+    F: np.ndarray | None,
+    T: np.ndarray | None,
+    z: np.ndarray | None,
     offset: float = 40.0,
     cutoff_hz: float | None = None,
     order: int = DEFAULT_ORDER,
 ) -> SteadyResponse:
-    """Filter F (N), T (Nm), z (m) and average them over t >= t[0] + offset (s).
+    """Filter F (N), T (Nm), z (m) and average them over t >= t[0] + offset (s); a response
+    passed as None (not measured) stays None.
 
     Assumes a checked, regularly sampled time axis ``t`` (s); see ``validation``.
     """
@@ -162,7 +164,7 @@ def steady_response(
     if not mask.any():
         raise ValueError(f"no samples after the offset {offset:g} s")
     stats = {
-        key: steady_stat(x, lowpass(x, rate, cutoff, order), mask)
+        key: None if x is None else steady_stat(x, lowpass(x, rate, cutoff, order), mask)
         for key, x in (("F", F), ("T", T), ("z", z))
     }
     t_win = t[mask]

@@ -2,6 +2,7 @@
 
 from .layout import STATUS_NAMES
 from .params import RigConfig, SoilParams, WheelGeometry
+from .rig import ResolvedRig, resolve_rig
 from .swt import (
     BatchResult,
     SteadyMeans,
@@ -17,6 +18,7 @@ from .swt import (
 __all__ = [
     "STATUS_NAMES",
     "BatchResult",
+    "ResolvedRig",
     "RigConfig",
     "SWTResult",
     "SoilParams",
@@ -24,6 +26,7 @@ __all__ = [
     "Terrain",
     "WheelGeometry",
     "pack_many",
+    "resolve_rig",
     "simulate_batch",
     "simulate_packed",
     "simulate_swt",

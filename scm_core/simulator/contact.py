@@ -24,6 +24,7 @@ from .layout import (
     P_C,
     P_DSOIL,
     P_DT,
+    P_INCL,
     P_J,
     P_KC,
     P_KPHI,
@@ -53,6 +54,27 @@ R_NORM = 7  # normalisation of the border taper
 R_CMIN = 8  # footprint extent: first and last loaded column of the window
 R_CMAX = 9
 N_RES = 10
+
+
+@njit(cache=True, inline="always")
+def inclination_factor(nx: float, nz: float, tx: float, tz: float, mu: float, m: float) -> float:
+    """Bearing-capacity factor (1 - alpha / 90 deg)^m of a node's traction on the soil.
+
+    The wheel pushes the soil along -n and drags it along t (the wheel's slip direction) with
+    the mobilised friction mu = tau / sigma, so the traction on the soil points along -n + mu t,
+    inclined by alpha from straight down. Bekker's pressure-sinkage law describes a plate
+    pushed vertically; a footing loaded at an inclination alpha carries the factor
+    (1 - alpha / 90 deg)^2 of its vertical bearing capacity (Meyerhof 1953, i_q). At the front of
+    a skidding wheel alpha = theta + delta (the soil is dragged up and forwards), at the front of
+    a driven wheel theta - delta: skid softens the soil ahead of the wheel, drive does not. A
+    traction that does not press down (alpha >= 90 deg) finds no bearing.
+    """
+    dx = -nx + mu * tx
+    dz = -nz + mu * tz
+    i = 0.0
+    if dz < 0.0:
+        i = (1.0 - math.atan2(abs(dx), -dz) / (0.5 * math.pi)) ** m
+    return 1.0 - (1.0 - i) * nz * nz
 
 
 @njit(cache=True)
@@ -172,6 +194,7 @@ def evaluate_contact(
     v = prm[P_V]
     omega = prm[P_OMEGA]
     disp_form = prm[P_SHEARDISP] > 0.5
+    incl_exp = prm[P_INCL]
     # ---- pass 1: which patches touch, footprint extent
     ncont = 0
     cmin = 1 << 30
@@ -235,6 +258,8 @@ def evaluate_contact(
     Fz = 0.0
     Ty = 0.0
     dFz = 0.0
+    Fx_fwd = 0.0  # forward (thrust) contributions and their moment
+    Ty_fwd = 0.0
     k_prev = -1
     rx = rz = nx = nz = tx = tz = sd = dsd = fsh = vt = 0.0
     for p in range(npatch):
@@ -269,13 +294,16 @@ def evaluate_contact(
             fsh = 1.0 - math.exp(-vt / J)
         if disp_form:
             fsh = 1.0 - math.exp(-(pst[p, 4] + vt * dt) / J)
+        incl = 1.0
+        if incl_exp > 0.0:
+            incl = inclination_factor(nx, nz, tx, tz, fsh * tanphi, incl_exp)
         rows = pj1[p] - pj0[p]
         sink = pst[p, 0] - (zw + e[k])
         sel = pst[p, 3] * (sink - pst[p, 1])
         if sel > pst[p, 2]:
             pflag[p] = 2
             if kstar > 0.0:
-                sb = kstar * sink**n_exp
+                sb = incl * kstar * sink**n_exp
                 dsb = n_exp * sb / sink
             else:
                 sb = 0.0
@@ -295,8 +323,20 @@ def evaluate_contact(
         Fx += dfx
         Fz += dfz
         Ty += rz * dfx - rx * dfz  # eq. (10), moment about the axle (y component)
+        if dfx > 0.0:
+            Fx_fwd += dfx
+            Ty_fwd += rz * dfx
         dsig = -gam * dsb + rows * dsd  # d(sig_sum)/d(zw): sinkage falls as the axle rises
         dFz += (dsig * nz - fsh * tanphi * dsig * tz) * dA
+    # Coulomb sliding limit of the soil under the wheel (Micklethwaite's maximum tractive
+    # effort c A + W tan(phi)): thrust beyond it (grouser faces pressing columns that Bekker's
+    # law alone does not bound) shears the soil instead, so the forward contributions are scaled
+    # to the limit, and the torque with them
+    cap = coh * ncont * dA + max(Fz, 0.0) * tanphi
+    if Fx > cap and Fx_fwd > 0.0:
+        lam = max((cap - (Fx - Fx_fwd)) / Fx_fwd, 0.0)
+        Ty -= (1.0 - lam) * Ty_fwd
+        Fx = cap if lam > 0.0 else Fx - Fx_fwd
     res[R_FX] = Fx
     res[R_FZ] = Fz
     res[R_T] = -Ty

@@ -1,12 +1,32 @@
-"""Plastic soil deformation (paper section 3.2): node update, soil flow, angle-of-repose erosion.
+"""Plastic soil deformation (paper section 3.2): node update, soil flow fields, erosion.
 
 Volume bookkeeping: the soil volume is V = dA * sum(h0 - sp) (the unloaded surface). Plastic sinkage
 removes volume from the footprint; the fraction ``compaction`` of it is lost to densification (and
-counted), the rest is deposited on the footprint's boundary ring (radial flow). The parallel flow
-carries a layer of thickness flow_depth = grouser height + shear band at ``slip_flow`` times the
-rim's horizontal velocity relative to the ground, donor-cell from node to node along x; erosion
-moves soil between free neighbours until no slope exceeds the angle of repose. Flow and erosion
-only move volume, so V changes by exactly the compacted volume (to rounding).
+counted), the rest flows out of the footprint. Flow and erosion only move volume, so V changes by
+exactly the compacted volume (to rounding), plus what would leave the grid (counted as spilled).
+
+Flow fields (Krenn & Hirzinger 2009, "SCM - A soil contact model for multi-body system
+simulations"; paper section 3.2) are driven by each loaded node's contact velocity relative to the
+ground, split into its normal part v_n (pressing into the soil) and its tangential part v_t (the
+wheel surface sliding over the soil):
+
+* the displaced volume of a node is shared in the ratio |v_n| : |v_t| between a *radial* flow
+  (outward from the footprint's centroid: side ridges, bow wave, rear lip) and a *parallel* flow
+  (along the horizontal slip direction: backwards behind a driven wheel, forwards ahead of a
+  skidding or locked one, which then bulldozes it);
+* the layer the sliding surface drags (grouser height + ``shear_band``; ``slip_flow`` is the
+  fraction of the slip speed it moves at) is a conveyor. Continuity in the wheel's frame fixes
+  its net effect: a driven wheel accelerates the layer backwards, which thins under the wheel
+  (the wheel digs itself in, by at most the layer's depth) and leaves behind it; under a skidding
+  wheel the layer cannot thicken, so what it drags forwards is pushed ahead into the bow wave.
+  Either way the soil is scraped off the front of the footprint (each row at its mean slip).
+
+Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
+surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
+moves on to the next node in the flow's direction. So soil left behind a driven wheel lies in its
+rut below the receding wheel and cannot push it forward, while soil pushed ahead of a skidding
+wheel piles against its front and is compressed again. Erosion then moves soil between free
+neighbours until no slope exceeds the angle of repose, with the same clamp.
 """
 
 from __future__ import annotations
@@ -18,8 +38,10 @@ from numba import njit
 
 from .layout import P_COMPACTION, P_DT, P_FLOWDEPTH, P_K, P_OMEGA, P_SHEARDISP, P_SLIPFLOW, P_V
 
-EROSION_TOL = 1e-8  # m: slopes may exceed the angle of repose by this height difference
+EROSION_TOL = 1e-6  # m: slopes may exceed the angle of repose by this height difference
 EROSION_MAX_MOVES_PER_NODE = 64
+LOADED_ELASTIC = 1  # cflag: node in contact, elastic (unloading or reloading below its yield)
+LOADED_YIELDING = 2  # cflag: node in contact on the Bekker curve (plastic)
 
 
 @njit(cache=True)
@@ -45,12 +67,20 @@ def commit_contact(
     ke: np.ndarray,
     js: np.ndarray,
     cflag: np.ndarray,
+    dsp: np.ndarray,
+    hl: np.ndarray,
+    ncw: int,
+    nyw: int,
 ) -> float:
-    """Apply the converged step to the nodes under the wheel; return the plastic flow [m * nodes].
+    """Apply the converged step to the nodes under the wheel; return the displaced soil
+    [m * nodes].
 
     Yielding nodes update sp, sy, ke (plastic sinkage never decreases, elastic rebound never lifts
-    a node above its reference level). A node's surface is the wheel's while loaded and h0 - sp
-    (unloaded) otherwise, so it is not stored. cflag[k + 1, j] marks loaded nodes of column k.
+    a node above its reference level). A node's surface is the wheel's while loaded and h0 - sp +
+    hl (unloaded) otherwise, so it is not stored. Loose soil (hl, deposited by the flows) above
+    the wheel's surface is pushed away: it carries no stress of its own. cflag[k + 1, j] marks
+    the nodes under the wheel of column k (LOADED_ELASTIC or LOADED_YIELDING; a node whose loose
+    soil alone was reached counts as yielding) and dsp[k + 1, j] holds what each displaced.
     """
     K = prm[P_K]
     dt = prm[P_DT]
@@ -73,17 +103,40 @@ def commit_contact(
         sb = psig[p]
         for j in range(pj0[p], pj1[p]):
             jj = jw0 + j
-            cflag[k + 1, jj] = 1
+            dsp[k + 1, jj] = 0.0
             if pflag[p] == 2:
+                cflag[k + 1, jj] = LOADED_YIELDING
                 sink = h0[c, jj] - hit
                 spn = max(sp[c, jj], sink - sb / K, 0.0)
+                dsp[k + 1, jj] = spn - sp[c, jj]
                 flow += spn - sp[c, jj]
                 sp[c, jj] = spn
                 sy[c, jj] = sb
                 el = sink - spn
                 ke[c, jj] = sb / el if el > 1e-12 and sb / el > K else K
+            else:
+                cflag[k + 1, jj] = LOADED_ELASTIC
             if disp_form:
                 js[c, jj] += vt * dt
+    for k in range(ncw):  # loose soil above the wheel's surface is pushed away
+        if not np.isfinite(e[k]):
+            continue
+        c = c0 + k
+        hit = zw + e[k]
+        for jj in range(jw0, jw0 + nyw):
+            if hl[c, jj] <= 0.0:
+                continue
+            ground = h0[c, jj] - sp[c, jj]
+            if cflag[k + 1, jj] == 0:
+                dsp[k + 1, jj] = 0.0
+            if hit >= ground + hl[c, jj]:
+                continue
+            d = min(hl[c, jj], ground + hl[c, jj] - max(hit, ground))
+            hl[c, jj] -= d
+            dsp[k + 1, jj] += d
+            flow += d
+            if cflag[k + 1, jj] == 0:
+                cflag[k + 1, jj] = LOADED_YIELDING
     return flow
 
 
@@ -104,87 +157,248 @@ def _push(node: int, queue: np.ndarray, inq: np.ndarray, tail: int) -> int:
     return tail
 
 
+@njit(cache=True, inline="always")
+def surface(c: int, j: int, h0: np.ndarray, sp: np.ndarray, hl: np.ndarray) -> float:
+    """Unloaded surface of node (c, j) [m]: ground reference - plastic sinkage + loose soil."""
+    return h0[c, j] - sp[c, j] + hl[c, j]
+
+
+@njit(cache=True, inline="always")
+def _take(c: int, j: int, amount: float, h0: np.ndarray, hl: np.ndarray) -> None:
+    """Remove ``amount`` [m] from the top of node (c, j): its loose soil first, then ground."""
+    loose = min(amount, hl[c, j])
+    hl[c, j] -= loose
+    h0[c, j] -= amount - loose
+
+
 @njit(cache=True)
-def _move(a_c: int, a_j: int, b_c: int, b_j: int, amount: float, h0: np.ndarray):
-    h0[a_c, a_j] -= amount
-    h0[b_c, b_j] += amount
+def _room(
+    c: int,
+    j: int,
+    c0: int,
+    ncw: int,
+    jw0: int,
+    nyw: int,
+    clamp: np.ndarray,
+    h0: np.ndarray,
+    sp: np.ndarray,
+    hl: np.ndarray,
+) -> float:
+    """Height [m] by which free node (c, j) may rise before it reaches the wheel's swept circle."""
+    k = c - c0
+    if k < 0 or k >= ncw or j < jw0 or j >= jw0 + nyw:
+        return np.inf
+    return clamp[k] - surface(c, j, h0, sp, hl)
+
+
+@njit(cache=True)
+def _deposit(amount: float, c: int, j: int, dc: int, dj: int, grid, tail: int):
+    """Deposit ``amount`` [m * nodes] of loose soil at (c, j) and onward along (dc, dj): loaded
+    nodes are passed, free nodes take what fits below the wheel's swept circle. ``grid`` is
+    (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq). Returns (what is left when the
+    march leaves the grid, queue tail)."""
+    c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq = grid
+    nx, ny = h0.shape
+    while amount > 0.0:
+        if c < 0 or c >= nx or j < 0 or j >= ny:
+            break
+        if not _is_loaded(c, j, c0, ncw, cflag):
+            room = _room(c, j, c0, ncw, jw0, nyw, clamp, h0, sp, hl)
+            if room > 0.0:
+                put = min(room, amount)
+                hl[c, j] += put
+                amount -= put
+                tail = _push(c * ny + j, queue, inq, tail)
+        c += dc
+        j += dj
+    return amount, tail
+
+
+@njit(cache=True, inline="always")
+def _conveyed(depth: float, speed: float, sgn: int, v: float) -> float:
+    """Flux [m^2/s] of the dragged layer moving at ``speed`` over ground in direction ``sgn``.
+
+    Continuity in the wheel's frame: the ground enters the footprint at the carriage speed v, so
+    a layer accelerated backwards (sgn < 0, a driven wheel) to v + speed thins to
+    depth * v / (v + speed); the wheel sinks by the difference, depth * speed / (v + speed), which
+    saturates at ``depth`` as slip grows. A layer dragged forwards (skid) cannot thicken under the
+    wheel: it keeps its depth, and what it carries is pushed ahead of the wheel.
+    """
+    if sgn < 0 and v > 0.0:
+        return depth * v / (v + speed) * speed
+    return depth * speed
 
 
 @njit(cache=True)
 def flow_and_erode(
-    flow: float,
     prm: np.ndarray,
-    npatch: int,
-    pc: np.ndarray,
-    pj0: np.ndarray,
-    pj1: np.ndarray,
-    pflag: np.ndarray,
+    zw: float,
+    vz: float,
+    r_out: float,
+    xi: np.ndarray,
     e: np.ndarray,
+    fx: np.ndarray,
+    fz: np.ndarray,
     c0: int,
     ncw: int,
     jw0: int,
+    nyw: int,
     dx: float,
     dy: float,
     tan_repose: float,
     h0: np.ndarray,
     sp: np.ndarray,
+    hl: np.ndarray,
     cflag: np.ndarray,
+    dsp: np.ndarray,
+    work: np.ndarray,
     queue: np.ndarray,
     inq: np.ndarray,
-) -> float:
-    """Radial and parallel soil flow, then erosion.
+):
+    """Flow fields, then erosion (see the module docstring).
 
-    Returns (compacted volume [m^3], erosion node visits).
+    ``work`` (>= 8 rows, >= max(ncw, ny) columns) is scratch space. Returns (compacted volume
+    [m^3], spilled volume [m^3], erosion node visits).
     """
     nx, ny = h0.shape
+    dA = dx * dy
     tail = 0
-    # ---- radial flow: displaced volume to the ring of free nodes around the footprint
+    v = prm[P_V]
+    omega = prm[P_OMEGA]
+    dt = prm[P_DT]
+    keep = 1.0 - prm[P_COMPACTION]
+    depth = prm[P_FLOWDEPTH]
+    fslip = prm[P_SLIPFLOW]
+    clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
+    vtx_col = work[1]  # horizontal slip velocity of the wheel surface over ground [m/s]
+    share_col = work[2]  # parallel share |v_t| / (|v_t| + |v_n|)
+    acc_f = work[3]  # per row: volume flowing forward (+x) out of the footprint [m * nodes]
+    acc_b = work[4]  # per row: backward
+    acc_p = work[5]  # per column: to +y
+    acc_m = work[6]  # per column: to -y
+    rmin = np.full(ny, 1 << 30)
+    rmax = np.full(ny, -1)
+    cmin = np.full(ncw, 1 << 30)
+    cmax = np.full(ncw, -1)
+    r2 = r_out * r_out
+    xsum = 0.0
+    nload = 0
+    for k in range(ncw):
+        clamp[k] = np.inf
+        if xi[k] * xi[k] < r2:
+            clamp[k] = zw - math.sqrt(r2 - xi[k] * xi[k])
+        acc_p[k] = 0.0
+        acc_m[k] = 0.0
+        # contact kinematics of the column (see contact.evaluate_contact)
+        vpx = v + omega * e[k]
+        vpz = vz - omega * xi[k]
+        vn = vpx * fx[k] + vpz * fz[k]
+        vtx = vpx - vn * fx[k]
+        vtz = vpz - vn * fz[k]
+        vt = math.sqrt(vtx * vtx + vtz * vtz)
+        vtx_col[k] = vtx
+        share_col[k] = vt / (vt + abs(vn)) if vt + abs(vn) > 0.0 else 0.0
+        for j in range(jw0, jw0 + nyw):
+            if cflag[k + 1, j] != 0:
+                rmin[j] = min(rmin[j], k)
+                rmax[j] = max(rmax[j], k)
+                cmin[k] = min(cmin[k], j)
+                cmax[k] = max(cmax[k], j)
+                xsum += xi[k]
+                nload += 1
+    for j in range(ny):
+        acc_f[j] = 0.0
+        acc_b[j] = 0.0
+    if nload == 0:
+        return 0.0, 0.0, 0
+    xc = xsum / nload
+    yc = jw0 + 0.5 * (nyw - 1)
+    # radial flow: along x and y in the proportion the footprint's ring faces them (its rows
+    # against its columns), forwards or backwards from the centroid, to either side of the
+    # centre line; the same for every row, so identical rows stay identical (patches)
+    n_rows = 0
+    for j in range(jw0, jw0 + nyw):
+        if rmax[j] >= 0:
+            n_rows += 1
+    n_cols = 0
+    for k in range(ncw):
+        if cmax[k] >= 0:
+            n_cols += 1
+    wx = n_rows / (n_rows + n_cols)
+    # ---- displaced volume: radial and parallel shares, gathered per row / column
     compacted = 0.0
-    if flow > 0.0:
-        for p in range(npatch):  # the ring: free 4-neighbours of loaded nodes, into the queue
-            if pflag[p] == 0:
+    for k in range(ncw):
+        if cmax[k] < 0:
+            continue
+        rx = xi[k] - xc
+        for j in range(cmin[k], cmax[k] + 1):
+            d = dsp[k + 1, j]
+            if cflag[k + 1, j] != LOADED_YIELDING or d <= 0.0:
                 continue
-            c = c0 + pc[p]
-            for j in range(jw0 + pj0[p], jw0 + pj1[p]):
-                for dc, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-                    cb = c + dc
-                    jb = j + dj
-                    if cb < 0 or cb >= nx or jb < 0 or jb >= ny:
-                        continue
-                    if not _is_loaded(cb, jb, c0, ncw, cflag):
-                        tail = _push(cb * ny + jb, queue, inq, tail)
-        if tail > 0:
-            amount = (1.0 - prm[P_COMPACTION]) * flow / tail
-            for i in range(tail):
-                node = queue[i]
-                h0[node // ny, node % ny] += amount
-            compacted = prm[P_COMPACTION] * flow * dx * dy
-        else:
-            compacted = flow * dx * dy  # nowhere to go: all of it compacts
-    # ---- parallel flow: layer dragged along x by the slipping rim (donor cell)
-    depth = prm[P_FLOWDEPTH] * prm[P_SLIPFLOW]
-    if depth > 0.0:
-        v = prm[P_V]
-        omega = prm[P_OMEGA]
-        dt = prm[P_DT]
-        for p in range(npatch):
-            if pflag[p] == 0:
+            compacted += (1.0 - keep) * d
+            dv = keep * d
+            par = share_col[k] * dv if vtx_col[k] != 0.0 else 0.0
+            if par > 0.0:
+                if vtx_col[k] > 0.0:
+                    acc_f[j] += par
+                else:
+                    acc_b[j] += par
+            rad = dv - par
+            if rx >= 0.0:
+                acc_f[j] += wx * rad
+            else:
+                acc_b[j] += wx * rad
+            side = (1.0 - wx) * rad
+            if j > yc:
+                acc_p[k] += side
+            elif j < yc:
+                acc_m[k] += side
+            else:
+                acc_p[k] += 0.5 * side
+                acc_m[k] += 0.5 * side
+    # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
+    if depth > 0.0 and fslip > 0.0:
+        for j in range(jw0, jw0 + nyw):
+            if rmax[j] < 0:
                 continue
-            k = pc[p]
-            vpx = v + omega * e[k]  # horizontal velocity of the rim point over ground
-            amount = depth * abs(vpx) * dt / dx
-            if amount <= 0.0:
+            u = 0.0
+            nu = 0
+            for k in range(rmin[j], rmax[j] + 1):
+                if cflag[k + 1, j] != 0:
+                    u += vtx_col[k]
+                    nu += 1
+            u /= nu
+            if u == 0.0:
                 continue
-            c = c0 + k
-            cb = c + (1 if vpx > 0.0 else -1)
-            if cb < 0 or cb >= nx:
-                continue
-            for j in range(pj0[p], pj1[p]):
-                jj = jw0 + j
-                _move(c, jj, cb, jj, amount, h0)
-                if not _is_loaded(cb, jj, c0, ncw, cflag):
-                    tail = _push(cb * ny + jj, queue, inq, tail)
-    # ---- erosion to the angle of repose among free nodes (work list)
+            sgn = 1 if u > 0.0 else -1
+            a = _conveyed(depth, fslip * abs(u), sgn, v) * dt / dx
+            _take(c0 + rmax[j], j, a, h0, hl)  # scraped off the front of the footprint ...
+            if sgn > 0:
+                acc_f[j] += a  # ... and pushed ahead (skid)
+            else:
+                acc_b[j] += a  # ... and carried under the wheel to behind it (drive)
+    # ---- deposit outside the footprint, along the flow, below the wheel's swept circle
+    grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
+    spilled = 0.0
+    for j in range(jw0, jw0 + nyw):
+        if rmax[j] < 0:
+            continue
+        if acc_f[j] > 0.0:
+            left, tail = _deposit(acc_f[j], c0 + rmax[j] + 1, j, 1, 0, grid, tail)
+            spilled += left
+        if acc_b[j] > 0.0:
+            left, tail = _deposit(acc_b[j], c0 + rmin[j] - 1, j, -1, 0, grid, tail)
+            spilled += left
+    for k in range(ncw):
+        if cmax[k] < 0:
+            continue
+        if acc_p[k] > 0.0:
+            left, tail = _deposit(acc_p[k], c0 + k, cmax[k] + 1, 0, 1, grid, tail)
+            spilled += left
+        if acc_m[k] > 0.0:
+            left, tail = _deposit(acc_m[k], c0 + k, cmin[k] - 1, 0, -1, grid, tail)
+            spilled += left
+    # ---- erosion to the angle of repose among free nodes (work list), below the swept circle
     lim_x = dx * tan_repose
     lim_y = dy * tan_repose
     head = 0
@@ -207,11 +421,21 @@ def flow_and_erode(
             if _is_loaded(cb, jb, c0, ncw, cflag):
                 continue
             lim = lim_x if dj == 0 else lim_y
-            d = (h0[ca, ja] - sp[ca, ja]) - (h0[cb, jb] - sp[cb, jb])
+            d = surface(ca, ja, h0, sp, hl) - surface(cb, jb, h0, sp, hl)
             if d > lim + EROSION_TOL:
-                _move(ca, ja, cb, jb, 0.5 * (d - lim), h0)
+                room = _room(cb, jb, c0, ncw, jw0, nyw, clamp, h0, sp, hl)
+                amount = min(0.5 * (d - lim), room)
+                if amount <= EROSION_TOL:
+                    continue
+                _take(ca, ja, amount, h0, hl)  # what slides down is loose
+                hl[cb, jb] += amount
             elif -d > lim + EROSION_TOL:
-                _move(cb, jb, ca, ja, 0.5 * (-d - lim), h0)
+                room = _room(ca, ja, c0, ncw, jw0, nyw, clamp, h0, sp, hl)
+                amount = min(0.5 * (-d - lim), room)
+                if amount <= EROSION_TOL:
+                    continue
+                _take(cb, jb, amount, h0, hl)
+                hl[ca, ja] += amount
             else:
                 continue
             moves += 1
@@ -221,4 +445,4 @@ def flow_and_erode(
     while head < tail:  # budget exhausted: clear the remaining marks
         inq[queue[head % qn]] = 0
         head += 1
-    return compacted, visits
+    return compacted * dA, spilled * dA, visits

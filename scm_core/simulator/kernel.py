@@ -83,12 +83,15 @@ D_X0 = 8
 D_JW0 = 9
 D_NYW = 10
 D_EROSION_VISITS = 11
-N_DIAG = 12
+D_SPILLED = 12  # m^3 of flowing soil that left the grid
+N_DIAG = 13
 
 Z_TOL = 1e-8  # m, convergence of the axle height
 MAX_ITER = 80
 FREEZE_AFTER = 1  # evaluations before the footprint is frozen within a step
 G_TOL = 1e-4  # residual of the force balance, relative to W
+OUTER_TOL = 0.05  # footprint re-solves while its change moves the balance by more (x W)
+MAX_OUTER = 4
 X_PAD = 0.02  # m of untouched soil before the start and after the end of the run
 
 
@@ -112,8 +115,29 @@ def grid_shape(prm: np.ndarray):
 def _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, freeze, diag):
     """Contact forces at axle height z (vertical velocity from the backward-Euler step)."""
     pc, pj0, pj1, pst, xi, e, fx, fz, gx, gyc, pflag, psig, res = work
-    evaluate_contact(z, (z - zn) / dt, prm, npatch, pc, pj0, pj1, pst, xi, e, fx, fz, dx, dy, nyw,
-                     gx, gyc, pflag, psig, res, freeze)  # fmt: skip
+    evaluate_contact(
+        z,
+        (z - zn) / dt,
+        prm,
+        npatch,
+        pc,
+        pj0,
+        pj1,
+        pst,
+        xi,
+        e,
+        fx,
+        fz,
+        dx,
+        dy,
+        nyw,
+        gx,
+        gyc,
+        pflag,
+        psig,
+        res,
+        freeze,
+    )
     diag[D_ITERATIONS] += 1
     return res[R_FZ]
 
@@ -125,7 +149,10 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
     Root of G(z) = m (z - z_n - dt v_n) / dt^2 + W - Fz(z) in the bracket [free fall, last
     contact]: Newton, regula falsi (Illinois) when Newton stalls at a kink, bisection when the
     bracket does not halve. After FREEZE_AFTER evaluations the footprint quantities are frozen
-    (see evaluate_contact), and the result is re-evaluated on its own footprint at the end.
+    (see evaluate_contact) and the result is re-evaluated on its own footprint; while that moves
+    G by more than OUTER_TOL * W (a footprint that changes a lot within the step, e.g. grousers
+    on a very stiff soil) the solve is repeated on the new footprint, so the forces reported
+    balance the dynamics.
     """
     dt = prm[P_DT]
     m = prm[P_MASS]
@@ -136,26 +163,64 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
     if z_free >= ztop:  # the wheel touches nothing at the free-fall height
         _evaluate(z_free, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
         return z_free, True
+    z = min(max(zpred, z_free), max(ztop, z_free))
+    converged = False
+    for outer in range(MAX_OUTER):
+        z, converged = _newton(
+            z,
+            zpred,
+            z_free,
+            ztop,
+            c_in,
+            W,
+            zn,
+            dt,
+            prm,
+            npatch,
+            dx,
+            dy,
+            nyw,
+            work,
+            diag,
+            FREEZE_AFTER if outer == 0 else 0,
+        )
+        if not converged or outer == MAX_OUTER - 1:
+            # the footprint keeps changing (e.g. k_c << 0): end on the balanced frozen solve
+            _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, True, diag)
+            break
+        g = (
+            c_in * (z - zpred)
+            + W
+            - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
+        )
+        if abs(g) < OUTER_TOL * W:
+            break
+    return z, converged
+
+
+@njit(cache=True)
+def _newton(
+    z, zpred, z_free, ztop, c_in, W, zn, dt, prm, npatch, dx, dy, nyw, work, diag, freeze_after
+):
+    """Safeguarded Newton for G(z) = 0 from ``z``; frozen footprint after ``freeze_after``
+    evaluations. Returns (z, converged)."""
     lo = z_free
     g_lo = np.nan  # G(z_free) < 0, not evaluated: regula falsi waits until lo has a value
     hi = max(ztop, z_free)
     g_hi = c_in * (hi - zpred) + W  # no contact at ztop
-    z = min(max(zpred, lo), hi)
     g_prev = np.inf
     side = 0
     width_2ago = np.inf
     width_1ago = hi - lo
-    z_evaluated = np.nan
-    frozen = False
-    converged = False
     for it in range(MAX_ITER):
-        frozen = it >= FREEZE_AFTER
-        g = c_in * (z - zpred) + W - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, frozen,
-                                               diag)  # fmt: skip
-        z_evaluated = z
+        frozen = it >= freeze_after
+        g = (
+            c_in * (z - zpred)
+            + W
+            - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, frozen, diag)
+        )
         if abs(g) < G_TOL * W:
-            converged = True
-            break
+            return z, True
         if g > 0.0:
             hi = z
             g_hi = g
@@ -169,8 +234,7 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
                 g_hi *= 0.5
             side = -1
         if hi - lo < Z_TOL:
-            converged = True
-            break
+            return z, True
         dg = c_in - work[12][R_DFZ]
         z_new = z - g / dg if dg > 0.0 else lo - 1.0
         if not (lo < z_new < hi) or abs(g) > 0.5 * abs(g_prev):
@@ -184,21 +248,17 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
         width_1ago = hi - lo
         g_prev = g
         if abs(z_new - z) < Z_TOL:
-            z = z_new
-            converged = True
-            break
+            return z_new, True
         z = z_new
-    if z != z_evaluated or frozen:
-        _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
-    return z, converged
+    return z, False
 
 
 @njit(cache=True)
-def _volume(h0: np.ndarray, sp: np.ndarray, dA: float) -> float:
+def _volume(h0: np.ndarray, sp: np.ndarray, hl: np.ndarray, dA: float) -> float:
     total = 0.0
     for c in range(h0.shape[0]):
         for j in range(h0.shape[1]):
-            total += h0[c, j] - sp[c, j]
+            total += h0[c, j] - sp[c, j] + hl[c, j]
     return total * dA
 
 
@@ -207,9 +267,10 @@ def run_swt(prm: np.ndarray):
     """Simulate one SWT. Returns (series (n_out, N_SERIES), n_out, status, surface, diag).
 
     Series columns: time [s], drawbar pull F [N], driving torque T [N m], sinkage z [m] (axle drop
-    from first contact with the undisturbed surface), normal force [N], b_eff [m]. A run that stops
+    from first contact with the undisturbed surface), normal force [N], b_eff [m]; each sample is
+    the mean over the steps since the previous one. A run that stops
     early (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded
-    soil surface h0 - sp [m].
+    soil surface h0 - sp + hl [m] (ground plus loose deposits).
     """
     nx, ny, nyw, n_margin, dy, x0 = grid_shape(prm)
     dx = prm[P_DX]
@@ -224,6 +285,7 @@ def run_swt(prm: np.ndarray):
     n_steps = int(round(prm[P_DURATION] / dt))
     out_every = int(prm[P_OUTEVERY])
     n_out_max = n_steps // out_every
+    acc = np.zeros(N_SERIES)
     series = np.zeros((n_out_max, N_SERIES))
     diag = np.zeros(N_DIAG)
     diag[D_DY] = dy
@@ -235,12 +297,13 @@ def run_swt(prm: np.ndarray):
     sy = np.zeros((nx, ny))
     ke = np.full((nx, ny), prm[P_K])
     js = np.zeros((nx, ny))
+    hl = np.zeros((nx, ny))  # loose soil deposited on top of the ground [m]
     dA = dx * dy
     diag[D_VOLUME0] = 0.0
     # largest possible footprint: k* must be positive there or the soil carries nothing
     beff_max = 2.0 * r_out * prm[P_B] / (2.0 * r_out + prm[P_B])
     if prm[P_KC] / beff_max + prm[P_KPHI] <= 0.0:
-        return series[:0], 0, STATUS_NONPOSITIVE_STIFFNESS, h0 - sp, diag
+        return series[:0], 0, STATUS_NONPOSITIVE_STIFFNESS, h0 - sp + hl, diag
     ncw_max = int(math.ceil(2.0 * r_out / dx)) + 4
     xi = np.zeros(ncw_max)
     e = np.zeros(ncw_max)
@@ -257,6 +320,8 @@ def run_swt(prm: np.ndarray):
     psig = np.zeros(max_patch)
     res = np.zeros(N_RES)
     cflag = np.zeros((ncw_max + 2, ny), np.int8)
+    dsp = np.zeros((ncw_max + 2, ny))
+    fwork = np.zeros((8, max(ncw_max, ny)))
     work = (pc, pj0, pj1, pst, xi, e, fx, fz, gx, gyc, pflag, psig, res)
     queue = np.zeros(nx * ny, np.int64)
     inq = np.zeros(nx * ny, np.int8)
@@ -314,51 +379,64 @@ def run_swt(prm: np.ndarray):
             ke,
             js,
             cflag,
+            dsp,
+            hl,
+            ncw,
+            nyw,
         )
         if bulldoze:
-            compacted, visits = flow_and_erode(
-                flow,
+            compacted, spilled, visits = flow_and_erode(
                 prm,
-                npatch,
-                pc,
-                pj0,
-                pj1,
-                pflag,
+                zw,
+                vz,
+                r_out,
+                xi,
                 e,
+                fx,
+                fz,
                 c0,
                 ncw,
                 n_margin,
+                nyw,
                 dx,
                 dy,
                 tan_repose,
                 h0,
                 sp,
+                hl,
                 cflag,
+                dsp,
+                fwork,
                 queue,
                 inq,
             )
             diag[D_COMPACTED] += compacted
+            diag[D_SPILLED] += spilled
             diag[D_EROSION_VISITS] += visits
         else:
             diag[D_COMPACTED] += flow * dA  # without flow the displaced soil is compacted
-        for p in range(npatch):  # clear the loaded marks
-            if pflag[p] != 0:
-                for j in range(n_margin + pj0[p], n_margin + pj1[p]):
-                    cflag[pc[p] + 1, j] = 0
+        for k in range(ncw):  # clear the marks of the nodes under the wheel
+            for j in range(n_margin, n_margin + nyw):
+                cflag[k + 1, j] = 0
         diag[D_STEPS] += 1
+        # each output sample is the mean over the steps since the last one (a box-car
+        # anti-aliasing filter: grouser impacts between samples are not lost)
+        acc[S_F] += res[R_FX]
+        acc[S_TORQUE] += res[R_T]
+        acc[S_Z] += r_out - zw
+        acc[S_FN] += res[R_FZ]
+        acc[S_BEFF] += res[R_BEFF]
         if (step + 1) % out_every == 0 and n_out < n_out_max:
             series[n_out, S_T] = t
-            series[n_out, S_F] = res[R_FX]
-            series[n_out, S_TORQUE] = res[R_T]
-            series[n_out, S_Z] = r_out - zw
-            series[n_out, S_FN] = res[R_FZ]
-            series[n_out, S_BEFF] = res[R_BEFF]
+            for col in (S_F, S_TORQUE, S_Z, S_FN, S_BEFF):
+                series[n_out, col] = acc[col] / out_every
+                acc[col] = 0.0
             n_out += 1
         if r_out - zw > prm[P_MAXSINK]:
             status = STATUS_BOTTOMED_OUT
             break
-    diag[D_VOLUME1] = _volume(h0, sp, dA)
-    return series[:n_out], n_out, status, h0 - sp, diag
+    diag[D_VOLUME1] = _volume(h0, sp, hl, dA)
+    return series[:n_out], n_out, status, h0 - sp + hl, diag
 
 
 @njit(cache=True)

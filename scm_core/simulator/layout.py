@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from .params import RigConfig, SoilParams, WheelGeometry
+from .rig import ResolvedRig, resolve_rig
 
 # soil
 P_N = 0
@@ -45,7 +46,8 @@ P_OFF_F = 30
 P_OFF_T = 31
 P_OFF_Z = 32
 P_DYDX = 33
-N_PARAMS = 34
+P_INCL = 34  # exponent of the bearing-capacity inclination factor (0: off)
+N_PARAMS = 35
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -55,7 +57,13 @@ STATUS_UNSTABLE = 3
 
 
 def pack(soil: SoilParams, wheel: WheelGeometry, rig: RigConfig) -> np.ndarray:
-    """Flat parameter vector for :func:`scm_core.simulator.kernel.run_swt`."""
+    """Flat parameter vector for :func:`scm_core.simulator.kernel.run_swt` (the rig resolved by
+    :func:`scm_core.simulator.rig.resolve_rig`; raises its ValueError)."""
+    return pack_resolved(soil, wheel, resolve_rig(wheel, rig))
+
+
+def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> np.ndarray:
+    """:func:`pack` for an already resolved rig."""
     p = np.zeros(N_PARAMS)
     p[P_N] = soil.n
     p[P_KC] = soil.k_c
@@ -75,13 +83,13 @@ def pack(soil: SoilParams, wheel: WheelGeometry, rig: RigConfig) -> np.ndarray:
     p[P_HG] = wheel.grouser_height if wheel.has_grousers else 0.0
     p[P_TG] = wheel.grouser_thickness
     p[P_W] = rig.W
-    p[P_MASS] = rig.vertical_mass
+    p[P_MASS] = rig.mass
     p[P_V] = rig.carriage_speed
     p[P_OMEGA] = rig.omega
     p[P_DURATION] = rig.duration
     p[P_DT] = rig.dt
     p[P_DX] = rig.dx
-    p[P_OUTEVERY] = max(1, round(1.0 / (rig.output_rate * rig.dt)))
+    p[P_OUTEVERY] = rig.output_every
     p[P_TAPER] = 1.0 if rig.border_taper else 0.0
     p[P_BULLDOZE] = 1.0 if rig.bulldozing else 0.0
     p[P_SHEARDISP] = 1.0 if rig.shear == "displacement" else 0.0
@@ -91,4 +99,5 @@ def pack(soil: SoilParams, wheel: WheelGeometry, rig: RigConfig) -> np.ndarray:
     p[P_OFF_T] = rig.offset_T
     p[P_OFF_Z] = rig.offset_z
     p[P_DYDX] = rig.dy_over_dx
+    p[P_INCL] = soil.bearing_inclination
     return p

@@ -17,6 +17,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from scm_core.slip import CONVENTION_HELP, SlipError, canonical_convention
+
 GRAVITY = 9.81  # m/s^2
 
 
@@ -71,6 +73,15 @@ class SoilParams(_Frozen):
         description="Fraction of the rim's slip velocity at which that layer is carried [-]",
     )
 
+    bearing_inclination: float = Field(
+        0.0,
+        ge=0.0,
+        le=10.0,
+        description="Exponent m of the inclination factor (1 - alpha/90 deg)^m that scales the "
+        "Bekker yield stress when the soil's resultant force on the wheel is inclined by alpha "
+        "from the vertical (Meyerhof 1953: m = 2); 0 = off, the paper's SCM",
+    )
+
     @property
     def tan_phi(self) -> float:
         return math.tan(math.radians(self.phi))
@@ -106,20 +117,44 @@ class WheelGeometry(_Frozen):
 class RigConfig(_Frozen):
     """Single-wheel test rig and numerics.
 
-    The carriage moves at v = (1 - slip) * omega * slip_radius, the wheel turns at omega: slip is
-    imposed with respect to ``slip_radius`` (the lab's nominal radius, 0.125 m in the paper), not
-    the model's rigid radius R, so that an identified R (cases 2) changes the effective slip as a
-    flexible wheel would. The axle is free vertically and loaded by W through the mass m = W / g.
+    Kinematics: the carriage moves the axle at ``carriage_speed`` v, the wheel turns at ``omega``
+    (0: locked), so the rim speed is omega * slip_radius. Any two of ``slip``, ``omega`` and
+    ``carriage_speed`` fix the rig (see :func:`scm_core.slip.resolve_speeds`); a slip alone moves
+    the faster of rim and carriage at 0.1 rad/s times the slip radius (the paper's set-up: slip
+    0.2, omega 0.1 rad/s, v = 1 cm/s). ``slip`` is in ``slip_convention``: ``drive``
+    (1 - v/(omega r), the default for slip >= 0) or ``symmetric`` ((omega r - v)/max(v, omega r),
+    -1 = locked); a negative slip must name its convention. ``slip_radius`` (the lab's nominal
+    radius; default: the rim radius R) defines slip, not the model's rigid radius, so that an
+    identified R (cases 2) changes the effective slip as a flexible wheel would. The axle is free
+    vertically and loaded by W through the mass m = W / g.
+
+    Numerics left as None are derived from the wheel and the rig by :func:`resolve_rig` (the
+    paper's 0.125 m wheel at 1 cm/s gets dx 5 mm, dt 20 ms, 50 s, offsets 20/20/1 s, max_sinkage
+    0.1 m).
     """
 
     W: float = Field(315.0, gt=0.0, description="Normal load W [N]")
-    slip: float = Field(0.2, ge=-1.0, lt=1.0, description="Imposed slip ratio s [-]")
-    omega: float = Field(0.1, gt=0.0, description="Wheel angular velocity [rad/s]")
-    slip_radius: float = Field(0.125, gt=0.0, description="Radius defining slip [m]")
+    slip: float | None = Field(
+        None, lt=1.0, description="Imposed slip [-] in slip_convention (default 0.2)"
+    )
+    slip_convention: str | None = Field(
+        None,
+        description="'drive' (1 - v/(omega r)) or 'symmetric' ((omega r - v)/max(v, omega r)); "
+        "needed for a negative slip",
+    )
+    omega: float | None = Field(None, ge=0.0, description="Wheel angular velocity [rad/s]")
+    carriage_speed: float | None = Field(None, gt=0.0, description="Carriage speed v [m/s]")
+    slip_radius: float | None = Field(
+        None, gt=0.0, description="Radius defining slip [m]; default the rim radius R"
+    )
     mass: float | None = Field(None, gt=0.0, description="Vertical mass [kg]; default W/g")
-    duration: float = Field(50.0, gt=0.0, description="Simulated time [s]")
-    dt: float = Field(0.02, gt=0.0, le=0.1, description="Time step [s] (implicit vertical step)")
-    dx: float = Field(0.005, ge=0.0005, le=0.05, description="DEM grid spacing [m]")
+    duration: float | None = Field(None, gt=0.0, description="Simulated time [s]; default 4 r/v")
+    dt: float | None = Field(
+        None, gt=0.0, le=0.1, description="Time step [s] (implicit vertical step); derived"
+    )
+    dx: float | None = Field(
+        None, ge=0.0005, le=0.05, description="DEM grid spacing [m]; default r/25"
+    )
     dy_over_dx: float = Field(
         2.0,
         ge=0.25,
@@ -130,33 +165,50 @@ class RigConfig(_Frozen):
     output_rate: float = Field(
         100.0, gt=0.0, description="Output sample rate [Hz]; at most one sample per step"
     )
-    offset_F: float = Field(20.0, ge=0.0, description="Averaging offset for drawbar pull [s]")
-    offset_T: float = Field(20.0, ge=0.0, description="Averaging offset for torque [s]")
-    offset_z: float = Field(1.0, ge=0.0, description="Averaging offset for sinkage [s]")
+    offset_F: float | None = Field(
+        None, ge=0.0, description="Averaging offset for drawbar pull [s]; default 0.4 duration"
+    )
+    offset_T: float | None = Field(
+        None, ge=0.0, description="Averaging offset for torque [s]; default 0.4 duration"
+    )
+    offset_z: float | None = Field(
+        None, ge=0.0, description="Averaging offset for sinkage [s]; default 0.02 duration"
+    )
     border_taper: bool = Field(True, description="Pressure border taper gamma_i of eq. (7)")
     bulldozing: bool = Field(True, description="Plastic soil flow and erosion (section 3.2)")
     shear: Literal["velocity", "displacement"] = Field(
         "velocity", description="Janosi form of eq. (8): velocity (SCM) or displacement"
     )
-    max_sinkage: float = Field(0.1, gt=0.0, description="Sinkage that counts as bottomed out [m]")
+    max_sinkage: float | None = Field(
+        None,
+        gt=0.0,
+        description="Sinkage that counts as bottomed out [m]; default min(0.1 m, outer radius)",
+    )
     side_margin: float = Field(0.04, ge=0.0, description="Soil beside the wheel track [m]")
 
     @model_validator(mode="after")
     def _check(self) -> RigConfig:
-        longest = max(self.offset_F, self.offset_T, self.offset_z)
-        if self.duration <= longest:
+        if self.slip_convention is not None:
+            try:
+                canonical = canonical_convention(self.slip_convention)
+            except SlipError as exc:
+                raise ValueError(str(exc)) from None
+            object.__setattr__(self, "slip_convention", canonical)
+        if self.slip is not None and self.slip < 0.0 and self.slip_convention is None:
             raise ValueError(
-                f"duration {self.duration:g} s is not longer than the averaging offset "
-                f"{longest:g} s: the steady window would be empty"
+                f"slip {self.slip:g} is negative (a skidding wheel) but its convention is not "
+                f"named: set slip_convention to {CONVENTION_HELP}"
             )
-        if self.dt > self.duration / 10:
-            raise ValueError("dt must be at most a tenth of the duration")
+        if self.duration is not None:
+            offsets = [o for o in (self.offset_F, self.offset_T, self.offset_z) if o is not None]
+            if offsets and self.duration <= max(offsets):
+                raise ValueError(
+                    f"duration {self.duration:g} s is not longer than the averaging offset "
+                    f"{max(offsets):g} s: the steady window would be empty"
+                )
+            if self.dt is not None and self.dt > self.duration / 10:
+                raise ValueError("dt must be at most a tenth of the duration")
         return self
-
-    @property
-    def carriage_speed(self) -> float:
-        """Carriage speed v = (1 - s) omega r_slip [m/s]."""
-        return (1.0 - self.slip) * self.omega * self.slip_radius
 
     @property
     def vertical_mass(self) -> float:

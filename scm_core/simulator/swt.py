@@ -9,8 +9,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import kernel
-from .layout import STATUS_NAMES, STATUS_OK, pack
+from .layout import STATUS_NAMES, STATUS_OK, pack_resolved
 from .params import RigConfig, SoilParams, WheelGeometry
+from .rig import ResolvedRig, resolve_rig
 
 
 @dataclass(frozen=True)
@@ -36,7 +37,9 @@ class SWTResult:
     """Outcome of one simulated single-wheel test.
 
     ``series`` has the keys t [s], F [N] (drawbar pull, + forward), T [N m] (driving torque),
-    z [m] (sinkage), normal_force [N], slip [-], b_eff [m]. ``means`` is None unless status == "ok".
+    z [m] (sinkage), normal_force [N], slip [-] (symmetric convention (omega r - v)/max(v, omega r),
+    equal to 1 - v/(omega r) when driving), b_eff [m]. ``means`` is None unless status == "ok".
+    ``rig`` is the resolved rig (kinematics, both slips, numerics).
     """
 
     status: str
@@ -44,6 +47,7 @@ class SWTResult:
     means: SteadyMeans | None
     terrain: Terrain
     wall_time_s: float
+    rig: ResolvedRig
     diagnostics: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -60,7 +64,8 @@ def simulate_swt(
     soil = soil or SoilParams()
     wheel = wheel or WheelGeometry()
     rig = rig or RigConfig()
-    prm = pack(soil, wheel, rig)
+    resolved = resolve_rig(wheel, rig)
+    prm = pack_resolved(soil, wheel, resolved)
     t0 = time.perf_counter()
     series, n_out, status, h, diag = kernel.run_swt(prm)
     means_arr = kernel.steady_means(series, prm)
@@ -72,14 +77,14 @@ def simulate_swt(
     ny = h.shape[1]
     jw0 = int(d["jw0"])
     y = (np.arange(ny) - jw0 - 0.5 * d["nyw"] + 0.5) * dy
-    x = d["x0"] + np.arange(h.shape[0]) * rig.dx
+    x = d["x0"] + np.arange(h.shape[0]) * resolved.dx
     out = {
         "t": series[:, kernel.S_T].copy(),
         "F": series[:, kernel.S_F].copy(),
         "T": series[:, kernel.S_TORQUE].copy(),
         "z": series[:, kernel.S_Z].copy(),
         "normal_force": series[:, kernel.S_FN].copy(),
-        "slip": np.full(n_out, rig.slip),
+        "slip": np.full(n_out, resolved.slip_symmetric),
         "b_eff": series[:, kernel.S_BEFF].copy(),
     }
     return SWTResult(
@@ -88,6 +93,7 @@ def simulate_swt(
         means=means,
         terrain=Terrain(x=x, y=y, h=h),
         wall_time_s=wall,
+        rig=resolved,
         diagnostics=d,
     )
 
@@ -105,6 +111,7 @@ _DIAG_NAMES = (
     "jw0",
     "nyw",
     "erosion_visits",
+    "volume_spilled",
 )
 
 
@@ -130,7 +137,12 @@ def pack_many(
     n = len(soils)
     wheels = _broadcast(wheels if wheels is not None else WheelGeometry(), n, "wheels")
     rigs = _broadcast(rigs if rigs is not None else RigConfig(), n, "rigs")
-    return np.stack([pack(s, w, r) for s, w, r in zip(soils, wheels, rigs, strict=True)])
+    return np.stack(
+        [
+            pack_resolved(s, w, resolve_rig(w, r))
+            for s, w, r in zip(soils, wheels, rigs, strict=True)
+        ]
+    )
 
 
 def simulate_batch(

@@ -55,7 +55,7 @@ from scm_core.calibration.report import finite_or_none
 from scm_core.inference import StageState, TMCMCResult
 from scm_core.signals import SWTDataset
 
-from .common import CLIError, data_paths, read_case, read_datasets
+from .common import CLIError, data_option, data_paths, read_case, read_datasets
 from .pool import batch_map
 
 CHECKPOINT_FORMAT = "scm-calib-checkpoints"
@@ -188,20 +188,21 @@ def write_outputs(
     # the MAP sample's simulations, for the fit figure and the summary
     lp = result.final.log_prior + result.final.log_likelihood
     theta = result.final.samples[int(np.argmax(np.where(np.isnan(lp), -np.inf, lp)))]
-    sims, rigs, map_responses = [], [], {}
+    sims, map_responses = [], {}
+    offsets = model.measurement_offsets(theta)
     for k, ds in enumerate(datasets):
         try:
-            _, _, rig = model.configs(theta, k)
             sim = model.simulate_at(theta, k)
         except (ValidationError, ValueError):
-            sim, rig = None, None
+            sim = None
         sims.append(sim)
-        rigs.append(rig)
         m = sim.means if sim is not None else None
         map_responses[ds.name] = {
             "status": None if sim is None else sim.status,
-            "simulated": {r: finite_or_none(getattr(m, r)) if m else None for r in "FTz"},
-            "measured": {r: float(ds.responses[r].mean) for r in "FTz"},
+            "simulated": {
+                r: finite_or_none(getattr(m, r) + offsets.get(r, 0.0)) if m else None for r in "FTz"
+            },
+            "measured": {r: float(ds.responses[r].mean) for r in "FTz" if r in ds.responses},
         }
     summary = study_summary(result, case, model, wall_times, extra_settings, map_responses)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
@@ -242,9 +243,10 @@ def write_outputs(
         plot_fit(
             datasets,
             sims,
-            rigs,
             fig_dir / "fit_map.png",
             title=f"{case.name}: measured vs simulated at the MAP sample",
+            responses=case.responses,
+            offsets=model.measurement_offsets(theta),
         )
     return summary
 
@@ -253,11 +255,14 @@ def write_outputs(
 
 
 class _Display:
-    """Rich progress bar per stage (stage, exponent, evaluations done/planned, ETA)."""
+    """Progress of the stages: a rich bar per stage (stage, exponent, evaluations done/planned,
+    ETA) on a terminal; otherwise (a log file, a pipe) plain lines, one every 10 % of a stage
+    and one per finished stage, flushed at once."""
 
-    def __init__(self, quiet: bool):
+    def __init__(self, quiet: bool, console: Console | None = None):
         self.quiet = quiet
-        self.console = Console(stderr=True)
+        self.console = console or Console(stderr=True)
+        self.lines = not self.console.is_terminal
         self.progress = Progress(
             TextColumn("{task.description}"),
             BarColumn(),
@@ -266,10 +271,14 @@ class _Display:
             TimeElapsedColumn(),
             TimeRemainingColumn(),
             console=self.console,
-            disable=quiet,
+            disable=quiet or self.lines,
         )
         self.task = None
         self.total = 1
+        self.done = 0
+        self.next_tenth = 1
+        self.stage = 0
+        self.t0 = time.perf_counter()
 
     def __enter__(self):
         self.progress.__enter__()
@@ -278,16 +287,41 @@ class _Display:
     def __exit__(self, *exc):
         return self.progress.__exit__(*exc)
 
+    def _line(self, text: str) -> None:
+        if not self.quiet:
+            print(text, file=self.console.file, flush=True)
+
     def stage_start(self, s: StageStart) -> None:
+        self.total = max(s.planned, 1)
+        self.done = 0
+        self.next_tenth = 1
+        self.stage = s.stage
+        self.t0 = time.perf_counter()
+        if self.lines:
+            self._line(
+                f"stage {s.stage:2d} started: p = {s.exponent:.4g}, {s.planned} evaluations planned"
+            )
+            return
         desc = f"stage {s.stage:2d}  p = {s.exponent:.4g}"
         if self.task is not None:
             self.progress.update(self.task, visible=False)
-        self.total = max(s.planned, 1)
         self.task = self.progress.add_task(desc, total=self.total)
 
     def batch(self, k: int) -> None:
-        if self.task is not None:
-            self.progress.advance(self.task, k)
+        self.done += k
+        if not self.lines:
+            if self.task is not None:
+                self.progress.advance(self.task, k)
+            return
+        while self.next_tenth <= 9 and self.done * 10 >= self.next_tenth * self.total:
+            elapsed = time.perf_counter() - self.t0
+            frac = self.done / self.total
+            eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
+            self._line(
+                f"stage {self.stage:2d}: {10 * self.next_tenth:3d} % ({self.done}/{self.total} "
+                f"evaluations), {elapsed:.0f} s elapsed, ETA {eta:.0f} s"
+            )
+            self.next_tenth += 1
 
     def stage_done(self, state: StageState, wall: float) -> None:
         if self.task is not None:
@@ -295,11 +329,15 @@ class _Display:
         if not self.quiet:
             rate = state.acceptance_rate
             acc = f"{rate:.2f}" if math.isfinite(rate) else "-"
-            self.progress.console.print(
+            text = (
                 f"stage {state.stage:2d} done: p = {state.exponent:.4g}, acceptance {acc}, "
                 f"ESS {state.ess:.0f}, unique {state.n_unique}, model runs {state.model_runs}, "
                 f"failed {state.failed_runs}, {wall:.1f} s"
             )
+            if self.lines:
+                self._line(text)
+            else:
+                self.progress.console.print(text)
 
 
 # ---------------------------------------------------------------------- Ctrl-C
@@ -386,13 +424,7 @@ def _precheck(case: CaseDefinition, model: StudyModel) -> None:
 
 @click.command()
 @click.argument("case_file", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "--data",
-    "data",
-    multiple=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="SWT log or summary (repeatable); replaces the case's [data] files.",
-)
+@data_option("SWT log or summary (repeatable); replaces the case's [data] files.")
 @click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
@@ -483,7 +515,7 @@ def calibrate(
 
     wall_times = list(walls)
     t_start = [time.perf_counter()]
-    display = _Display(quiet)
+    display = _Display(quiet, console)
     stop = _StopRequest(console if not quiet else None)
 
     def on_stage_start(s: StageStart) -> None:

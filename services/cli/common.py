@@ -12,6 +12,17 @@ from scm_core.calibration import CaseDefinition, CaseError, load_case
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset
 
 
+def data_option(help: str):
+    """The repeatable ``--data PATH`` option of the commands that read SWT datasets."""
+    return click.option(
+        "--data",
+        "data",
+        multiple=True,
+        type=click.Path(dir_okay=False, path_type=Path),
+        help=help,
+    )
+
+
 class CLIError(click.ClickException):
     """A bad input (case file, dataset, option): one line on stderr, exit code 2."""
 

@@ -14,6 +14,7 @@ COMMANDS = {
     "synth": "services.cli.synth:synth",
     "calibrate": "services.cli.calibrate:calibrate",
     "sensitivity": "services.cli.sensitivity:sensitivity",
+    "predict": "services.cli.predict:predict_cmd",
     "db": "services.cli.db:db",
     "serve": "services.cli.serve:serve",
     "worker": "services.cli.worker_cmd:worker",

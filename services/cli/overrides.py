@@ -7,7 +7,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
+from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, resolve_rig
 
 CONFIG_TYPES: tuple[type[BaseModel], ...] = (SoilParams, WheelGeometry, RigConfig)
 
@@ -46,6 +46,10 @@ def build_configs(items: Iterable[str]) -> tuple[SoilParams, WheelGeometry, RigC
         except ValidationError as exc:
             raise OverrideError(_one_line(exc, grouped[cls])) from None
     soil, wheel, rig = built
+    try:
+        resolve_rig(wheel, rig)  # kinematics and derived numerics must be consistent
+    except ValueError as exc:
+        raise OverrideError(str(exc)) from None
     return soil, wheel, rig
 
 

@@ -10,7 +10,7 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from scm_core.simulator import RigConfig, SWTResult, simulate_swt
+from scm_core.simulator import SWTResult, simulate_swt
 
 from .overrides import OverrideError, build_configs
 
@@ -42,17 +42,18 @@ def simulate(
     if plot is not None:
         from services.plots.swt import plot_swt
 
-        plot_swt(result, rig, plot)
+        plot_swt(result, plot)
     summary = result_summary(result)
     if as_json:
         summary["config"] = {
             "soil": soil.model_dump(),
             "wheel": wheel.model_dump(),
             "rig": rig.model_dump(),
+            "resolved_rig": result.rig.to_dict(),
         }
         click.echo(json.dumps(summary, indent=2))
     else:
-        _print_table(summary, rig)
+        _print_table(summary, result)
     if not result.ok:
         raise SystemExit(1)
 
@@ -91,8 +92,13 @@ def write_series_csv(result: SWTResult, path: Path) -> None:
             writer.writerow([f"{v:.9g}" for v in row])
 
 
-def _print_table(summary: dict, rig: RigConfig) -> None:
-    table = Table(title=f"SCM single-wheel test: {summary['status']}")
+def _print_table(summary: dict, result: SWTResult) -> None:
+    rig = result.rig
+    kin = (
+        f"carriage {rig.carriage_speed * 1000:.4g} mm/s, rim {rig.rim_speed * 1000:.4g} mm/s, "
+        f"slip {rig.slip_symmetric:.4g} (symmetric)"
+    )
+    table = Table(title=f"SCM single-wheel test: {summary['status']}", caption=kin)
     table.add_column("quantity")
     table.add_column("value", justify="right")
     table.add_column("window")

@@ -112,5 +112,5 @@ def synth(
     click.echo(
         "true: "
         + ", ".join(f"{k}={getattr(soil, k):g}" for k in ("k_c", "k_phi", "n", "phi", "J", "c"))
-        + f"; slip={rig.slip:g}, W={rig.W:g} N; sidecar {out.with_suffix('.json')}"
+        + f"; slip={log.metadata['slip']:g}, W={rig.W:g} N; sidecar {out.with_suffix('.json')}"
     )

@@ -8,14 +8,25 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from scm_core.signals import SWTDataset, lowpass
-from scm_core.simulator import RigConfig, SWTResult
+from scm_core.signals import SWTDataset, TestConditions, lowpass
+from scm_core.simulator import SWTResult
 
 _ROWS = (
     ("F", "drawbar_pull", "drawbar pull F [N]", 1.0, "offset_F"),
     ("T", "torque", "torque T [N m]", 1.0, "offset_T"),
     ("z", "sinkage", "sinkage z [mm]", 1000.0, "offset_z"),
 )
+
+
+def condition_label(c: TestConditions) -> str:
+    """'slip 0.2, W 315 N' (the symmetric lab slip; 'locked' for a locked wheel)."""
+    if c.slip_symmetric is None:
+        kin = "slip ?"
+    elif c.slip_symmetric <= -1.0:
+        kin = "locked"
+    else:
+        kin = f"slip {c.slip_symmetric:.3g}"
+    return f"{kin}, W {c.W:g} N"
 
 
 def _filtered(t: np.ndarray, y: np.ndarray, cutoff_hz: float | None) -> np.ndarray:
@@ -33,23 +44,36 @@ def _filtered(t: np.ndarray, y: np.ndarray, cutoff_hz: float | None) -> np.ndarr
 def plot_fit(
     datasets: Sequence[SWTDataset],
     sims: Sequence[SWTResult | None],
-    rigs: Sequence[RigConfig | None],
     path: str | Path,
     title: str | None = None,
+    responses: Sequence[str] = ("F", "T", "z"),
+    offsets: dict[str, float] | None = None,
 ) -> Path:
-    """One column per dataset, rows F, T, z: the filtered measured signal with its steady mean
-    over the experimental window, and the simulated signal with its mean over the simulation's
-    windows. Summary datasets (no series) show their mean +- sd as a band."""
+    """One column per dataset, one row per response of ``responses`` that some dataset
+    measured: the filtered measured signal with its steady mean over the experimental window,
+    and the simulated signal with its mean over the simulation's windows. Summary datasets (no
+    series) show their mean +- sd as a band; a response a dataset did not measure shows the
+    simulation only. ``offsets`` (response -> value in SI) are measurement offsets added to the
+    simulated signal (e.g. a calibrated sinkage datum)."""
     path = Path(path)
+    rows = [
+        row for row in _ROWS if row[0] in responses and any(row[0] in d.responses for d in datasets)
+    ]
+    if not rows:
+        rows = [row for row in _ROWS if row[0] in responses] or list(_ROWS)
+    offsets = offsets or {}
     ncols = len(datasets)
-    fig = Figure(figsize=(5.2 * ncols, 7.5), layout="constrained")
-    axes = np.array(fig.subplots(3, ncols, squeeze=False))
-    for c, (ds, sim, rig) in enumerate(zip(datasets, sims, rigs, strict=True)):
+    fig = Figure(figsize=(5.2 * ncols, 2.6 * len(rows) + 0.4), layout="constrained")
+    axes = np.array(fig.subplots(len(rows), ncols, squeeze=False))
+    for c, (ds, sim) in enumerate(zip(datasets, sims, strict=True)):
         t_end = 0.0
-        for r, (key, column, ylabel, scale, offset_name) in enumerate(_ROWS):
+        rig = None if sim is None else sim.rig
+        for r, (key, column, ylabel, scale, offset_name) in enumerate(rows):
             ax = axes[r, c]
-            stat = ds.responses[key]
-            if ds.series is not None:
+            stat = ds.responses.get(key)
+            if stat is None:
+                ax.text(0.02, 0.95, "not measured", transform=ax.transAxes, va="top", fontsize=8)
+            elif ds.series is not None:
                 t = ds.series.t
                 ax.plot(
                     t,
@@ -79,7 +103,7 @@ def plot_fit(
                 ax.axhline(stat.mean * scale, color="k", lw=2.0)
             if sim is not None and rig is not None:
                 ts = sim.series["t"]
-                ys = sim.series[key] * scale
+                ys = (sim.series[key] + offsets.get(key, 0.0)) * scale
                 ax.plot(ts, ys, lw=0.5, color="tab:blue", alpha=0.3)
                 ax.plot(
                     ts,
@@ -89,7 +113,7 @@ def plot_fit(
                     label="simulated (filtered)",
                 )
                 if sim.means is not None:
-                    m = getattr(sim.means, key) * scale
+                    m = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale
                     ax.hlines(
                         m,
                         getattr(rig, offset_name),
@@ -102,10 +126,10 @@ def plot_fit(
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="lower right")
-        axes[0, c].set_title(f"{ds.name} (slip {ds.conditions.slip:g}, W {ds.conditions.W:g} N)")
+        axes[0, c].set_title(f"{ds.name} ({condition_label(ds.conditions)})")
         axes[-1, c].set_xlabel("time t [s]")
         if t_end > 0:
-            for r in range(3):
+            for r in range(len(rows)):
                 axes[r, c].set_xlim(0, t_end)
     fig.suptitle(title or "Measured vs simulated at the MAP sample")
     fig.savefig(path, dpi=110)

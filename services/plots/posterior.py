@@ -61,7 +61,7 @@ def default_pairs(names: Sequence[str], limit: int = 3) -> list[tuple[str, str]]
     pairs = [p for p in PAPER_PAIRS if p[0] in names and p[1] in names]
     if "J" in names:
         pairs = [p for p in pairs if p != ("n", "R")] + [p for p in pairs if p == ("n", "R")]
-    physical = [n for n in names if not n.startswith("sigma_")]
+    physical = [n for n in names if not n.startswith(("sigma_", "z_offset"))]
     for a, b in itertools.pairwise(physical):
         if len(pairs) >= limit:
             break

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from scm_core.simulator import RigConfig, SWTResult
+from scm_core.simulator import SWTResult
 
 _PANELS = (
     ("F", "drawbar pull F [N]", 1.0, "offset_F"),
@@ -15,9 +15,10 @@ _PANELS = (
 )
 
 
-def plot_swt(result: SWTResult, rig: RigConfig, path: str | Path, title: str | None = None) -> Path:
+def plot_swt(result: SWTResult, path: str | Path, title: str | None = None) -> Path:
     """Draw F, T and z against time with the averaging windows shaded and the means marked."""
     path = Path(path)
+    rig = result.rig
     fig = Figure(figsize=(8, 7.5), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     t = result.series["t"]

@@ -72,6 +72,12 @@ def _bad_log() -> bytes:
     return LOG.read_bytes().replace(b"torque [Nm]", b"torque [furlong]")
 
 
+#: line of the example log's column header (after its metadata lines)
+HEADER_LINE = next(
+    i for i, line in enumerate(LOG.read_text().splitlines(), 1) if line.startswith("time")
+)
+
+
 def _ragged_log() -> bytes:
     lines = LOG.read_bytes().split(b"\n")
     lines[200] = lines[200] + b",1.0"
@@ -142,7 +148,7 @@ CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] =
      413, ("body", str(UPLOAD_LIMIT))),
     ("csv-unknown-unit", "POST", "/datasets",
      lambda e: {"files": {"file": ("bad.csv", _bad_log(), "text/csv")}}, 422,
-     ("file bad.csv", "line 15", "torque [furlong]", "unit")),
+     ("file bad.csv", f"line {HEADER_LINE}", "torque [furlong]", "unit")),
     ("csv-ragged-row", "POST", "/datasets",
      lambda e: {"files": {"file": ("ragged.csv", _ragged_log(), "text/csv")}}, 422,
      ("file ragged.csv", "line 201")),
@@ -166,9 +172,9 @@ CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] =
     ("upload-wrong-content-type", "POST", "/datasets",
      lambda e: {"content": b"time,F\n", "headers": {**AUTH, "content-type": "text/csv"}},
      415, ("multipart/form-data",)),
-    ("summary-missing-response", "POST", "/datasets",
-     lambda e: {"json": {**summary_doc(7.0), "responses": {"F": {"mean": 1.0, "sd": 0.1}}}},
-     422, ("body", "missing response")),
+    ("summary-without-response", "POST", "/datasets",
+     lambda e: {"json": {**summary_doc(7.0), "responses": {}}},
+     422, ("body", "no response")),
     ("cancel-unknown-study", "POST", "/studies/999/cancel", lambda e: {}, 404, ("study 999",)),
     ("unknown-status-filter", "GET", "/studies?status=bogus", lambda e: {}, 422,
      ("status", "bogus")),

@@ -127,7 +127,10 @@ def test_fingerprint_ignores_what_does_not_change_samples() -> None:
             "nominal.n: Input should be less than or equal to 5",
         ),
         ({"simulator": {"dtt": 0.01}}, "simulator.dtt: unknown rig/numerics key 'dtt'"),
-        ({"simulator": {"duration": 5.0}}, "simulator: duration 5 s is not longer than"),
+        (
+            {"simulator": {"duration": 5.0, "offset_F": 20.0}},
+            "simulator: duration 5 s is not longer than",
+        ),
         ({"simulator": {"duration": 12.0, "J": 0.1}}, "simulator.J: unknown rig/numerics key"),
         ({"sampler": {"n_samples": 3}}, "sampler.n_samples: Input should be greater than"),
         ({"sampler": {"moves": "gibbs"}}, "sampler.moves"),

@@ -26,7 +26,7 @@ def test_seeded_and_shaped(log) -> None:
     np.testing.assert_array_equal(log.F, again.F)
     assert not np.array_equal(log.F, other.F)
     assert log.t.size == 30 * 50 + 1 and log.t[0] == 0.0 and log.rate_hz == pytest.approx(50.0)
-    assert log.metadata["R"] == RIG.slip_radius and log.metadata["slip"] == 0.3
+    assert log.metadata["R"] == WheelGeometry().R and log.metadata["slip"] == 0.3
     assert log.metadata["true_parameters"]["phi"] == 27.0
     # the ramp: drawbar pull and torque start from zero (plus noise)
     assert abs(log.F[:5].mean()) < 6.0 and abs(log.T[:5].mean()) < 0.6

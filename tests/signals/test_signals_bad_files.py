@@ -49,17 +49,29 @@ def test_header_without_rows(tmp_path):
     assert "no data rows after the header (line 3)" in refuse(tmp_path, META + HEADER + "\n")
 
 
-def test_missing_column_is_named(tmp_path):
-    text = log_text([r.rsplit(",", 1)[0] for r in rows()], header=HEADER.rsplit(",", 1)[0])
+def test_missing_time_column_is_named(tmp_path):
+    text = log_text([r.split(",", 1)[1] for r in rows()], header=HEADER.split(",", 1)[1])
     msg = refuse(tmp_path, text)
-    assert "missing required column(s) sinkage" in msg
+    assert "missing required column(s) time" in msg
     assert "line 3" in msg
 
 
-def test_misspelt_column_is_named(tmp_path):
-    msg = refuse(tmp_path, log_text(header=HEADER.replace("torque", "torqe")))
-    assert "missing required column(s) torque" in msg
+def test_log_without_any_response_is_refused_naming_the_header(tmp_path):
+    header = HEADER.replace("drawbar_pull", "drawbr").replace("torque", "torqe")
+    header = header.replace("sinkage", "sinkge")
+    msg = refuse(tmp_path, log_text(header=header))
+    assert "missing required column(s) drawbar_pull, torque or sinkage" in msg
     assert "torqe [Nm]" in msg
+
+
+def test_log_without_torque_has_the_other_responses(tmp_path):
+    """A log may carry any subset of F, T, z: no torque column, no torque response."""
+    data = [",".join(r.split(",")[:2] + r.split(",")[3:]) for r in rows()]
+    header = ",".join(HEADER.split(",")[:2] + HEADER.split(",")[3:])
+    path = tmp_path / "log.csv"
+    path.write_text(log_text(data, header=header))
+    ds = load_log(path)
+    assert set(ds.means) == {"F", "z"} and "T" not in ds.responses
 
 
 def test_duplicate_column_via_alias(tmp_path):
@@ -248,10 +260,10 @@ def refuse_summary(tmp_path, doc: dict | str, suffix: str = ".json") -> str:
     return str(info.value)
 
 
-def test_summary_missing_response(tmp_path):
+def test_summary_without_any_response(tmp_path):
     doc = summary()
-    del doc["responses"]["T"]
-    assert "missing response(s) T (torque); need F, T and z" in refuse_summary(tmp_path, doc)
+    doc["responses"] = {}
+    assert "no response; give at least one of F" in refuse_summary(tmp_path, doc)
 
 
 def test_summary_negative_sd(tmp_path):

@@ -8,7 +8,9 @@ from scm_core.signals import LogFormatError, TestConditions, merge_metadata
 def test_alias_normal_load_and_validation():
     c = TestConditions(normal_load=315, slip=0.2)
     assert c.W == 315.0
-    assert TestConditions(W=315, slip=-1.0).slip == -1.0
+    assert TestConditions(W=315, slip=-1.0, slip_convention="drive").slip == -1.0
+    with pytest.raises(ValueError, match="convention is not named"):
+        TestConditions(W=315, slip=-1.0)
     with pytest.raises(ValueError):
         TestConditions(W=315, slip=1.0)
     with pytest.raises(ValueError):
@@ -72,3 +74,62 @@ def test_bad_metadata_values():
         merge_metadata([("metadata", {"slip": True, "W": 1})])
     with pytest.raises(LogFormatError, match="not JSON-compatible"):
         merge_metadata([("metadata", {"slip": 0.1, "W": 1, "when": object()})])
+
+
+def test_lab_convention_skid_converts_to_both_slips_and_speeds():
+    """(v_rim - v)/max(v, v_rim) = -0.5 at v = 10 mm/s: the rim moves at 5 mm/s, and the drive
+    convention 1 - v/(omega r) reads 1 - 10/5 = -1 (not -0.5: the two differ in skid)."""
+    meta = merge_metadata(
+        [
+            (
+                "file",
+                {
+                    "slip": "-0.5",
+                    "slip_convention": "symmetric",
+                    "carriage_speed": "10 mm/s",
+                    "wheel_radius": "58 mm",
+                    "normal_load": "23 N",
+                },
+            )
+        ]
+    )
+    c = meta.conditions
+    assert c.slip_symmetric == pytest.approx(-0.5) and c.slip == pytest.approx(-1.0)
+    assert c.rim_speed == pytest.approx(0.005) and c.carriage_speed == pytest.approx(0.01)
+    assert c.omega == pytest.approx(0.005 / 0.058)
+    # the same test stated as two speeds, or as the drive-convention slip, is the same record
+    assert TestConditions(W=23, carriage_speed=0.01, rim_speed=0.005, R=0.058) == c
+    assert (
+        TestConditions(W=23, slip=-1.0, slip_convention="drive", carriage_speed=0.01, R=0.058) == c
+    )
+    assert c.to_sim_config() == {
+        "W": 23.0,
+        "slip": -0.5,
+        "slip_convention": "symmetric",
+        "omega": c.omega,
+        "R": 0.058,
+    }
+
+
+def test_unnamed_negative_slip_is_refused_naming_both_conventions():
+    with pytest.raises(LogFormatError) as err:
+        merge_metadata([("file", {"slip": "-0.5", "normal_load": "23 N"})])
+    msg = str(err.value)
+    assert "slip -0.5 is negative" in msg
+    assert "'drive' (s = 1 - v/(omega r))" in msg and "'symmetric'" in msg
+
+
+def test_locked_wheel_conditions():
+    c = TestConditions(W=19.5, omega=0.0, carriage_speed=0.01, R=0.058)
+    assert c.locked and c.slip is None and c.slip_symmetric == -1.0 and c.rim_speed == 0.0
+    assert TestConditions.model_validate(c.model_dump()) == c  # the record round-trips
+    cfg = c.to_sim_config()
+    assert cfg["slip"] == -1.0 and cfg["slip_convention"] == "symmetric"
+    assert cfg["carriage_speed"] == 0.01
+
+
+def test_inconsistent_kinematics_are_refused():
+    with pytest.raises(ValueError, match="disagrees"):
+        TestConditions(W=1, slip=0.2, carriage_speed=0.01, rim_speed=0.02)
+    with pytest.raises(ValueError, match="unknown slip convention"):
+        TestConditions(W=1, slip=0.2, slip_convention="wong")

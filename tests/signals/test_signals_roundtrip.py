@@ -67,7 +67,8 @@ def test_write_without_sidecar_keeps_metadata_in_the_file(tmp_path):
     path = write_log(tmp_path / "run2.csv", t, F, T, z, META, sidecar=False)
     assert not path.with_suffix(".json").exists()
     text = path.read_text()
-    assert text.startswith("# W: 315.0 N\n# slip: 0.2\n# omega: 0.4 rad/s\n")
+    assert text.startswith("# W: 315.0 N\n# slip: 0.2\n# slip_symmetric: 0.2\n")
+    assert "# omega: 0.4 rad/s\n" in text and "# rim_speed: " in text
     assert "# notes: dry quartz sand second run of the day\n" in text
     ds = load_log(path)
     assert ds.conditions.W == 315.0 and ds.conditions.n_grousers == 12

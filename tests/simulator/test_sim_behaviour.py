@@ -11,6 +11,7 @@ from scm_core.simulator import (
     RigConfig,
     SoilParams,
     WheelGeometry,
+    resolve_rig,
     simulate_batch,
     simulate_swt,
 )
@@ -79,13 +80,15 @@ def test_failures_stop_early_with_a_named_status():
     assert r.status == "nonpositive_stiffness" and r.means is None
     r = simulate_swt(SoilParams(k_phi=1e3))
     assert r.status == "bottomed_out" and r.means is None
-    assert len(r.series["t"]) < 50 / RigConfig().dt  # stopped early
+    assert len(r.series["t"]) < 50 / r.rig.dt  # stopped early
     assert np.isfinite(r.series["z"]).all()
 
 
 def test_run_shorter_than_offset_is_refused():
     with pytest.raises(ValidationError, match="averaging offset"):
-        RigConfig(duration=10.0)
+        RigConfig(duration=10.0, offset_F=20.0)
+    with pytest.raises(ValueError, match=r"duration: .* averaging offset 20 s"):
+        resolve_rig(WheelGeometry(), RigConfig(offset_T=20.0, carriage_speed=0.05))  # 10 s run
 
 
 @pytest.mark.parametrize(
@@ -106,16 +109,12 @@ def test_invalid_values_name_the_field(cls, kwargs, field):
 
 
 def test_defaults_are_the_papers_set_up():
-    w, r, s = WheelGeometry(), RigConfig(), SoilParams()
+    w, s = WheelGeometry(), SoilParams()
+    r = resolve_rig(w, RigConfig())
     assert (w.R, w.b, w.n_grousers, w.grouser_height) == (0.125, 0.112, 12, 0.009)
-    assert (r.W, r.slip, r.duration, r.offset_F, r.offset_T, r.offset_z) == (
-        315.0,
-        0.2,
-        50.0,
-        20.0,
-        20.0,
-        1.0,
-    )
+    assert (r.W, r.duration, r.offset_F, r.offset_T, r.offset_z) == (315.0, 50.0, 20.0, 20.0, 1.0)
+    assert (r.dx, r.dt, r.max_sinkage, r.omega) == (0.005, 0.02, 0.1, 0.1)
+    assert r.slip == pytest.approx(0.2) and r.carriage_speed == pytest.approx(0.01)
     assert (s.c, s.phi, s.n, s.k_c, s.J) == (0.0, 30.0, 1.1, 0.0, 0.001)
     assert s.k_c / 0.04 + s.k_phi == pytest.approx(1e7)
 

@@ -47,7 +47,9 @@ def test_simulate_json_files(tmp_path):
     [
         ("bogus=1", "unknown key 'bogus'"),
         ("dt=abc", "dt=abc"),
-        ("duration=10", "averaging offset"),
+        ("offset_F=60", "averaging offset"),
+        ("slip=-0.5", "slip_convention"),
+        ("carriage_speed=0", "carriage_speed"),
         ("border_taper=maybe", "border_taper"),
         ("n_grousers=2.5", "n_grousers"),
         ("novalue", "KEY=VALUE"),

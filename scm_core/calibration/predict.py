@@ -1,0 +1,249 @@
+"""Posterior predictions across test conditions (DESIGN section 4; paper section 5.3).
+
+Draws of a finished study's posterior are simulated under other test conditions (held-out
+datasets, a slip sweep). Per condition and response the result gives the median and the central
+95 % band of the simulated steady means (the parameter uncertainty), the same with the study's
+prediction-error noise added (sigma_F, sigma_T, sigma_z of each draw: where a new measurement is
+expected to fall), and, where the condition has a measurement, the measured value and whether it
+lies inside the bands.
+
+Deterministic for a seed: the draws are chosen with ``SeedSequence([seed, 0])`` and the noise
+with ``SeedSequence([seed, 1])``; every simulation is independent of its batch, so any ``map``
+(processes, workers) gives identical numbers. Pure: no file I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from scm_core.signals import SWTDataset
+from scm_core.slip import SlipError, resolve_speeds
+
+from .case import RESPONSES, SIGMA_NAMES, CaseDefinition
+from .model import DatasetTerms, StudyModel, dataset_terms
+
+__all__ = [
+    "Band",
+    "ConditionPrediction",
+    "ResponsePrediction",
+    "choose_draws",
+    "predict",
+    "sweep_targets",
+]
+
+MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
+LEVEL = 0.95
+
+
+@dataclass(frozen=True)
+class Band:
+    """Median and central 95 % interval [lo, hi] of a response over the posterior draws (SI)."""
+
+    median: float
+    lo: float
+    hi: float
+
+    @classmethod
+    def of(cls, x: NDArray[np.float64]) -> Band:
+        x = x[np.isfinite(x)]
+        if x.size == 0:
+            return cls(math.nan, math.nan, math.nan)
+        q = np.quantile(x, [0.5, (1 - LEVEL) / 2, (1 + LEVEL) / 2])
+        return cls(float(q[0]), float(q[1]), float(q[2]))
+
+    def contains(self, value: float) -> bool:
+        return bool(self.lo <= value <= self.hi)
+
+    def to_dict(self) -> dict[str, float | None]:
+        return {k: _num(getattr(self, k)) for k in ("median", "lo", "hi")}
+
+
+@dataclass(frozen=True)
+class ResponsePrediction:
+    """One response under one condition: ``simulated`` band of the steady means, ``predictive``
+    band with the prediction-error noise (None if the study has no sigma for the response),
+    the ``measured`` mean if the condition has one, and whether it lies inside each band."""
+
+    response: str
+    simulated: Band
+    predictive: Band | None
+    measured: float | None = None
+
+    @property
+    def inside_predictive(self) -> bool | None:
+        if self.measured is None or self.predictive is None:
+            return None
+        return self.predictive.contains(self.measured)
+
+    @property
+    def inside_simulated(self) -> bool | None:
+        return None if self.measured is None else self.simulated.contains(self.measured)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "simulated": self.simulated.to_dict(),
+            "predictive": None if self.predictive is None else self.predictive.to_dict(),
+            "measured": _num(self.measured),
+            "inside_predictive": self.inside_predictive,
+            "inside_simulated": self.inside_simulated,
+        }
+
+
+@dataclass(frozen=True)
+class ConditionPrediction:
+    """Predictions under one test condition (a dataset or a sweep point)."""
+
+    name: str
+    conditions: dict[str, Any]
+    slip_symmetric: float | None
+    n_draws: int
+    n_failed: int
+    responses: dict[str, ResponsePrediction] = field(default_factory=dict)
+    role: str = "predicted"  # "calibration" (the study used it), "predicted", "sweep"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "role": self.role,
+            "conditions": dict(self.conditions),
+            "slip_symmetric": _num(self.slip_symmetric),
+            "n_draws": self.n_draws,
+            "n_failed": self.n_failed,
+            "responses": {r: p.to_dict() for r, p in self.responses.items()},
+        }
+
+
+def _num(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def choose_draws(n_available: int, n_draws: int, seed: int) -> NDArray[np.int64]:
+    """Indices of ``n_draws`` posterior samples: without replacement when there are enough,
+    else every sample once and the rest with replacement (sorted, reproducible)."""
+    if n_available < 1:
+        raise ValueError("the posterior has no samples")
+    if n_draws < 1:
+        raise ValueError(f"draws must be >= 1, got {n_draws}")
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0]))
+    if n_draws <= n_available:
+        idx = rng.choice(n_available, size=n_draws, replace=False)
+    else:
+        extra = rng.choice(n_available, size=n_draws - n_available, replace=True)
+        idx = np.concatenate([np.arange(n_available), extra])
+    return np.sort(idx).astype(np.int64)
+
+
+def _slip_symmetric(conditions: dict[str, Any]) -> float | None:
+    s = conditions.get("slip")
+    if s is None:
+        return None
+    if conditions.get("slip_convention") == "symmetric" or s >= 0:
+        return float(s)
+    return float(s) / (1.0 - float(s))
+
+
+def sweep_targets(template: DatasetTerms, values: Sequence[float]) -> list[DatasetTerms]:
+    """Conditions of ``template`` with the slip replaced by each of ``values`` (symmetric lab
+    convention, -1 = locked) at the template's carriage speed (as a lab sweeps the wheel speed);
+    without a known carriage speed, the rig's default speeds for a slip."""
+    cond = dict(template.conditions)
+    v = cond.get("carriage_speed")
+    if v is None and cond.get("omega") is not None and cond.get("R") is not None:
+        try:
+            v, _, _ = resolve_speeds(
+                cond.get("slip"),
+                cond.get("slip_convention"),
+                None,
+                cond["omega"] * cond["R"],
+                default_speed=1.0,
+            )
+        except SlipError:
+            v = None
+    base = {k: x for k, x in cond.items() if k not in ("slip", "slip_convention", "omega")}
+    if v is not None:
+        base["carriage_speed"] = v
+    nan3 = (math.nan, math.nan, math.nan)
+    return [
+        DatasetTerms(
+            name=f"slip {s:.4g}",
+            conditions={**base, "slip": float(s), "slip_convention": "symmetric"},
+            means=nan3,
+        )
+        for s in values
+    ]
+
+
+def predict(
+    case: CaseDefinition,
+    samples: ArrayLike,
+    targets: Sequence[SWTDataset | DatasetTerms],
+    draws: int = 200,
+    seed: int = 0,
+    map: MapFn = map,
+    batch_size: int = 50,
+    roles: Sequence[str] | None = None,
+) -> list[ConditionPrediction]:
+    """Simulate ``draws`` posterior samples (rows of ``samples``, in the case's parameter order)
+    under each target's test conditions; one :class:`ConditionPrediction` per target."""
+    X = np.atleast_2d(np.asarray(samples, dtype=float))
+    if X.shape[1] != len(case.parameters):
+        raise ValueError(
+            f"samples have {X.shape[1]} columns, the case has {len(case.parameters)} parameters"
+        )
+    terms = [dataset_terms(t) for t in targets]
+    if not terms:
+        return []
+    idx = choose_draws(X.shape[0], draws, seed)
+    Xd = X[idx]
+    model = StudyModel(case, terms)
+    chunks = [Xd[i : i + batch_size] for i in range(0, Xd.shape[0], batch_size)]
+    parts = list(map(model.simulate_means, chunks))
+    means = np.concatenate([p[0] for p in parts], axis=0)  # (draws, targets, 3)
+    ok = np.concatenate([p[1] for p in parts], axis=0)
+    sigma = _sigmas(case, Xd)  # response -> (draws,) or None
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+    noise = rng.standard_normal((Xd.shape[0], len(terms), 3))
+    out = []
+    for k, t in enumerate(terms):
+        responses = {}
+        for i, r in enumerate(RESPONSES):
+            sim = means[:, k, i]
+            pred = None
+            if sigma[r] is not None:
+                pred = Band.of(sim + sigma[r] * noise[:, k, i])
+            measured = t.means[i] if math.isfinite(t.means[i]) else None
+            responses[r] = ResponsePrediction(r, Band.of(sim), pred, measured)
+        out.append(
+            ConditionPrediction(
+                name=t.name,
+                conditions=dict(t.conditions),
+                slip_symmetric=_slip_symmetric(t.conditions),
+                n_draws=int(Xd.shape[0]),
+                n_failed=int((~ok[:, k]).sum()),
+                responses=responses,
+                role=roles[k] if roles is not None else "predicted",
+            )
+        )
+    return out
+
+
+def _sigmas(case: CaseDefinition, X: NDArray[np.float64]) -> dict[str, NDArray | None]:
+    """Prediction-error sigma per response and draw: the calibrated column, the nominal value,
+    or None where the case has neither (no predictive band)."""
+    names = case.parameter_names
+    out: dict[str, NDArray | None] = {}
+    for r in RESPONSES:
+        s = SIGMA_NAMES[r]
+        if s in names:
+            out[r] = X[:, names.index(s)]
+        elif s in case.nominal:
+            out[r] = np.full(X.shape[0], float(case.nominal[s]))
+        else:
+            out[r] = None
+    return out

@@ -1,0 +1,136 @@
+"""The rig and numerics of one run, resolved from :class:`RigConfig` and the wheel.
+
+Kinematics (:func:`scm_core.slip.resolve_speeds`): any two of slip, omega and carriage speed fix
+the run; a slip alone moves the faster of rim and carriage at ``PAPER_OMEGA`` times the slip
+radius r (the paper: omega 0.1 rad/s, slip 0.2, v = 1 cm/s).
+
+Numerics left unset scale with the wheel and the rig as the paper's set-up does (r = 0.125 m,
+v = 1 cm/s: dx 5 mm, dt 20 ms, 50 s, offsets 20, 20 and 1 s), rounded to three significant digits:
+
+* dx = r / 25 (five grid cells per 2.5 % of the radius; convergence tables in docs/simulator.md);
+* dt: the carriage advances at most dx / 10 per step, and with grousers the rim at most dx / 20
+  (a grouser must not jump across cells); a smooth rim's angle does not enter the contact, and
+  its flows are fluxes per unit time, so only the carriage limits it;
+* duration = 4 r / v (the carriage travels two wheel diameters); offsets 0.4 duration for F and T,
+  0.02 duration for z (the paper's 20, 20 and 1 s of a 50 s run);
+* max_sinkage = min(0.1 m, outer radius): beyond the outer radius the axle would be below the
+  undisturbed surface and soil would reach the wheel's upper half, which the z-buffer of the lower
+  surface does not model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from scm_core.slip import SlipError, drive_to_symmetric, resolve_speeds
+
+from .params import RigConfig, WheelGeometry
+
+PAPER_OMEGA = 0.1  # rad/s: default angular speed of the faster of rim and carriage (per r)
+CELLS_PER_RADIUS = 25.0
+CARRIAGE_CELL_FRACTION = 10.0  # steps per cell of carriage travel
+RIM_CELL_FRACTION = 20.0  # steps per cell of rim travel (grousered wheels)
+TRAVEL_RADII = 4.0  # duration: carriage travel in slip radii
+OFFSET_FT = 0.4  # averaging offsets as fractions of the duration
+OFFSET_Z = 0.02
+MAX_SINKAGE_CAP = 0.1  # m
+
+
+def _sig3(x: float) -> float:
+    return float(f"{x:.3g}")
+
+
+@dataclass(frozen=True)
+class ResolvedRig:
+    """Every number one run uses (SI): kinematics, both slips and the numerics."""
+
+    W: float
+    mass: float
+    carriage_speed: float
+    rim_speed: float
+    omega: float
+    slip_radius: float
+    slip: float  # drive convention 1 - v/(omega r); -inf for a locked wheel
+    slip_symmetric: float  # (omega r - v)/max(v, omega r)
+    duration: float
+    dt: float
+    dx: float
+    dy_over_dx: float
+    output_rate: float
+    output_every: int
+    offset_F: float
+    offset_T: float
+    offset_z: float
+    max_sinkage: float
+    side_margin: float
+    border_taper: bool
+    bulldozing: bool
+    shear: str
+
+    def to_dict(self) -> dict:
+        """JSON-compatible dict (a locked wheel's drive slip as None)."""
+        out = asdict(self)
+        if math.isinf(self.slip):
+            out["slip"] = None
+        return out
+
+
+def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
+    """Resolve ``rig`` for ``wheel``; raises ValueError (one line, naming the field) if the
+    kinematics are inconsistent or the derived numerics leave no averaging window."""
+    r = rig.slip_radius if rig.slip_radius is not None else wheel.R
+    rim_given = None if rig.omega is None else rig.omega * r
+    try:
+        v, v_rim, s_drive = resolve_speeds(
+            rig.slip, rig.slip_convention, rig.carriage_speed, rim_given, PAPER_OMEGA * r
+        )
+    except SlipError as exc:
+        raise ValueError(f"slip, omega, carriage_speed: {exc}") from None
+    dx = rig.dx if rig.dx is not None else _sig3(r / CELLS_PER_RADIUS)
+    duration = rig.duration if rig.duration is not None else _sig3(TRAVEL_RADII * r / v)
+    if rig.dt is not None:
+        dt = rig.dt
+    else:
+        dt = dx / (CARRIAGE_CELL_FRACTION * v)
+        if wheel.has_grousers and v_rim > 0.0:
+            dt = min(dt, dx / (RIM_CELL_FRACTION * v_rim))
+        dt = _sig3(min(dt, 0.1, duration / 10.0))
+    off_F = rig.offset_F if rig.offset_F is not None else _sig3(OFFSET_FT * duration)
+    off_T = rig.offset_T if rig.offset_T is not None else _sig3(OFFSET_FT * duration)
+    off_z = rig.offset_z if rig.offset_z is not None else _sig3(OFFSET_Z * duration)
+    longest = max(off_F, off_T, off_z)
+    if duration <= longest:
+        raise ValueError(
+            f"duration: {duration:g} s is not longer than the averaging offset {longest:g} s: "
+            "the steady window would be empty"
+        )
+    if dt > duration / 10:
+        raise ValueError(f"dt: {dt:g} s is more than a tenth of the duration {duration:g} s")
+    max_sink = (
+        rig.max_sinkage if rig.max_sinkage is not None else min(MAX_SINKAGE_CAP, wheel.outer_radius)
+    )
+    return ResolvedRig(
+        W=rig.W,
+        mass=rig.vertical_mass,
+        carriage_speed=v,
+        rim_speed=v_rim,
+        omega=v_rim / r,
+        slip_radius=r,
+        slip=s_drive,
+        slip_symmetric=drive_to_symmetric(s_drive),
+        duration=duration,
+        dt=dt,
+        dx=dx,
+        dy_over_dx=rig.dy_over_dx,
+        output_rate=rig.output_rate,
+        output_every=max(1, round(1.0 / (rig.output_rate * dt))),
+        offset_F=off_F,
+        offset_T=off_T,
+        offset_z=off_z,
+        max_sinkage=max_sink,
+        side_margin=rig.side_margin,
+        border_taper=rig.border_taper,
+        bulldozing=rig.bulldozing,
+        shear=rig.shear,
+    )

@@ -1,0 +1,225 @@
+"""``scm-calib predict``: posterior predictions of a finished study under other test conditions.
+
+Reads a ``calibrate`` results folder (``summary.json`` holds the case, ``posterior.csv`` the
+final samples), simulates ``--draws`` posterior samples under each dataset's test conditions
+(and along ``--sweep slip=LO:HI:N``), and reports per dataset and response the median and 95 %
+band of the simulated means, the same with the prediction-error noise, and the measured value
+with whether it falls inside. Writes ``predictions.json`` and ``predictions.png`` to ``--out``
+(default ``RESULTS_DIR/predictions``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from scm_core.calibration import CaseDefinition, CaseError, DatasetTerms
+from scm_core.calibration.predict import ConditionPrediction, predict, sweep_targets
+
+from .common import CLIError, data_option, read_datasets
+from .pool import batch_map
+
+_SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
+
+
+def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, Any]]:
+    """(case, posterior samples (n, d), summary) of a ``calibrate`` results folder."""
+    summary_path = results / "summary.json"
+    post_path = results / "posterior.csv"
+    for p in (summary_path, post_path):
+        if not p.is_file():
+            raise CLIError(
+                f"{results}: no {p.name}; give the output folder of `scm-calib calibrate`"
+            )
+    try:
+        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        case = CaseDefinition.from_dict(summary["case"], base_dir=results)
+    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise CLIError(f"{summary_path}: unreadable study summary ({exc})") from None
+    except CaseError as exc:
+        raise CLIError(f"{summary_path}: {exc}") from None
+    names = list(case.parameter_names)
+    try:
+        with post_path.open(newline="", encoding="utf-8") as fh:
+            rows = list(csv.DictReader(fh))
+        samples = np.array([[float(r[n]) for n in names] for r in rows], dtype=float)
+    except (OSError, KeyError, ValueError) as exc:
+        raise CLIError(f"{post_path}: unreadable posterior samples ({exc})") from None
+    if samples.size == 0:
+        raise CLIError(f"{post_path}: no samples")
+    return case, samples, summary
+
+
+def parse_sweep(spec: str | None) -> list[float]:
+    """``slip=LO:HI:N`` -> N slips from LO to HI (symmetric convention, -1 = locked)."""
+    if spec is None:
+        return []
+    key, sep, rng = spec.partition("=")
+    parts = rng.split(":")
+    if key.strip() != "slip" or not sep or len(parts) != 3:
+        raise CLIError(f"--sweep {spec!r}: expected slip=LO:HI:N, e.g. slip=-1:0.9:24")
+    try:
+        lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+    except ValueError:
+        raise CLIError(f"--sweep {spec!r}: LO and HI must be numbers, N a whole number") from None
+    if not (-1.0 <= lo < hi < 1.0) or not 2 <= n <= 200:
+        raise CLIError(f"--sweep {spec!r}: need -1 <= LO < HI < 1 and 2 <= N <= 200")
+    return list(np.linspace(lo, hi, n))
+
+
+@click.command()
+@click.argument("results", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("more_data", nargs=-1, type=click.Path(dir_okay=False, path_type=Path))
+@data_option("SWT log or summary whose test conditions to predict; --data A B C or repeated.")
+@click.option(
+    "--draws",
+    type=click.IntRange(1, 100_000),
+    default=200,
+    show_default=True,
+    help="Posterior samples to simulate.",
+)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option(
+    "--sweep",
+    default=None,
+    metavar="slip=LO:HI:N",
+    help="Also predict along a slip sweep (symmetric convention, -1 = locked) at the "
+    "first dataset's conditions.",
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Output folder [default: RESULTS/predictions].",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Simulate on N processes [default: in-process, all cores].",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the predictions as JSON.")
+@click.option("--no-plots", is_flag=True, help="Skip the figure.")
+def predict_cmd(
+    results: Path,
+    more_data: tuple[Path, ...],
+    data: tuple[Path, ...],
+    draws: int,
+    seed: int,
+    sweep: str | None,
+    out: Path | None,
+    workers: int | None,
+    as_json: bool,
+    no_plots: bool,
+) -> None:
+    """Predict F, T, z of the study in RESULTS (a `calibrate` output folder) under the test
+    conditions of other datasets, with 95 % posterior bands."""
+    data = (*data, *more_data)
+    case, samples, summary = load_results(results)
+    slips = parse_sweep(sweep)
+    if not data and not slips:
+        raise CLIError("nothing to predict: give --data DATASET (repeatable) and/or --sweep")
+    datasets = read_datasets(case, list(data)) if data else []
+    used = {d.get("content_hash") for d in summary.get("datasets", [])}
+    roles = ["calibration" if d.content_hash in used else "predicted" for d in datasets]
+    if slips:
+        if datasets:
+            template = DatasetTerms(
+                datasets[0].name, datasets[0].conditions.to_sim_config(), (math.nan,) * 3
+            )
+        else:
+            first = (summary.get("datasets") or [{}])[0]
+            template = DatasetTerms("study", dict(first.get("conditions") or {}), (math.nan,) * 3)
+        sweep_terms = sweep_targets(template, slips)
+    else:
+        sweep_terms = []
+    with batch_map(workers) as mapper:
+        try:
+            preds = predict(
+                case, samples, datasets, draws=draws, seed=seed, map=mapper, roles=roles
+            )
+            swept = predict(
+                case,
+                samples,
+                sweep_terms,
+                draws=draws,
+                seed=seed,
+                map=mapper,
+                roles=["sweep"] * len(sweep_terms),
+            )
+        except ValueError as exc:
+            raise CLIError(str(exc)) from None
+    doc = {
+        "format": "scm-calib-predictions",
+        "version": 1,
+        "study": {
+            "case": case.name,
+            "case_hash": summary.get("case_hash"),
+            "results": str(results),
+        },
+        "draws": draws,
+        "seed": seed,
+        "level": 0.95,
+        "datasets": [p.to_dict() for p in preds],
+        "sweep": [p.to_dict() for p in swept],
+    }
+    out = out or results / "predictions"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
+    (out / "predictions.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    if not no_plots:
+        from services.plots.predict import plot_predictions
+
+        plot_predictions(
+            preds,
+            swept,
+            out / "predictions.png",
+            title=f"{case.name}: posterior predictions ({draws} draws)",
+            responses=_shown_responses(case, preds),
+        )
+    if as_json:
+        click.echo(json.dumps(doc, indent=2))
+    else:
+        _print_table(preds, out)
+
+
+def _shown_responses(case: CaseDefinition, preds: list[ConditionPrediction]) -> tuple[str, ...]:
+    """The case's responses plus any other one a dataset measured."""
+    measured = {r for p in preds for r, x in p.responses.items() if x.measured is not None}
+    return tuple(r for r in ("F", "T", "z") if r in case.responses or r in measured)
+
+
+def _print_table(preds: list[ConditionPrediction], out: Path) -> None:
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=132)  # a log file: no wrapped cells
+    table = Table(title="posterior predictions: median [95 % predictive band]")
+    for col in ("dataset", "role", "slip", "response", "median", "95 % band", "measured", "inside"):
+        table.add_column(col, justify="left" if col in ("dataset", "role", "response") else "right")
+    for p in preds:
+        for r, x in p.responses.items():
+            scale, unit = _SCALE[r]
+            band = x.predictive or x.simulated
+            inside = x.inside_predictive if x.predictive is not None else x.inside_simulated
+            table.add_row(
+                p.name,
+                p.role,
+                "-" if p.slip_symmetric is None else f"{p.slip_symmetric:.3g}",
+                r,
+                f"{band.median * scale:.4g} {unit}",
+                f"{band.lo * scale:.4g} .. {band.hi * scale:.4g}",
+                "-" if x.measured is None else f"{x.measured * scale:.4g}",
+                "-" if inside is None else ("yes" if inside else "NO"),
+            )
+    console.print(table)
+    console.print(f"written to {out}")

@@ -1,0 +1,135 @@
+"""Drive and skid on synthetic soils: bounds from soil mechanics and the trends real wheels show.
+
+* Driving: drawbar pull cannot exceed the Coulomb strength of the soil under the wheel,
+  c A + W tan(phi) (Micklethwaite's maximum tractive effort; Bekker 1969), however hard the
+  wheel spins: soil left behind it must not push it forward.
+* Skid (lab convention (v_rim - v)/max(v, v_rim), -1 locked): a braked wheel pushes soil ahead,
+  sinks and brakes, more so as the skid grows (Wong & Reece 1967, part II).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_batch
+
+DRIVE_SLIPS = (0.1, 0.5, 0.95)
+SKIDS = (-0.2, -0.5, -1.0)
+W = 315.0
+
+
+def table2_soils(n: int, seed: int) -> list[tuple[SoilParams, WheelGeometry]]:
+    """Draws from Table 2's parameter space (k_c, k_phi, n, phi, J, R), c = 0."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        soil = SoilParams(
+            k_c=rng.uniform(-1e9, 1e9),
+            k_phi=rng.uniform(1.0, 1e10),
+            n=rng.uniform(0.8, 2.0),
+            phi=rng.uniform(11.5, 37.3),
+            J=rng.uniform(0.001, 0.1),
+        )
+        out.append((soil, WheelGeometry(R=rng.uniform(0.125, 0.155))))
+    return out
+
+
+def run_all(pairs, slips, **rig):
+    soils = [s for s, _ in pairs for _ in slips]
+    wheels = [w for _, w in pairs for _ in slips]
+    rigs = [
+        RigConfig(
+            W=W, slip=s, slip_convention="symmetric", carriage_speed=0.01, duration=25.0, **rig
+        )
+        for _ in pairs
+        for s in slips
+    ]
+    res = simulate_batch(soils, wheels, rigs)
+    k = len(slips)
+    means = res.means.reshape(len(pairs), k, 3)
+    ok = res.ok.reshape(len(pairs), k).all(axis=1)
+    return means, ok
+
+
+@pytest.fixture(scope="module")
+def random_soils():
+    """20 soils of Table 2's space that run ok at every slip (drawn from 40)."""
+    pairs = table2_soils(40, seed=8)
+    means, ok = run_all(pairs, DRIVE_SLIPS)
+    keep = np.flatnonzero(ok)[:20]
+    assert keep.size == 20
+    return [pairs[i] for i in keep], means[keep]
+
+
+def test_drawbar_pull_stays_below_the_coulomb_strength_of_the_soil(random_soils):
+    """DP <= c A + W tan(phi) + 2 % of W at driving slips 0.1 to 0.95 (c = 0 here)."""
+    pairs, means = random_soils
+    for (soil, _), m in zip(pairs, means, strict=True):
+        bound = W * math.tan(math.radians(soil.phi)) + 0.02 * W
+        assert np.all(m[:, 0] <= bound), (soil.phi, m[:, 0], bound)
+
+
+def sand_like_soils(n: int, seed: int, k_range: tuple[float, float]) -> list[SoilParams]:
+    """Synthetic sands: k* log-uniform in k_range (k_c = 0), n 0.7-1.3, phi 25-40 deg,
+    J 1-10 mm/s (log-uniform)."""
+    rng = np.random.default_rng(seed)
+    return [
+        SoilParams(
+            k_phi=10 ** rng.uniform(*np.log10(k_range)),
+            n=rng.uniform(0.7, 1.3),
+            phi=rng.uniform(25.0, 40.0),
+            J=10 ** rng.uniform(-3.0, -2.0),
+        )
+        for _ in range(n)
+    ]
+
+
+@pytest.mark.parametrize(
+    ("wheel", "load", "k_range"),
+    [
+        (WheelGeometry(), W, (1e6, 3e7)),  # the paper's grousered wheel, 315 N
+        (WheelGeometry(R=0.058, b=0.05, n_grousers=0), 22.0, (2e5, 2e7)),  # a small smooth one
+    ],
+    ids=["paper-wheel", "small-smooth-wheel"],
+)
+def test_skid_brakes_and_sinks_more_as_it_grows(wheel, load, k_range):
+    """Skids of 0.2 and 0.5 and a locked wheel (lab convention) on 10 synthetic sands: drawbar
+    pull negative and falling, sinkage growing (the bow wave is loose soil pushed ahead, which
+    the wheel does not climb). A soft soil may bury the wheel: a named failure, at most 3."""
+    soils = sand_like_soils(10, seed=11, k_range=k_range)
+    rigs = [
+        RigConfig(W=load, slip=s, slip_convention="symmetric", carriage_speed=0.01)
+        for _ in soils
+        for s in SKIDS
+    ]
+    res = simulate_batch([s for s in soils for _ in SKIDS], wheel, rigs)
+    assert set(res.status) <= {"ok", "bottomed_out"}
+    ok = res.ok.reshape(len(soils), len(SKIDS)).all(axis=1)
+    assert ok.sum() >= 7
+    means = res.means.reshape(len(soils), len(SKIDS), 3)[ok]
+    F, z = means[:, :, 0], means[:, :, 2]
+    assert np.all(F < 0)
+    assert np.all(np.diff(F, axis=1) < 0)  # more skid, more braking
+    assert np.all(np.diff(z, axis=1) > -1e-4)  # more skid, more sinkage (0.1 mm: grid level)
+    assert np.mean(z[:, -1] / z[:, 0]) > 1.05  # and clearly so on average
+
+
+def test_plain_scm_brakes_more_as_the_skid_grows():
+    """The paper's SCM (no extension) on its own set-up: braking grows with skid too."""
+    res = simulate_batch(
+        [SoilParams()] * 3,
+        rigs=[RigConfig(slip=s, slip_convention="symmetric", carriage_speed=0.01) for s in SKIDS],
+    )
+    F, z = res.means[:, 0], res.means[:, 2]
+    assert np.all(F < 0) and np.all(np.diff(F) < 0)
+    assert np.all(np.diff(z) > 0)
+
+
+def test_locked_wheel_simulates():
+    res = simulate_batch(
+        [SoilParams()], rigs=[RigConfig(omega=0.0, carriage_speed=0.01, duration=25.0)]
+    )
+    assert res.status == ["ok"] and res.means[0, 0] < 0 and 0.01 < res.means[0, 2] < 0.1
