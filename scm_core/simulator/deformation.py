@@ -17,9 +17,10 @@ wheel surface sliding over the soil):
 * the layer the sliding surface drags (grouser height + ``shear_band``; ``slip_flow`` is the
   fraction of the slip speed it moves at) is a conveyor. Continuity in the wheel's frame fixes
   its net effect: a driven wheel accelerates the layer backwards, which thins under the wheel
-  (the wheel digs itself in, by at most the layer's depth) and leaves behind it; under a skidding
-  wheel the layer cannot thicken, so what it drags forwards is pushed ahead into the bow wave.
-  Either way the soil is scraped off the front of the footprint (each row at its mean slip).
+  (the wheel digs itself in, by at most the layer's depth): it is scraped off the front of the
+  footprint and leaves behind the wheel. Under a skidding wheel the layer cannot thicken: the rim
+  drags it forwards from under the wheel's bottom (the wheel sinks: slip sinkage, the skid's
+  counterpart of digging in) and pushes it ahead into the bow wave. Each row at its mean slip.
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -42,6 +43,7 @@ EROSION_TOL = 1e-6  # m: slopes may exceed the angle of repose by this height di
 EROSION_MAX_MOVES_PER_NODE = 64
 LOADED_ELASTIC = 1  # cflag: node in contact, elastic (unloading or reloading below its yield)
 LOADED_YIELDING = 2  # cflag: node in contact on the Bekker curve (plastic)
+LOOSE_PUSHED = 3  # cflag: only the node's loose soil was reached (pushed away, no stress)
 
 
 @njit(cache=True)
@@ -79,8 +81,8 @@ def commit_contact(
     a node above its reference level). A node's surface is the wheel's while loaded and h0 - sp +
     hl (unloaded) otherwise, so it is not stored. Loose soil (hl, deposited by the flows) above
     the wheel's surface is pushed away: it carries no stress of its own. cflag[k + 1, j] marks
-    the nodes under the wheel of column k (LOADED_ELASTIC or LOADED_YIELDING; a node whose loose
-    soil alone was reached counts as yielding) and dsp[k + 1, j] holds what each displaced.
+    the nodes under the wheel of column k (LOADED_ELASTIC, LOADED_YIELDING, or LOOSE_PUSHED when
+    only its loose soil was reached) and dsp[k + 1, j] holds what each displaced.
     """
     K = prm[P_K]
     dt = prm[P_DT]
@@ -136,7 +138,7 @@ def commit_contact(
             dsp[k + 1, jj] += d
             flow += d
             if cflag[k + 1, jj] == 0:
-                cflag[k + 1, jj] = LOADED_YIELDING
+                cflag[k + 1, jj] = LOOSE_PUSHED
     return flow
 
 
@@ -276,8 +278,9 @@ def flow_and_erode(
     acc_b = work[4]  # per row: backward
     acc_p = work[5]  # per column: to +y
     acc_m = work[6]  # per column: to -y
-    rmin = np.full(ny, 1 << 30)
+    rmin = np.full(ny, 1 << 30)  # per row: first and last occupied column
     rmax = np.full(ny, -1)
+    gmax = np.full(ny, -1)  # per row: front-most node loaded on its ground (not loose only)
     cmin = np.full(ncw, 1 << 30)
     cmax = np.full(ncw, -1)
     r2 = r_out * r_out
@@ -302,6 +305,8 @@ def flow_and_erode(
             if cflag[k + 1, j] != 0:
                 rmin[j] = min(rmin[j], k)
                 rmax[j] = max(rmax[j], k)
+                if cflag[k + 1, j] != LOOSE_PUSHED:
+                    gmax[j] = max(gmax[j], k)
                 cmin[k] = min(cmin[k], j)
                 cmax[k] = max(cmax[k], j)
                 xsum += xi[k]
@@ -333,7 +338,7 @@ def flow_and_erode(
         rx = xi[k] - xc
         for j in range(cmin[k], cmax[k] + 1):
             d = dsp[k + 1, j]
-            if cflag[k + 1, j] != LOADED_YIELDING or d <= 0.0:
+            if cflag[k + 1, j] < LOADED_YIELDING or d <= 0.0:
                 continue
             compacted += (1.0 - keep) * d
             dv = keep * d
@@ -359,12 +364,12 @@ def flow_and_erode(
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
     if depth > 0.0 and fslip > 0.0:
         for j in range(jw0, jw0 + nyw):
-            if rmax[j] < 0:
+            if gmax[j] < 0:
                 continue
             u = 0.0
             nu = 0
-            for k in range(rmin[j], rmax[j] + 1):
-                if cflag[k + 1, j] != 0:
+            for k in range(rmin[j], gmax[j] + 1):
+                if cflag[k + 1, j] == LOADED_ELASTIC or cflag[k + 1, j] == LOADED_YIELDING:
                     u += vtx_col[k]
                     nu += 1
             u /= nu
@@ -372,11 +377,20 @@ def flow_and_erode(
                 continue
             sgn = 1 if u > 0.0 else -1
             a = _conveyed(depth, fslip * abs(u), sgn, v) * dt / dx
-            _take(c0 + rmax[j], j, a, h0, hl)  # scraped off the front of the footprint ...
             if sgn > 0:
-                acc_f[j] += a  # ... and pushed ahead (skid)
+                # skid: the rim drags the ground's top layer forwards from under the wheel's
+                # bottom (slip sinkage) and pushes it ahead as the bow wave (loose soil)
+                kb = gmax[j]
+                for k in range(rmin[j], gmax[j] + 1):
+                    fl = cflag[k + 1, j]
+                    if (fl == LOADED_ELASTIC or fl == LOADED_YIELDING) and abs(xi[k]) < abs(xi[kb]):
+                        kb = k
+                if kb < gmax[j]:
+                    _take(c0 + kb, j, a, h0, hl)
+                    acc_f[j] += a
             else:
-                acc_b[j] += a  # ... and carried under the wheel to behind it (drive)
+                _take(c0 + gmax[j], j, a, h0, hl)  # scraped off the front of the footprint
+                acc_b[j] += a  # and carried under the wheel to behind it (drive)
     # ---- deposit outside the footprint, along the flow, below the wheel's swept circle
     grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
     spilled = 0.0

@@ -106,7 +106,82 @@ def reference(work: Path) -> Path:
     proc = run_cli("calibrate", "tiny.toml", "--out", "ref", cwd=work)
     assert proc.returncode == 0, proc.stderr
     assert "completed" in proc.stdout
+    (work / "ref_stderr.txt").write_text(proc.stderr)
     return work / "ref"
+
+
+def test_progress_lines_when_output_is_not_a_terminal(reference: Path) -> None:
+    """Captured output (a log file) gets plain lines: a start, every 10 %, and a finished line
+    per stage; no terminal control codes."""
+    err = (reference.parent / "ref_stderr.txt").read_text()
+    assert "\x1b[" not in err
+    lines = err.splitlines()
+    assert any(line.startswith("stage  1 started: p = ") for line in lines)
+    assert any(line.startswith("stage  1:  50 % (") and "ETA" in line for line in lines)
+    done = [line for line in lines if " done: p = " in line]
+    summary = json.loads((reference / "summary.json").read_text())
+    assert len(done) == summary["n_stages"] + 1  # stage 0 (prior draws) included
+
+
+SUMMARY_WITHOUT_TORQUE = """# slip: 0.2
+# normal_load: 315 N
+# wheel_radius: 125 mm
+trial,drawbar_pull [N],sinkage [mm]
+1,{F1},{z1}
+2,{F2},{z2}
+3,{F3},{z3}
+"""
+
+
+def test_summary_without_torque_calibrates(work: Path, reference: Path) -> None:
+    """A lab summary of F and z only: the case's T term is simply absent (never a dummy 0)."""
+    ref = json.loads((reference / "summary.json").read_text())
+    m = next(iter(ref["map_responses"].values()))["simulated"]
+    F, z = m["F"], 1000 * m["z"]
+    (work / "no_torque.csv").write_text(
+        SUMMARY_WITHOUT_TORQUE.format(F1=F - 1, F2=F, F3=F + 1, z1=z - 0.2, z2=z, z3=z + 0.2)
+    )
+    proc = run_cli("calibrate", "tiny.toml", "--data", "no_torque.csv", "--out", "nt", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((work / "nt" / "summary.json").read_text())
+    assert summary["status"] == "completed"
+    assert summary["datasets"][0]["means"]["T"] is None
+    measured = next(iter(summary["map_responses"].values()))["measured"]
+    assert set(measured) == {"F", "z"}
+    assert (work / "nt" / "figures" / "fit_map.png").stat().st_size > 0
+
+
+def test_predict_bands_sweep_and_reproducible(work: Path, reference: Path) -> None:
+    args = ("predict", "ref", "--data", "log.csv", "--draws", "12", "--seed", "3")
+    proc = run_cli(*args, "--sweep", "slip=-0.5:0.6:3", "--json", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    (p,) = doc["datasets"]
+    assert p["role"] == "calibration" and p["n_draws"] == 12
+    for r in ("F", "T", "z"):
+        band = p["responses"][r]
+        for kind in ("simulated", "predictive"):
+            assert band[kind]["lo"] <= band[kind]["median"] <= band[kind]["hi"]
+        assert band["predictive"] != band["simulated"]  # the sigma's noise is added
+        assert band["measured"] is not None and band["inside_predictive"] is not None
+    assert [s["slip_symmetric"] for s in doc["sweep"]] == pytest.approx([-0.5, 0.05, 0.6])
+    assert (work / "ref" / "predictions" / "predictions.png").stat().st_size > 0
+    again = run_cli(*args, "--sweep", "slip=-0.5:0.6:3", "--json", "--no-plots", cwd=work)
+    assert json.loads(again.stdout) == doc  # same seed, same numbers
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("predict", "nowhere", "--data", "log.csv"), "no summary.json"),
+        (("predict", "ref"), "nothing to predict"),
+        (("predict", "ref", "--sweep", "slip=1:2"), "expected slip=LO:HI:N"),
+        (("predict", "ref", "--sweep", "slip=-2:0.5:4"), "-1 <= LO < HI < 1"),
+        (("predict", "ref", "--data", "nope.csv"), "dataset nope.csv: no such file"),
+    ],
+)
+def test_predict_bad_inputs_one_line_exit_2(work: Path, reference: Path, args, needle) -> None:
+    assert needle in one_line_error(run_cli(*args, cwd=work))
 
 
 def test_synth_writes_log_and_sidecar(work: Path) -> None:
