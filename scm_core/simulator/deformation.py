@@ -369,7 +369,7 @@ def flow_and_erode(
             u = 0.0
             nu = 0
             for k in range(rmin[j], gmax[j] + 1):
-                if cflag[k + 1, j] == LOADED_ELASTIC or cflag[k + 1, j] == LOADED_YIELDING:
+                if LOADED_ELASTIC <= cflag[k + 1, j] <= LOADED_YIELDING:
                     u += vtx_col[k]
                     nu += 1
             u /= nu
@@ -383,7 +383,7 @@ def flow_and_erode(
                 kb = gmax[j]
                 for k in range(rmin[j], gmax[j] + 1):
                     fl = cflag[k + 1, j]
-                    if (fl == LOADED_ELASTIC or fl == LOADED_YIELDING) and abs(xi[k]) < abs(xi[kb]):
+                    if LOADED_ELASTIC <= fl <= LOADED_YIELDING and abs(xi[k]) < abs(xi[kb]):
                         kb = k
                 if kb < gmax[j]:
                     _take(c0 + kb, j, a, h0, hl)
