@@ -313,15 +313,18 @@ class _Display:
             if self.task is not None:
                 self.progress.advance(self.task, k)
             return
+        crossed = False
         while self.next_tenth <= 9 and self.done * 10 >= self.next_tenth * self.total:
+            self.next_tenth += 1  # a batch that crosses several tenths gives one line
+            crossed = True
+        if crossed and self.done < self.total:  # the stage's end has its own line
             elapsed = time.perf_counter() - self.t0
             frac = self.done / self.total
-            eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
+            eta = elapsed * (1 - frac) / frac
             self._line(
-                f"stage {self.stage:2d}: {10 * self.next_tenth:3d} % ({self.done}/{self.total} "
+                f"stage {self.stage:2d}: {int(100 * frac):3d} % ({self.done}/{self.total} "
                 f"evaluations), {elapsed:.0f} s elapsed, ETA {eta:.0f} s"
             )
-            self.next_tenth += 1
 
     def stage_done(self, state: StageState, wall: float) -> None:
         if self.task is not None:
