@@ -49,6 +49,9 @@ log = logging.getLogger(__name__)
 DEFAULT_BATCH_SIZE = 50  # chains per work batch: ~1-2 min of simulator time at the defaults
 #: workers assumed for a study's first stage (later stages count those of the previous one)
 DEFAULT_WORKERS = 2
+#: seconds a study may stay queued before the reaper starts it (a submission stores and starts
+#: a study within milliseconds; only a submitter that died in between leaves it queued)
+QUEUED_GRACE_S = 10.0
 
 
 class Dispatcher(Protocol):
@@ -389,10 +392,39 @@ def advance(
     return outcome.status
 
 
+def start_stuck_studies(
+    store: Store, dispatcher: Dispatcher | None, older_than: float = QUEUED_GRACE_S
+) -> list[int]:
+    """Start the studies left ``queued`` by a submitter that died between storing and
+    starting them (fail one that cannot start, with the reason); returns their ids."""
+    ids = store.studies.stuck_queued(older_than)
+    for study_id in ids:
+        try:
+            start_study(store, study_id, None)
+        except Exception as exc:
+            log.exception("study %s was left queued and cannot start", study_id)
+            text = " ".join(str(exc).split())
+            store.studies.fail(study_id, f"could not start: {type(exc).__name__}: {text}")
+            continue
+        log.warning("study %s was left queued; started it", study_id)
+        if dispatcher is not None:
+            try:
+                _dispatch_stage(store, study_id, 0, dispatcher)
+            except Exception:  # pending batches are re-dispatched by a later pass
+                log.exception("dispatching study %s failed", study_id)
+    return ids
+
+
 def reap_once(
-    store: Store, cache: ContextCache, dispatcher: Dispatcher, redispatch_after: float | None = None
+    store: Store,
+    cache: ContextCache,
+    dispatcher: Dispatcher,
+    redispatch_after: float | None = None,
+    queued_after: float = QUEUED_GRACE_S,
 ):
-    """Re-dispatch lost work (expired leases, undelivered batches) and advance ready stages."""
+    """Start studies left queued, re-dispatch lost work (expired leases, undelivered
+    batches) and advance ready stages."""
+    start_stuck_studies(store, dispatcher, queued_after)
     report = store.batches.reap(redispatch_after=redispatch_after)
     if report.to_dispatch:
         dispatcher.dispatch(report.to_dispatch)
@@ -411,11 +443,12 @@ def reap_forever(
     interval: float,
     stop: threading.Event,
     redispatch_after: float | None = None,
+    queued_after: float = QUEUED_GRACE_S,
 ) -> None:
     """The reaper loop (``scm-calib reaper``, or a thread of the embedded server)."""
     while not stop.is_set():
         try:
-            reap_once(store, cache, dispatcher, redispatch_after)
+            reap_once(store, cache, dispatcher, redispatch_after, queued_after)
         except Exception:
             log.exception("reaper pass failed")
         stop.wait(interval)

@@ -26,8 +26,8 @@ class Runtime:
     dispatcher: Dispatcher | None
     cache: ContextCache = field(default_factory=ContextCache)
 
-    def execute(self, key: BatchKey) -> str:
-        return execute_batch(self.store, key, self.cache, self.dispatcher)
+    def execute(self, key: BatchKey, worker: str | None = None) -> str:
+        return execute_batch(self.store, key, self.cache, self.dispatcher, worker)
 
 
 def celery_dispatcher(settings: Settings):
@@ -44,21 +44,16 @@ def process_runtime() -> Runtime:
     return Runtime(Store.from_settings(settings), celery_dispatcher(settings))
 
 
-_local_runtimes: dict[str, Runtime] = {}
+def local_worker_id(owner: str) -> str:
+    """The lease holder name of an embedded pool process: ``<owner>/<pid>``, where ``owner``
+    (``local/<host>/<server instance>``) names the server that started it."""
+    return f"{owner}/{os.getpid()}"
 
 
-def _local_runtime(store_args: tuple[str, float, int]) -> Runtime:
-    rt = _local_runtimes.get(store_args[0])
-    if rt is None:
-        url, lease, attempts = store_args
-        rt = Runtime(Store.open(url, lease_seconds=lease, max_attempts=attempts), None)
-        _local_runtimes[url] = rt
-    return rt
-
-
-def _exit_with_parent() -> None:
-    """Linux: have the kernel send SIGTERM to this process when its parent (the server) dies,
-    even by SIGKILL, so that no orphaned pool process is left behind (elsewhere: no-op)."""
+def exit_with_parent() -> None:
+    """Linux: have the kernel send SIGTERM to this process when the thread that started it
+    (the embedded runtime's loop thread) ends, even by the server's SIGKILL, so that no
+    orphaned pool process is left behind (elsewhere: no-op)."""
     parent = multiprocessing.parent_process()
     if not sys.platform.startswith("linux") or parent is None:
         return
@@ -73,21 +68,39 @@ def _exit_with_parent() -> None:
         os._exit(0)
 
 
-def init_local_process(store_args: tuple[str, float, int]) -> None:
-    """Initializer of the embedded pool's processes: exit with the server, open the store and
-    load the compiled simulator before the first batch arrives (failures surface again in the
-    batch)."""
+def pool_process_main(conn, store_args: tuple[str, float, int], owner: str) -> None:
+    """Main of an embedded pool process (:class:`worker.local_pool.SupervisedPool`): exit
+    with the server, open the store, load the compiled simulator, say "ready", then run each
+    batch key received on ``conn`` and answer its outcome. One numba thread: the pool's
+    processes already use the cores. store_args: (url, lease_seconds, max_attempts)."""
+    exit_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's; it stops us
+    import numba
+
     from scm_core.simulator import warm_up
 
-    _exit_with_parent()
+    numba.set_num_threads(1)
+    url, lease, attempts = store_args
+    me = local_worker_id(owner)
     try:
-        _local_runtime(store_args)
+        runtime = Runtime(Store.open(url, lease_seconds=lease, max_attempts=attempts), None)
         warm_up()
     except Exception:
-        logging.getLogger(__name__).exception("local worker process start-up failed")
-
-
-def run_local_batch(store_args: tuple[str, float, int], key: tuple[int, int, int]) -> str:
-    """Entry point of the embedded pool's processes: run one batch (no dispatcher: the
-    parent's loop dispatches the next stage). store_args: (url, lease_seconds, max_attempts)."""
-    return _local_runtime(store_args).execute(BatchKey(*key))
+        logging.getLogger(__name__).exception("pool process %s failed to start", me)
+        raise SystemExit(3) from None
+    conn.send(("ready", os.getpid()))
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            break
+        if msg is None:
+            break
+        key = BatchKey(*msg)
+        try:
+            outcome = runtime.execute(key, me)
+        except Exception as exc:  # execute_batch logged it and released the lease
+            text = " ".join(str(exc).split())[:300]
+            outcome = f"error: {type(exc).__name__}: {text}"
+        conn.send(("done", key.astuple(), outcome))
+    runtime.store.close()

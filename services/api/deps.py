@@ -75,6 +75,12 @@ def check_token(request: Request, settings: Settings) -> None:
         raise _unauthorized("invalid API token")
 
 
+def token_ok(request: Request, settings: Settings) -> bool:
+    """Whether the request carries a valid bearer token (no error either way)."""
+    scheme, _, token = (request.headers.get("authorization") or "").partition(" ")
+    return scheme.lower() == "bearer" and settings.token_is_valid(token.strip())
+
+
 def require_write(request: Request, settings: SettingsDep) -> None:
     """Dependency of every endpoint that changes something."""
     check_token(request, settings)

@@ -217,7 +217,7 @@ def create_app(
                     from worker.local import LocalRuntime
 
                     runtime = LocalRuntime(settings, st).start()
-                    app.state.dispatcher = runtime.dispatcher
+                    app.state.dispatcher = runtime
                 else:
                     app.state.dispatcher = None
             else:

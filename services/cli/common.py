@@ -62,3 +62,47 @@ def read_datasets(case: CaseDefinition, paths: Sequence[Path]) -> list[SWTDatase
         # keep response column names unique
         out = [replace(d, name=f"{d.name}#{i}") for i, d in enumerate(out)]
     return out
+
+
+def settings_or_fail():
+    """The service settings; a one-line error for a bad value or config file."""
+    from services.config import get_settings
+
+    try:
+        return get_settings()
+    except Exception as exc:
+        raise click.ClickException(f"settings: {' '.join(str(exc).split())}") from None
+
+
+def open_store_or_fail(settings, wait: float = 0.0):
+    """The settings' store once the database answers and takes writes, retrying for
+    ``wait`` seconds (a database container starting next to us); otherwise a one-line error
+    naming the database (exit 1). A database at the wrong schema revision fails at once."""
+    import time
+
+    from services.store import SchemaVersionError, Store
+    from services.store.engine import safe_url
+
+    deadline = time.monotonic() + max(0.0, wait)
+    while True:
+        try:
+            store = Store.from_settings(settings)
+        except SchemaVersionError as exc:
+            raise click.ClickException(str(exc)) from None
+        except Exception as exc:
+            error = exc
+        else:
+            try:
+                store.check_writable()
+                return store
+            except Exception as exc:
+                store.close()
+                error = exc
+        if time.monotonic() >= deadline:
+            orig = getattr(error, "orig", None) or error
+            text = " ".join(str(orig).split()).split(" [SQL:")[0]
+            raise click.ClickException(
+                f"cannot use the database {safe_url(settings.database_url)}: "
+                f"{type(orig).__name__}: {text}"
+            ) from None
+        time.sleep(1.0)

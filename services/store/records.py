@@ -163,6 +163,10 @@ class BatchKey:
     stage_index: int
     batch_index: int
 
+    def astuple(self) -> tuple[int, int, int]:
+        """(study_id, stage_index, batch_index), e.g. to send to another process."""
+        return (self.study_id, self.stage_index, self.batch_index)
+
 
 @dataclass(frozen=True)
 class BatchRecord:

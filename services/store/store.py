@@ -13,6 +13,7 @@ from collections.abc import Callable
 from datetime import datetime
 from typing import TYPE_CHECKING
 
+import sqlalchemy as sa
 from sqlalchemy.engine import URL, Engine
 
 from .engine import make_engine
@@ -82,6 +83,19 @@ class Store:
             max_attempts=settings.max_attempts,
             check=check,
         )
+
+    def check_writable(self) -> str:
+        """Prove the database takes writes: a no-op UPDATE of the revision row, rolled back
+        (fails on a read-only SQLite file, a read-only PostgreSQL replica or role, a full
+        disk). Returns the schema revision; raises otherwise."""
+        head = check_revision(self.engine)
+        with self.engine.connect() as conn:
+            trans = conn.begin()
+            try:
+                conn.execute(sa.text("UPDATE alembic_version SET version_num = version_num"))
+            finally:
+                trans.rollback()
+        return head
 
     @property
     def engine(self) -> Engine:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from fastapi.testclient import TestClient
 from test_api_support import (
     AUTH,
     BACKENDS,
@@ -10,9 +11,12 @@ from test_api_support import (
     detail,
     free_port,
     fresh_database,
+    settings_for,
     summary_doc,
 )
 
+from services.api import create_app
+from services.store import Store
 from services.store.migrate import downgrade, upgrade
 
 
@@ -54,6 +58,65 @@ def test_ready_checks_the_broker_in_distributed_mode(tmp_path) -> None:
             assert r.status_code == 503
             assert r.json()["checks"]["database"]["ok"] is True
             assert "broker: cannot reach" in r.json()["detail"]
+
+
+def test_ready_refuses_a_read_only_database_and_hides_paths(tmp_path) -> None:
+    """A SQLite file opened read-only (as a read-only mount or a wrong owner would leave it;
+    the tests run as root, for whom file modes do not count) is not ready, with one line
+    saying why; the database is named only to callers with a token."""
+    with fresh_database("sqlite", tmp_path) as url:
+        with api_client(url) as client:
+            body = client.get("/health/ready").json()
+            assert str(tmp_path) not in str(body)  # no path without a token
+            assert body["checks"]["database"]["detail"] == "at revision 0002, writable"
+            body = client.get("/health/ready", headers=AUTH).json()
+            assert str(tmp_path) in body["checks"]["database"]["detail"]
+        path = url.removeprefix("sqlite:///")
+        ro = Store.open(f"sqlite:///file:{path}?mode=ro&uri=true")
+        try:
+            app = create_app(settings_for(url), store=ro, start_local_runtime=False)
+            with TestClient(app) as client:
+                r = client.get("/health/ready")
+                assert r.status_code == 503
+                line = r.json()["detail"]
+                assert line == "database: database does not take writes (OperationalError)"
+                r = client.get("/health/ready", headers=AUTH)
+                assert "attempt to write a readonly database" in r.json()["detail"]
+                assert "\n" not in r.json()["detail"]
+        finally:
+            ro.close()
+
+
+def test_ready_follows_the_local_pool(tmp_path) -> None:
+    """Embedded with its pool: not ready until the processes are warmed up, not ready while a
+    killed one is replaced, ready again after."""
+    import os
+    import signal
+    import time
+
+    def wait_ready(client, want: int, timeout: float = 60.0) -> dict:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            r = client.get("/health/ready")
+            if r.status_code == want:
+                return r.json()
+            time.sleep(0.02)
+        raise AssertionError(f"readiness never {want}: {r.text}")
+
+    with (
+        fresh_database("sqlite", tmp_path) as url,
+        api_client(url, start_local_runtime=True, worker_concurrency=2) as client,
+    ):
+        body = wait_ready(client, 200)
+        assert body["checks"]["pool"]["detail"] == "2 pool processes, 0 busy"
+        runtime = client.app.state.runtime
+        pids = runtime.pids()
+        for pid in pids:
+            os.kill(pid, signal.SIGKILL)
+        body = wait_ready(client, 503, timeout=10.0)
+        assert body["detail"].startswith("pool: ") and "of 2 pool processes up" in body["detail"]
+        wait_ready(client, 200)
+        assert set(runtime.pids()).isdisjoint(pids)
 
 
 def test_reads_need_a_token_only_when_configured(tmp_path) -> None:

@@ -176,3 +176,18 @@ def test_upload_cli_prints_json(server) -> None:
     assert record["name"] == "wf34_s020" and record["source_kind"] == "timeseries"
     assert record["filename"] == LOG.name and record["size_bytes"] == LOG.stat().st_size
     assert str(ROOT) not in r.stdout  # the server sees the file name, not the client's path
+
+
+def test_worker_and_reaper_need_the_database_and_say_why_in_one_line(tmp_path: Path) -> None:
+    """Neither a Celery worker nor the reaper starts (or says ready) on a database that does
+    not answer: exit 1 with one line naming it, no traceback."""
+    dead = f"postgresql://nobody@127.0.0.1:{free_port()}/nothing"
+    env = _env(tmp_path, SCM_CALIB_BROKER_URL="redis://127.0.0.1:6379/15")
+    env["SCM_CALIB_DATABASE_URL"] = dead
+    for command in ("worker", "reaper"):
+        proc = _cli(command, "--wait-db", "1", env=env, cwd=tmp_path, timeout=60)
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode == 1, (command, proc.stderr)
+        assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+        assert lines[0].startswith("error: cannot use the database postgresql+psycopg://nobody@")
+        assert "Connection refused" in lines[0] and "ready" not in proc.stdout

@@ -284,3 +284,71 @@ def test_exactly_one_of_simultaneous_last_results_completes_the_stage(
         assert sum(o.stage_complete for o in outcomes) == 1, outcomes
         for s in stores:
             s.close()
+
+
+def test_reclaim_takes_back_a_dead_owners_leases_only(store: Store, toy, clock) -> None:
+    """Worker ids are paths: reclaiming ``local/h/old`` takes back ``local/h/old/12`` but not
+    ``local/h/old2/1`` (a prefix of the text only) nor the kept live owner's leases."""
+    sid = started_study(store, toy, n_batches=4)
+    dead = store.batches.lease("local/h/old/12")
+    other = store.batches.lease("local/h/old2/1")
+    mine = store.batches.lease("local/h/new/7")
+    celery = store.batches.lease("celery-host:33:1")
+    with pytest.raises(ValueError, match="owner"):
+        store.batches.reclaim("/")
+    report = store.batches.reclaim("local/h/old")
+    assert report.requeued == [dead.key] and report.to_dispatch == [dead.key]
+    assert store.batches.get(dead.key).status == "pending"  # at once, no lease expiry
+    assert store.batches.get(other.key).status == "leased"
+    # a restarted server on host h: every local/h lease but its own
+    report = store.batches.reclaim("local/h", keep="local/h/new")
+    assert report.requeued == [other.key]
+    assert store.batches.get(mine.key).worker_id == "local/h/new/7"
+    assert store.batches.get(celery.key).status == "leased"
+    assert not store.batches.heartbeat(other)  # the dead holder lost it
+    kinds = [e.kind for e in store.events.list(sid)]
+    assert kinds.count("lease_reclaimed") == 2
+    # the attempt cap still holds: reclaimed leases count as attempts
+    for _ in range(store.db.max_attempts - 1):
+        lease = store.batches.claim(dead.key, "local/h/old/13")
+        assert lease is not None
+        store.batches.reclaim("local/h/old")
+    assert store.batches.get(dead.key).status == "failed"
+    assert store.studies.get(sid).status == "failed"
+
+
+def test_stuck_queued_studies_are_listed_after_the_grace(store: Store, toy, clock) -> None:
+    queued = store.studies.create(toy.spec()).id
+    started = started_study(store, toy)
+    assert store.studies.stuck_queued(10.0) == []
+    clock.advance(11.0)
+    assert store.studies.stuck_queued(10.0) == [queued]
+    assert started not in store.studies.stuck_queued(0.0)
+
+
+def test_reaper_starts_or_fails_studies_left_queued(store: Store, toy, clock) -> None:
+    """A submitter that died between storing and starting a study left it queued: the reaper
+    pass starts it after the grace period, or fails it with the reason if it cannot start."""
+    import sqlalchemy as sa
+
+    from services.store.models import Study
+    from worker.orchestrator import QUEUED_GRACE_S, start_stuck_studies
+
+    sent: list = []
+
+    class Collect:
+        def dispatch(self, keys) -> None:
+            sent.extend(keys)
+
+    ok = store.studies.create(toy.spec()).id
+    bad = store.studies.create(toy.spec()).id
+    with store.db.write() as s:  # a row no stage can be planned for
+        s.execute(sa.update(Study).where(Study.id == bad).values(n_samples=0))
+    assert start_stuck_studies(store, Collect()) == []  # within the grace period
+    clock.advance(QUEUED_GRACE_S + 1)
+    assert start_stuck_studies(store, Collect()) == [ok, bad]
+    assert store.studies.get(ok).status == "running"
+    assert {k.study_id for k in sent} == {ok} and sent
+    failed = store.studies.get(bad)
+    assert failed.status == "failed" and "could not start" in failed.error
+    assert start_stuck_studies(store, Collect()) == []

@@ -1,4 +1,5 @@
-"""``GET /health`` (liveness) and ``GET /health/ready`` (database and broker reachable)."""
+"""``GET /health`` (liveness) and ``GET /health/ready`` (database writable; local pool complete
+or broker reachable)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from services.store import SchemaVersionError, Store
 from services.store.engine import safe_url
 from services.store.migrate import check_revision
 
-from ..deps import SettingsDep
+from ..deps import SettingsDep, token_ok
 from ..schemas import CheckOut, HealthOut, ReadyOut
 from . import errors
 
@@ -24,23 +25,56 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def check_database(store: Store | None) -> CheckOut:
+def _reason(exc: BaseException) -> str:
+    """The driver's error (``sqlite3.OperationalError: ...``) rather than SQLAlchemy's
+    wrapper with its SQL and link."""
+    orig = getattr(exc, "orig", None) or exc
+    return _one_line(orig).split(" [SQL:")[0]
+
+
+def check_database(store: Store | None, reveal: bool = True) -> CheckOut:
+    """Reachable, at the code's schema revision and taking writes. ``reveal``: name the
+    database (URL without password) and give the driver's message; otherwise only what is
+    wrong (no path or host for callers without a token)."""
     if store is None:
         return CheckOut(ok=False, detail="the store is not open (server starting or stopping)")
+    where = f"{safe_url(store.engine.url)} " if reveal else ""
     try:
         head = check_revision(store.engine)
     except SchemaVersionError as exc:
-        return CheckOut(ok=False, detail=str(exc))
-    except Exception as exc:
-        return CheckOut(
-            ok=False, detail=f"cannot reach {safe_url(store.engine.url)}: {_one_line(exc)}"
+        text = (
+            str(exc)
+            if reveal
+            else (
+                f"at revision {exc.current or 'base (empty)'}, code needs {exc.head}: "
+                "run `scm-calib db upgrade`"
+            )
         )
-    return CheckOut(ok=True, detail=f"{safe_url(store.engine.url)} at revision {head}")
+        return CheckOut(ok=False, detail=text)
+    except Exception as exc:
+        why = f": {_reason(exc)}" if reveal else f" ({type(exc).__name__})"
+        return CheckOut(
+            ok=False, detail=f"cannot reach the database {where}{why}".replace(" :", ":")
+        )
+    try:
+        store.check_writable()
+    except Exception as exc:
+        why = _reason(exc) if reveal else type(exc).__name__
+        return CheckOut(ok=False, detail=f"database {where}does not take writes ({why})")
+    return CheckOut(ok=True, detail=f"{where}at revision {head}, writable".strip())
 
 
-def check_broker(settings: Settings) -> CheckOut:
+def check_pool(runtime) -> CheckOut:
+    """The embedded server's local pool: loop alive, every process up."""
+    if runtime is None:
+        return CheckOut(ok=True, detail="no local workers (studies are recorded, not run here)")
+    health = runtime.health()
+    return CheckOut(ok=health.ok, detail=health.detail)
+
+
+def check_broker(settings: Settings, reveal: bool = True) -> CheckOut:
     url = settings.broker_url or ""
-    shown = safe_url(url) if "://" in url else url
+    shown = (safe_url(url) if "://" in url else url) if reveal else "the broker"
     try:
         if url.startswith(("redis://", "rediss://", "unix://")):
             import redis
@@ -58,7 +92,8 @@ def check_broker(settings: Settings) -> CheckOut:
             with Connection(url, connect_timeout=BROKER_TIMEOUT_S) as conn:
                 conn.ensure_connection(max_retries=1, timeout=BROKER_TIMEOUT_S)
     except Exception as exc:
-        return CheckOut(ok=False, detail=f"cannot reach {shown}: {_one_line(exc)}")
+        why = _one_line(exc) if reveal else type(exc).__name__
+        return CheckOut(ok=False, detail=f"cannot reach {shown}: {why}")
     return CheckOut(ok=True, detail=f"{shown} reachable")
 
 
@@ -75,11 +110,17 @@ def health(request: Request) -> HealthOut:
     responses={503: {"model": ReadyOut, "description": "Not ready: what failed."}, **errors()},
 )
 def ready(request: Request, settings: SettingsDep):
-    """The database is reachable and at the code's schema revision; in distributed mode the
-    broker is reachable too. 503 with what failed otherwise."""
-    checks = {"database": check_database(getattr(request.app.state, "store", None))}
-    if not settings.embedded:
-        checks["broker"] = check_broker(settings)
+    """The database is reachable, at the code's schema revision and takes writes; the
+    embedded server's local pool is complete (distributed mode: the broker is reachable).
+    503 with what failed otherwise. Database and broker are named (and their drivers'
+    messages given) only to callers with a valid token."""
+    reveal = token_ok(request, settings)
+    state = request.app.state
+    checks = {"database": check_database(getattr(state, "store", None), reveal)}
+    if settings.embedded:
+        checks["pool"] = check_pool(getattr(state, "runtime", None))
+    else:
+        checks["broker"] = check_broker(settings, reveal)
     failed = [f"{name}: {c.detail}" for name, c in checks.items() if not c.ok]
     if failed:
         body = ReadyOut(status="not ready", detail="; ".join(failed), checks=checks)

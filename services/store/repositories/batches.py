@@ -55,6 +55,14 @@ def _leasable(now: datetime) -> sa.ColumnElement[bool]:
     )
 
 
+def _held_by(owner: str) -> sa.ColumnElement[bool]:
+    owner = owner.rstrip("/")
+    return sa.or_(
+        WorkBatch.worker_id == owner,
+        WorkBatch.worker_id.startswith(owner + "/", autoescape=True),
+    )
+
+
 def _key_where(key: BatchKey) -> list[sa.ColumnElement[bool]]:
     return [
         WorkBatch.study_id == key.study_id,
@@ -389,6 +397,101 @@ class BatchRepository:
 
     # ---- dispatch and reaper -------------------------------------------------------------
 
+    def _leased_rows(self, *where: sa.ColumnElement[bool]) -> sa.Select:
+        q = (
+            sa.select(
+                WorkBatch.id,
+                WorkBatch.study_id,
+                WorkBatch.stage_index,
+                WorkBatch.batch_index,
+                WorkBatch.attempts,
+                WorkBatch.worker_id,
+            )
+            .where(WorkBatch.status == "leased", *where, _study_running())
+            .order_by(WorkBatch.study_id, WorkBatch.stage_index, WorkBatch.batch_index)
+        )
+        if self.db.is_postgresql:
+            q = q.with_for_update(skip_locked=True)
+        return q
+
+    def _take_back(
+        self,
+        s: Session,
+        row: Any,
+        now: datetime,
+        event: str,
+        why: str,
+        requeued: list[BatchKey],
+        failed: list[BatchKey],
+        failed_studies: list[int],
+    ) -> None:
+        """A lost lease (``row`` from :meth:`_leased_rows`): back to pending, or failed with its
+        study at the attempt cap; appends to the lists."""
+        key = _key(row)
+        if key.study_id in failed_studies:
+            return
+        info = {
+            "stage": key.stage_index,
+            "batch": key.batch_index,
+            "attempt": int(row.attempts),
+            "worker_id": row.worker_id,
+        }
+        cap = row.attempts >= self.db.max_attempts
+        res = s.execute(
+            sa.update(WorkBatch)
+            .where(
+                WorkBatch.id == row.id,
+                WorkBatch.status == "leased",
+                WorkBatch.worker_id == row.worker_id,
+                WorkBatch.attempts == row.attempts,
+            )
+            .values(
+                status="failed" if cap else "pending",
+                worker_id=None,
+                lease_expires_at=None,
+                error=f"{why} (attempt {row.attempts}, worker {row.worker_id})",
+                **({} if cap else {"dispatched_at": now}),
+            )
+            .execution_options(synchronize_session=False)
+        )
+        if res.rowcount != 1:
+            return
+        if cap:
+            failed.append(key)
+            append_event(s, key.study_id, "batch_failed", info, now)
+            error = (
+                f"batch {key.batch_index} of stage {key.stage_index}: {why} "
+                f"after {row.attempts} attempts (max_attempts {self.db.max_attempts})"
+            )
+            if fail_study(s, key.study_id, error, now, info):
+                failed_studies.append(key.study_id)
+        else:
+            requeued.append(key)
+            append_event(s, key.study_id, event, info, now)
+
+    def reclaim(self, owner: str, *, keep: str | None = None) -> ReapReport:
+        """Take back at once the live leases of workers known to be dead: those held by
+        ``owner`` or below it (worker ids are paths: ``local/<host>/<server>/<pid>``), except
+        those of ``keep`` (the live server's own). Pending again ("lease_reclaimed" event), or
+        failed with the study at the attempt cap, as after an expired lease. The embedded
+        server calls it for a pool process that died and, at its start, for the leases of the
+        server before it on this machine."""
+        if not owner.strip("/"):
+            raise ValueError("owner must not be empty (it would reclaim every lease)")
+        now = self.db.now()
+        requeued: list[BatchKey] = []
+        failed: list[BatchKey] = []
+        failed_studies: list[int] = []
+        where = [_held_by(owner)]
+        if keep:
+            where.append(~_held_by(keep))
+        with self.db.write() as s:
+            for row in s.execute(self._leased_rows(*where)).all():
+                self._take_back(
+                    s, row, now, "lease_reclaimed", "worker died", requeued, failed, failed_studies
+                )
+        return ReapReport(requeued, failed, failed_studies, sorted(requeued), [])
+
     def mark_dispatched(self, keys: Iterable[BatchKey]) -> None:
         """Record that tasks for these batches were sent to the broker (now)."""
         keys = list(keys)
@@ -427,65 +530,11 @@ class BatchRepository:
         failed: list[BatchKey] = []
         failed_studies: list[int] = []
         with self.db.write() as s:
-            q = (
-                sa.select(
-                    WorkBatch.id,
-                    WorkBatch.study_id,
-                    WorkBatch.stage_index,
-                    WorkBatch.batch_index,
-                    WorkBatch.attempts,
-                    WorkBatch.worker_id,
-                )
-                .where(
-                    WorkBatch.status == "leased",
-                    WorkBatch.lease_expires_at < now,
-                    _study_running(),
-                )
-                .order_by(WorkBatch.study_id, WorkBatch.stage_index, WorkBatch.batch_index)
-            )
-            if self.db.is_postgresql:
-                q = q.with_for_update(skip_locked=True)
+            q = self._leased_rows(WorkBatch.lease_expires_at < now)
             for row in s.execute(q).all():
-                key = _key(row)
-                if key.study_id in failed_studies:
-                    continue
-                info = {
-                    "stage": key.stage_index,
-                    "batch": key.batch_index,
-                    "attempt": int(row.attempts),
-                    "worker_id": row.worker_id,
-                }
-                cap = row.attempts >= self.db.max_attempts
-                res = s.execute(
-                    sa.update(WorkBatch)
-                    .where(
-                        WorkBatch.id == row.id,
-                        WorkBatch.status == "leased",
-                        WorkBatch.lease_expires_at < now,
-                    )
-                    .values(
-                        status="failed" if cap else "pending",
-                        worker_id=None,
-                        lease_expires_at=None,
-                        error=f"lease expired (attempt {row.attempts}, worker {row.worker_id})",
-                        **({} if cap else {"dispatched_at": now}),
-                    )
-                    .execution_options(synchronize_session=False)
+                self._take_back(
+                    s, row, now, "lease_expired", "lease expired", requeued, failed, failed_studies
                 )
-                if res.rowcount != 1:
-                    continue
-                if cap:
-                    failed.append(key)
-                    append_event(s, key.study_id, "batch_failed", info, now)
-                    error = (
-                        f"batch {key.batch_index} of stage {key.stage_index}: lease expired "
-                        f"after {row.attempts} attempts (max_attempts {self.db.max_attempts})"
-                    )
-                    if fail_study(s, key.study_id, error, now, info):
-                        failed_studies.append(key.study_id)
-                else:
-                    requeued.append(key)
-                    append_event(s, key.study_id, "lease_expired", info, now)
 
             stale_q = (
                 sa.select(

@@ -207,6 +207,20 @@ class StudyRepository:
             items = [_record(st, ids[st.id]) for st in studies]
         return Page(items, int(total), limit, offset)
 
+    def stuck_queued(self, older_than: float) -> list[int]:
+        """Ids of studies still ``queued`` ``older_than`` seconds after their creation (their
+        submitter died between storing and starting them), oldest first."""
+        cutoff = self.db.now() - self.db.lease_delta(older_than)
+        with self.db.read() as s:
+            return [
+                int(i)
+                for i in s.scalars(
+                    sa.select(Study.id)
+                    .where(Study.status == "queued", Study.created_at < cutoff)
+                    .order_by(Study.id)
+                )
+            ]
+
     def start(
         self,
         study_id: int,
