@@ -127,6 +127,33 @@ class Settings(BaseSettings):
     upload_max_bytes: int = Field(
         default=64 * 1024 * 1024, ge=1, description="Largest accepted SWT upload."
     )
+    # ---- limits (services/limits.py), checked before anything is stored or allocated
+    max_samples_per_stage: int = Field(
+        default=20_000, ge=10, description="Samples (chains) per TMCMC stage; Morris points."
+    )
+    max_stages: int = Field(default=100, ge=1, description="Tempering stages of a study.")
+    max_batches_per_stage: int = Field(
+        default=5_000, ge=1, description="Work batches one stage may be cut into."
+    )
+    max_datasets_per_study: int = Field(default=50, ge=1, description="Datasets of a study.")
+    max_model_runs_per_study: int = Field(
+        default=50_000_000,
+        ge=1,
+        description="Worst-case simulator runs of a study: samples x datasets x (1 + stages x "
+        "Metropolis steps per chain).",
+    )
+    max_steps_per_run: int = Field(
+        default=200_000, ge=10, description="Time steps of one simulator run (duration / dt)."
+    )
+    max_grid_cells: int = Field(
+        default=5_000_000, ge=100, description="DEM cells of one simulator run."
+    )
+    max_output_rate: float = Field(
+        default=1_000.0, gt=0, description="Output sample rate of a simulator run [Hz]."
+    )
+    max_json_depth: int = Field(
+        default=32, ge=4, description="Nesting depth of a JSON body or metadata field."
+    )
 
     @classmethod
     def settings_customise_sources(

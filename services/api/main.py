@@ -27,8 +27,10 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from services.config import Settings, get_settings
+from services.limits import json_depth
 from services.store import NotFoundError, SchemaVersionError, Store
 
+from .params import NOT_FOUND_PARAMS
 from .routes import datasets, health, pooled, presets, sensitivity, studies
 
 log = logging.getLogger(__name__)
@@ -97,6 +99,24 @@ def format_validation_errors(errors: list[dict[str, Any]], limit: int = 3) -> st
     return "; ".join(parts)
 
 
+def _id_out_of_range(errors: list[dict[str, Any]]) -> str | None:
+    """ "study 9223372036854775808 not found" when the only problem is a path id outside what
+    the database holds (such an id names nothing: 404, as any unknown id)."""
+    if not errors:
+        return None
+    for err in errors:
+        loc = err.get("loc", ())
+        if not (
+            len(loc) == 2
+            and loc[0] == "path"
+            and loc[1] in NOT_FOUND_PARAMS
+            and err.get("type") in ("less_than_equal", "greater_than_equal")
+        ):
+            return None
+    loc, value = errors[0]["loc"], errors[0].get("input")
+    return f"{NOT_FOUND_PARAMS[loc[1]]} {value} not found"
+
+
 def _error(code: int, detail: str, headers: dict[str, str] | None = None) -> JSONResponse:
     return JSONResponse({"detail": detail}, status_code=code, headers=headers)
 
@@ -109,7 +129,11 @@ def _install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _validation(request: Request, exc: RequestValidationError) -> JSONResponse:
-        return _error(422, format_validation_errors(list(exc.errors())))
+        errors = list(exc.errors())
+        missing = _id_out_of_range(errors)
+        if missing is not None:
+            return _error(404, missing)
+        return _error(422, format_validation_errors(errors))
 
     @app.exception_handler(NotFoundError)
     async def _not_found(request: Request, exc: NotFoundError) -> JSONResponse:
@@ -187,6 +211,63 @@ class BodyLimitMiddleware:
         await self.app(scope, limited, send)
 
 
+class JsonDepthMiddleware:
+    """Refuse a JSON request body nested deeper than ``max_depth`` with 422 before anything
+    parses it (a deep enough document makes ``json.loads`` or pydantic recurse past
+    Python's limit). The body is already bounded by :class:`BodyLimitMiddleware`."""
+
+    def __init__(self, app: Any, max_depth: int) -> None:
+        self.app = app
+        self.max_depth = max_depth
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] != "http" or scope.get("method") not in ("POST", "PUT", "PATCH"):
+            await self.app(scope, receive, send)
+            return
+        ctype = b""
+        for key, value in scope.get("headers", ()):
+            if key == b"content-type":
+                ctype = value.split(b";")[0].strip().lower()
+        if not (ctype == b"application/json" or ctype.endswith(b"+json")):
+            await self.app(scope, receive, send)
+            return
+        chunks: list[bytes] = []
+        while True:
+            try:
+                message = await receive()
+            except HTTPException as exc:  # over the body limit (outside the exception handlers)
+                await _error(exc.status_code, str(exc.detail), {"Connection": "close"})(
+                    scope, receive, send
+                )
+                return
+            if message["type"] != "http.request":
+                await self.app(scope, receive, send)
+                return
+            chunks.append(message.get("body", b""))
+            if not message.get("more_body", False):
+                break
+        body = b"".join(chunks)
+        depth = json_depth(body)
+        if depth > self.max_depth:
+            response = _error(
+                422,
+                f"body: JSON nesting depth {depth} is over the limit of {self.max_depth} "
+                "(server setting SCM_CALIB_MAX_JSON_DEPTH)",
+            )
+            await response(scope, receive, send)
+            return
+        sent = False
+
+        async def replay() -> Any:
+            nonlocal sent
+            if not sent:
+                sent = True
+                return {"type": "http.request", "body": body, "more_body": False}
+            return await receive()
+
+        await self.app(scope, replay, send)
+
+
 # ---------------------------------------------------------------------------- factory
 
 
@@ -255,7 +336,8 @@ def create_app(
             )
         return JSON_BODY_LIMIT, f"body: over the limit of {JSON_BODY_LIMIT} bytes"
 
-    app.add_middleware(BodyLimitMiddleware, limit_for=limit_for)
+    app.add_middleware(JsonDepthMiddleware, max_depth=settings.max_json_depth)
+    app.add_middleware(BodyLimitMiddleware, limit_for=limit_for)  # outermost: runs first
     _install_error_handlers(app)
     for module in (health, datasets, presets, studies, sensitivity, pooled):
         app.include_router(module.router)

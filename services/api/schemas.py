@@ -9,11 +9,16 @@ Every error response is ``{"detail": "<one line naming the field>"}``.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from services.limits import INT32_MAX, INT64_MAX
+
 SEED_MAX = 2**63 - 1
+#: ids: what a BIGINT column holds; counts and sizes: what an INTEGER column holds
+ID_MAX = INT64_MAX
+COUNT_MAX = INT32_MAX
 
 
 class _In(BaseModel):
@@ -123,18 +128,25 @@ class StudyCreate(_In):
     case: dict[str, Any] | None = Field(
         None, description="A case document (the TOML case file as JSON); data.files is ignored."
     )
-    dataset_ids: list[int] = Field(
+    dataset_ids: list[Annotated[int, Field(ge=0, le=ID_MAX)]] = Field(
         default_factory=list, description="Stored datasets (POST /datasets), likelihood order."
     )
     name: str | None = Field(None, min_length=1, max_length=200)
     seed: int | None = Field(None, ge=0, le=SEED_MAX)
-    n_samples: int | None = Field(None, description="Samples per stage (>= 10).")
+    n_samples: int | None = Field(None, le=COUNT_MAX, description="Samples per stage (>= 10).")
     moves: Literal["resample-move", "leader"] | None = None
-    n_steps: int | None = Field(None, description="Metropolis steps per chain (resample-move).")
-    max_stages: int | None = Field(None, description="Stop after this many tempering stages.")
+    n_steps: int | None = Field(
+        None, le=COUNT_MAX, description="Metropolis steps per chain (resample-move)."
+    )
+    max_stages: int | None = Field(
+        None, le=COUNT_MAX, description="Stop after this many tempering stages."
+    )
     likelihood: Literal["normalized", "gaussian"] | None = None
     batch_size: int | None = Field(
-        None, ge=1, description="Chains per work batch (at most; shorter at a stage's end)."
+        None,
+        ge=1,
+        le=COUNT_MAX,
+        description="Chains per work batch (at most; shorter at a stage's end).",
     )
 
 
@@ -211,7 +223,9 @@ class SensitivityCreate(_In):
     case: dict[str, Any] | None = Field(
         None, description="A case document (the TOML case file as JSON); data.files is ignored."
     )
-    dataset_id: int = Field(description="Stored dataset whose test conditions are simulated.")
+    dataset_id: int = Field(
+        ge=0, le=ID_MAX, description="Stored dataset whose test conditions are simulated."
+    )
     r: int = Field(20, ge=2, le=1000, description="Morris trajectories.")
     levels: int = Field(4, ge=2, le=20, description="Grid levels (even).")
     seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the design.")
@@ -223,7 +237,10 @@ class SensitivityCreate(_In):
     )
     name: str | None = Field(None, min_length=1, max_length=200)
     batch_size: int | None = Field(
-        None, ge=1, description="Design points per work batch (at most; shorter at the end)."
+        None,
+        ge=1,
+        le=COUNT_MAX,
+        description="Design points per work batch (at most; shorter at the end).",
     )
 
 
@@ -325,9 +342,14 @@ class SummaryOut(BaseModel):
 
 
 class PooledRequest(_In):
-    study_ids: list[int] = Field(description="Completed studies with the same parameters.")
+    study_ids: list[Annotated[int, Field(ge=0, le=ID_MAX)]] = Field(
+        max_length=1000, description="Completed studies with the same parameters."
+    )
     n_per_study: int | None = Field(
-        None, ge=2, description="Samples taken from each study (default: the smallest study's)."
+        None,
+        ge=2,
+        le=COUNT_MAX,
+        description="Samples taken from each study (default: the smallest study's).",
     )
     seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the subsampling.")
     include_samples: bool = Field(False, description="Also return the pooled samples.")

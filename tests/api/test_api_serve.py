@@ -65,14 +65,15 @@ def server(tmp_path_factory: pytest.TempPathFactory):
     try:
         while True:
             try:
-                if httpx.get(base + "/health", timeout=1.0).status_code == 200:
+                # ready: database writable and the local pool warmed up
+                if httpx.get(base + "/health/ready", timeout=2.0).status_code == 200:
                     break
             except httpx.HTTPError:
                 pass
             if proc.poll() is not None or time.monotonic() > deadline:
                 pytest.fail(f"serve did not come up:\n{(tmp_path / 'serve.log').read_text()}")
             time.sleep(0.2)
-        yield base, env, tmp_path
+        yield base, env, tmp_path, proc.pid
     finally:
         if proc.poll() is None:
             proc.send_signal(signal.SIGINT)
@@ -87,7 +88,7 @@ def server(tmp_path_factory: pytest.TempPathFactory):
 
 
 def test_client_and_upload_cli_against_serve(server) -> None:
-    base, env, tmp = server
+    base, env, tmp, _ = server
     assert (tmp / "data" / "scm-calib.db").is_file()  # migrated on start
     with SCMCalibClient(base, token=TOKEN, timeout=30) as api:
         assert api.health()["mode"] == "embedded"
@@ -130,7 +131,7 @@ def test_client_and_upload_cli_against_serve(server) -> None:
 
 
 def test_upload_cli_errors(server) -> None:
-    base, _, tmp = server
+    base, _, tmp, _ = server
     bad = tmp / "bad.csv"
     bad.write_bytes(LOG.read_bytes().replace(b"sinkage [m]", b"sinkage [parsec]"))
     meta = tmp / "meta.json"
@@ -169,7 +170,7 @@ def test_serve_refuses_a_database_at_the_wrong_revision(tmp_path: Path) -> None:
 
 
 def test_upload_cli_prints_json(server) -> None:
-    base, env, tmp = server
+    base, env, tmp, _ = server
     r = _cli("upload", str(LOG), "--server", base, "--token", TOKEN, "--json", env=env, cwd=tmp)
     assert r.returncode == 0, r.stderr
     record = json.loads(r.stdout)
@@ -191,3 +192,28 @@ def test_worker_and_reaper_need_the_database_and_say_why_in_one_line(tmp_path: P
         assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
         assert lines[0].startswith("error: cannot use the database postgresql+psycopg://nobody@")
         assert "Connection refused" in lines[0] and "ready" not in proc.stdout
+
+
+def _peak_rss_kib(pid: int) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
+    raise AssertionError("no VmHWM")
+
+
+def test_a_huge_study_is_refused_before_anything_is_allocated(server) -> None:
+    """n_samples 1e9 used to build every work batch inside the request (22.8 GB, killed by
+    the kernel): now 422 naming the field, the server's peak RSS unchanged within 50 MB."""
+    base, _, _, pid = server
+    with SCMCalibClient(base, token=TOKEN, timeout=30) as api:
+        dataset = api.upload_log(LOG)["id"]
+        total = api.studies()["total"]
+        peak = _peak_rss_kib(pid)
+        t0 = time.perf_counter()
+        with pytest.raises(SCMCalibError) as err:
+            api.create_study(case=tiny_case(), dataset_ids=[dataset], n_samples=10**9)
+        elapsed = time.perf_counter() - t0
+        assert err.value.status_code == 422 and str(err.value).startswith("n_samples: ")
+        assert _peak_rss_kib(pid) - peak < 50 * 1024
+        assert api.studies()["total"] == total
+        print(f"n_samples 1e9 refused in {elapsed * 1e3:.1f} ms")

@@ -17,9 +17,11 @@ from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset, load_log, load_summary
+from services.limits import INT64_MAX, json_depth
 from services.store import DatasetRecord
 
 from ..deps import SettingsDep, StoreDep, require_read, require_write
+from ..params import DatasetId
 from ..schemas import DatasetOut, DatasetPage, SeriesOut
 from . import errors
 
@@ -121,9 +123,16 @@ def _too_large(size: int, limit: int, field: str = "file") -> HTTPException:
     )
 
 
-def _parse_metadata(text: str | bytes | None) -> dict[str, Any]:
+def _parse_metadata(text: str | bytes | None, max_depth: int) -> dict[str, Any]:
     if text is None or (isinstance(text, str | bytes) and not text.strip()):
         return {}
+    raw = text.encode("utf-8", "surrogatepass") if isinstance(text, str) else text
+    depth = json_depth(raw)
+    if depth > max_depth:
+        raise _unprocessable(
+            f"metadata: JSON nesting depth {depth} is over the limit of {max_depth} "
+            "(server setting SCM_CALIB_MAX_JSON_DEPTH)"
+        )
     try:
         doc = json.loads(text)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
@@ -168,7 +177,9 @@ def parse_upload(
     return ds
 
 
-async def _read_upload(request: Request, limit: int) -> tuple[bytes, dict, str | None, str, float]:
+async def _read_upload(
+    request: Request, limit: int, max_depth: int
+) -> tuple[bytes, dict, str | None, str, float]:
     """(raw, metadata, filename, media_type, offset) of a multipart or JSON upload."""
     ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if ctype == "multipart/form-data":
@@ -187,7 +198,7 @@ async def _read_upload(request: Request, limit: int) -> tuple[bytes, dict, str |
             offset_field = form.get("offset")
             if isinstance(offset_field, UploadFile):
                 raise _unprocessable("offset: must be a plain form field")
-            metadata = _parse_metadata(meta_field)
+            metadata = _parse_metadata(meta_field, max_depth)
             offset = _parse_offset(offset_field)
             media_type = file.content_type or "application/octet-stream"
             return raw, metadata, file.filename, media_type, offset
@@ -230,7 +241,9 @@ async def upload_dataset(
     means). 201 when stored, 200 with the existing record when identical content exists; 413
     over the size limit; 422 naming the line, column or unit of a malformed file."""
     limit = settings.upload_max_bytes
-    raw, metadata, filename, media_type, offset = await _read_upload(request, limit)
+    raw, metadata, filename, media_type, offset = await _read_upload(
+        request, limit, settings.max_json_depth
+    )
     ds = await run_in_threadpool(parse_upload, raw, metadata, filename, offset)
     rec, created = await run_in_threadpool(
         lambda: store.datasets.add(ds, raw, meta=metadata, filename=filename, media_type=media_type)
@@ -244,7 +257,7 @@ async def upload_dataset(
 def list_datasets(
     store: StoreDep,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> DatasetPage:
     """Datasets, newest first."""
     page = store.datasets.list(limit=limit, offset=offset)
@@ -260,7 +273,7 @@ def list_datasets(
 @router.get(
     "/{dataset_id}", response_model=DatasetOut, summary="One dataset", responses=errors(401, 404)
 )
-def get_dataset(dataset_id: int, store: StoreDep) -> DatasetOut:
+def get_dataset(dataset_id: DatasetId, store: StoreDep) -> DatasetOut:
     return dataset_out(store.datasets.get(dataset_id))
 
 
@@ -271,7 +284,7 @@ def get_dataset(dataset_id: int, store: StoreDep) -> DatasetOut:
     responses=errors(401, 404),
 )
 def get_series(
-    dataset_id: int,
+    dataset_id: DatasetId,
     store: StoreDep,
     max_points: Annotated[int, Query(ge=10, le=200_000)] = 2000,
 ) -> SeriesOut:

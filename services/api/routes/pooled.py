@@ -16,7 +16,7 @@ from scm_core.inference.posterior import pool_samples
 from services.store import NotFoundError, Store
 
 from ..deps import StoreDep, require_read
-from ..schemas import SEED_MAX, PooledOut, PooledRequest, PooledStudy
+from ..schemas import COUNT_MAX, ID_MAX, SEED_MAX, PooledOut, PooledRequest, PooledStudy
 from ..views import num, parameter_names, parameter_summaries, parameter_units, resolve_stage
 from . import errors
 
@@ -115,7 +115,7 @@ def pooled_get(
     study_ids: Annotated[
         list[str], Query(description="Repeat the parameter, or give ids comma-separated.")
     ],
-    n_per_study: Annotated[int | None, Query(ge=2)] = None,
+    n_per_study: Annotated[int | None, Query(ge=2, le=COUNT_MAX)] = None,
     seed: Annotated[int, Query(ge=0, le=SEED_MAX)] = 0,
 ) -> PooledOut:
     ids: list[int] = []
@@ -126,4 +126,8 @@ def pooled_get(
             ids.append(int(part))
         except ValueError:
             raise _unprocessable(f"query.study_ids: not a study id: {part!r}") from None
+        if not 0 <= ids[-1] <= ID_MAX:
+            raise _unprocessable(f"query.study_ids: no study with id {part}")
+    if len(ids) > 1000:
+        raise _unprocessable(f"query.study_ids: {len(ids)} studies, at most 1000")
     return pooled_summary(store, PooledRequest(study_ids=ids, n_per_study=n_per_study, seed=seed))

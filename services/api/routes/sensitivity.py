@@ -11,16 +11,20 @@ from __future__ import annotations
 
 from typing import Annotated
 
+import numpy as np
 from fastapi import APIRouter, Depends, HTTPException, Query, Response
 
+from scm_core.calibration import StudyModel
+from services.limits import INT64_MAX, LimitError, check_simulator_settings, check_study_size
 from services.store import Store, StudyRecord
 from worker.morris_study import SensitivityInputError, sensitivity_spec
 
-from ..deps import DispatcherDep, StoreDep, require_read, require_write
+from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
+from ..params import StudyId
 from ..schemas import SensitivityCreate, SensitivityOut, SensitivityPage
 from ..views import sensitivity_out
 from . import errors
-from .studies import base_case, create_and_start, parse_statuses
+from .studies import base_case, check_runs, create_and_start, parse_statuses
 
 router = APIRouter(
     prefix="/sensitivity", tags=["sensitivity"], dependencies=[Depends(require_read)]
@@ -49,7 +53,11 @@ def _get(store: Store, study_id: int) -> StudyRecord:
     responses=errors(401, 413, 422),
 )
 def create_sensitivity(
-    body: SensitivityCreate, response: Response, store: StoreDep, dispatcher: DispatcherDep
+    body: SensitivityCreate,
+    response: Response,
+    store: StoreDep,
+    dispatcher: DispatcherDep,
+    settings: SettingsDep,
 ) -> SensitivityOut:
     """Screen the 7 soil parameters of Table 1 (k_c and k_phi jointly through k*, eq. 11,
     unless ``separate_k``) with r Morris trajectories under the test conditions of
@@ -57,6 +65,10 @@ def create_sensitivity(
     else the case's prior for a calibrated factor, else the defaults (Table 2 for n, phi, J).
     Any problem answers 422 naming the field, and nothing is stored."""
     case = base_case(body.preset, body.case)
+    try:
+        check_simulator_settings(settings, dict(case.simulator))
+    except LimitError as exc:
+        raise _unprocessable(str(exc)) from None
     try:
         spec = sensitivity_spec(
             store,
@@ -72,6 +84,22 @@ def create_sensitivity(
         )
     except SensitivityInputError as exc:
         raise _unprocessable(str(exc)) from None
+    try:
+        check_study_size(
+            settings,
+            n_samples=spec.n_samples,
+            max_stages=0,
+            steps_per_chain=0,
+            dataset_ids=spec.dataset_ids,
+            batch_size=spec.batch_size,
+            samples_field="r",
+        )
+    except LimitError as exc:
+        raise _unprocessable(str(exc)) from None
+    model = StudyModel(case, [store.datasets.load(body.dataset_id)])
+    check_runs(
+        settings, model, case.prior().ppf(np.full(len(case.parameters), 0.5)), 0, body.dataset_id
+    )
     study_id = create_and_start(store, spec, dispatcher)
     response.headers["Location"] = f"/sensitivity/{study_id}"
     return sensitivity_out(store, store.studies.get(study_id))
@@ -89,7 +117,7 @@ def list_sensitivity(
         str | None, Query(description="Filter: one status or several, comma-separated.")
     ] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> SensitivityPage:
     """Sensitivity studies, newest first, with their results."""
     page = store.studies.list(parse_statuses(status), kind="morris", limit=limit, offset=offset)
@@ -108,7 +136,7 @@ def list_sensitivity(
     summary="A sensitivity study: progress and Morris statistics",
     responses=errors(401, 404),
 )
-def get_sensitivity(study_id: int, store: StoreDep) -> SensitivityOut:
+def get_sensitivity(study_id: StudyId, store: StoreDep) -> SensitivityOut:
     """The design (factors, bounds, r, levels), the progress block (evaluations are design
     points) and, once completed, the Morris statistics: mu, mu*, sigma and the normalised
     linear (mu* / sum mu*) and non-linear (sigma / sum sigma) indices of Figure 4, per

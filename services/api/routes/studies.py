@@ -20,11 +20,21 @@ from fastapi.responses import StreamingResponse
 from pydantic import ValidationError
 
 from scm_core.calibration import CaseDefinition, CaseError, StudyModel, preset_case
+from scm_core.simulator.layout import pack
+from services.config import Settings
+from services.limits import (
+    INT64_MAX,
+    LimitError,
+    check_run_size,
+    check_simulator_settings,
+    check_study_size,
+)
 from services.store import Store, StudySpec
 from services.store.models import STUDY_STATUSES
-from worker.orchestrator import StudyInputError, start_study, study_spec
+from worker.orchestrator import DEFAULT_BATCH_SIZE, StudyInputError, start_study, study_spec
 
-from ..deps import DispatcherDep, StoreDep, require_read, require_write
+from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
+from ..params import StageIndex, StudyId
 from ..schemas import (
     SEED_MAX,
     CancelRequest,
@@ -103,9 +113,50 @@ def build_case(body: StudyCreate) -> CaseDefinition:
     return case
 
 
-def precheck(store: Store, case: CaseDefinition, dataset_ids: list[int]) -> None:
+def check_limits(
+    settings: Settings,
+    case: CaseDefinition,
+    dataset_ids: list[int],
+    batch_size: int | None = None,
+) -> None:
+    """The service's limits on the study's size (samples, stages, datasets, batches, model
+    runs) and its simulator table, before any dataset is read; 422 naming the field."""
+    sampler = case.tmcmc_settings()
+    try:
+        check_simulator_settings(settings, dict(case.simulator))
+        check_study_size(
+            settings,
+            n_samples=case.sampler.n_samples,
+            max_stages=case.sampler.max_stages,
+            steps_per_chain=sampler.n_steps or sampler.max_steps,
+            dataset_ids=dataset_ids,
+            batch_size=batch_size or case.sampler.batch_size or DEFAULT_BATCH_SIZE,
+        )
+    except LimitError as exc:
+        raise _unprocessable(str(exc)) from None
+
+
+def check_runs(settings: Settings, model: StudyModel, theta: Any, k: int, dataset_id: int) -> None:
+    """One run's size (time steps, grid cells, output rate) on dataset ``k`` of ``model`` at
+    ``theta`` against the service's limits (the size depends on the wheel, the test
+    conditions and the simulator settings, not on the soil); 422 naming the field."""
+    where = f"dataset {dataset_id} ({model.datasets[k].name})"
+    try:
+        prm = pack(*model.configs(theta, k))
+    except (ValidationError, ValueError):
+        return  # not a valid configuration: the caller's own check names the field
+    try:
+        check_run_size(settings, prm, where)
+    except LimitError as exc:
+        raise _unprocessable(str(exc)) from None
+
+
+def precheck(
+    store: Store, case: CaseDefinition, dataset_ids: list[int], settings: Settings | None = None
+) -> None:
     """Refuse a case whose simulator configuration cannot be built at the prior medians on
-    the datasets' test conditions (the study would fail on its first batch)."""
+    the datasets' test conditions (the study would fail on its first batch), or whose runs
+    are over the service's limits (time steps, grid cells, output rate)."""
     datasets = [store.datasets.load(d) for d in dataset_ids]
     try:
         model = StudyModel(case, datasets)
@@ -127,6 +178,8 @@ def precheck(store: Store, case: CaseDefinition, dataset_ids: list[int]) -> None
                 f"dataset_ids: dataset {dataset_ids[k]} ({d.name}): invalid simulator "
                 f"configuration at the prior medians: {text}"
             ) from None
+        if settings is not None:
+            check_runs(settings, model, theta, k, dataset_ids[k])
 
 
 def create_and_start(store: Store, spec: StudySpec, dispatcher: Any) -> int:
@@ -149,18 +202,23 @@ def create_and_start(store: Store, spec: StudySpec, dispatcher: Any) -> int:
     responses=errors(401, 413, 422),
 )
 def create_study(
-    body: StudyCreate, response: Response, store: StoreDep, dispatcher: DispatcherDep
+    body: StudyCreate,
+    response: Response,
+    store: StoreDep,
+    dispatcher: DispatcherDep,
+    settings: SettingsDep,
 ) -> StudyOut:
     """Create a study from a preset of the paper or a full case document on stored datasets,
     with optional overrides (``seed``, ``n_samples``, ``moves``, ``n_steps``, ``max_stages``,
     ``likelihood``, ``name``, ``batch_size``), and start it. Any problem answers 422 naming
     the field, and nothing is stored."""
     case = build_case(body)
+    check_limits(settings, case, body.dataset_ids, body.batch_size)
     try:
         spec = study_spec(store, case, body.dataset_ids, body.batch_size)
     except StudyInputError as exc:
         raise _unprocessable(str(exc)) from None
-    precheck(store, case, list(spec.dataset_ids))
+    precheck(store, case, list(spec.dataset_ids), settings)
     study_id = create_and_start(store, spec, dispatcher)
     response.headers["Location"] = f"/studies/{study_id}"
     return study_out(store, store.studies.get(study_id))
@@ -193,7 +251,7 @@ def list_studies(
         Query(description="Filter: calibrations (tmcmc) or sensitivity studies (morris)."),
     ] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> StudyPage:
     """Studies of both kinds, newest first."""
     statuses = parse_statuses(status)
@@ -213,7 +271,7 @@ def list_studies(
     summary="A study with its progress",
     responses=errors(401, 404),
 )
-def get_study(study_id: int, store: StoreDep) -> StudyOut:
+def get_study(study_id: StudyId, store: StoreDep) -> StudyOut:
     """The study, its case document and a progress block: current stage and exponent,
     evaluations done and planned in it, model runs so far, rate and ETA of the stage."""
     return study_out(store, store.studies.get(study_id))
@@ -227,7 +285,7 @@ def get_study(study_id: int, store: StoreDep) -> StudyOut:
     responses=errors(401, 404, 409),
 )
 def cancel_study(
-    study_id: int, store: StoreDep, body: Annotated[CancelRequest | None, Body()] = None
+    study_id: StudyId, store: StoreDep, body: Annotated[CancelRequest | None, Body()] = None
 ) -> StudyOut:
     """Cancel a queued or running study (work in flight is abandoned); 409 if it has ended."""
     if not store.studies.cancel(study_id, body.reason if body else None):
@@ -245,7 +303,7 @@ def cancel_study(
     summary="Stages and their diagnostics",
     responses=errors(401, 404),
 )
-def list_stages(study_id: int, store: StoreDep) -> list[StageOut]:
+def list_stages(study_id: StudyId, store: StoreDep) -> list[StageOut]:
     store.studies.get(study_id)
     return [stage_out(store, s) for s in store.stages.list(study_id)]
 
@@ -257,10 +315,10 @@ def list_stages(study_id: int, store: StoreDep) -> list[StageOut]:
     responses=errors(401, 404, 409),
 )
 def get_samples(
-    study_id: int,
-    stage: int,
+    study_id: StudyId,
+    stage: StageIndex,
     store: StoreDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
     limit: Annotated[int, Query(ge=1, le=SAMPLE_PAGE_MAX)] = 500,
 ) -> SamplesPage:
     """Rows ``offset`` .. ``offset + limit - 1`` of stage ``stage`` (-1: the last finished
@@ -330,7 +388,7 @@ def _csv_chunks(store: Store, study_id: int, stage: int, names: list[str], rname
     response_class=StreamingResponse,
     responses={200: {"content": {"text/csv": {}}}, **errors(401, 404, 409)},
 )
-def get_samples_csv(study_id: int, stage: int, store: StoreDep) -> StreamingResponse:
+def get_samples_csv(study_id: StudyId, stage: StageIndex, store: StoreDep) -> StreamingResponse:
     """All samples of stage ``stage`` (-1: the last finished one) as CSV: sample index,
     parameters, log_likelihood, log_prior, responses. Floats round-trip exactly; non-finite
     values are written nan, inf, -inf."""
@@ -353,7 +411,7 @@ def get_samples_csv(study_id: int, stage: int, store: StoreDep) -> StreamingResp
     summary="Posterior summary of the last finished stage",
     responses=errors(401, 404, 409),
 )
-def get_summary(study_id: int, store: StoreDep) -> SummaryOut:
+def get_summary(study_id: StudyId, store: StoreDep) -> SummaryOut:
     """Mean, sd, quantiles, 95 % interval, correlations and MAP sample of the last finished
     stage (the posterior when ``is_posterior``: exponent 1), with the log evidence."""
     study = store.studies.get(study_id)
@@ -401,9 +459,11 @@ def get_summary(study_id: int, store: StoreDep) -> SummaryOut:
     responses=errors(401, 404),
 )
 def list_events(
-    study_id: int,
+    study_id: StudyId,
     store: StoreDep,
-    after_id: Annotated[int | None, Query(ge=0, description="Only events after this id.")] = None,
+    after_id: Annotated[
+        int | None, Query(ge=0, le=INT64_MAX, description="Only events after this id.")
+    ] = None,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
 ) -> list[EventOut]:
     """The study's events in order (created, stage planned/done, cancelled, failed, ...)."""
