@@ -206,9 +206,12 @@ class SupervisedPool:
         busy = sum(1 for s in self._slots if s.key is not None)
         recent = sum(1 for t in self._deaths if time.monotonic() - t < HEALTHY_AFTER_S)
         if recent > 2 * size:
-            ok, detail = False, (
-                f"pool processes keep dying ({recent} in the last {HEALTHY_AFTER_S:.0f} s; "
-                f"last: {self.last_death})"
+            ok, detail = (
+                False,
+                (
+                    f"pool processes keep dying ({recent} in the last {HEALTHY_AFTER_S:.0f} s; "
+                    f"last: {self.last_death})"
+                ),
             )
         elif up < size:
             ok = False

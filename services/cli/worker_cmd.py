@@ -10,6 +10,14 @@ import click
 
 from .common import open_store_or_fail, settings_or_fail
 
+WAIT_DB = click.option(
+    "--wait-db",
+    type=click.FloatRange(min=0),
+    default=30.0,
+    show_default=True,
+    help="Seconds to wait for the database to answer before giving up.",
+)
+
 
 @click.command("worker")
 @click.option("--concurrency", type=int, default=None, help="Processes (default: settings).")
@@ -20,13 +28,7 @@ from .common import open_store_or_fail, settings_or_fail
     help="Celery pool; 'solo' runs batches in this process.",
 )
 @click.option("--loglevel", default="INFO")
-@click.option(
-    "--wait-db",
-    type=click.FloatRange(min=0),
-    default=30.0,
-    show_default=True,
-    help="Seconds to wait for the database to answer before giving up.",
-)
+@WAIT_DB
 def worker(concurrency: int | None, pool: str, loglevel: str, wait_db: float) -> None:
     """Run a Celery worker that executes TMCMC work batches (needs SCM_CALIB_BROKER_URL).
     It takes no task before the database answers and takes writes."""
@@ -49,13 +51,7 @@ def worker(concurrency: int | None, pool: str, loglevel: str, wait_db: float) ->
 @click.option(
     "--interval", type=click.FloatRange(min=0.1), default=10.0, show_default=True, help="Seconds."
 )
-@click.option(
-    "--wait-db",
-    type=click.FloatRange(min=0),
-    default=30.0,
-    show_default=True,
-    help="Seconds to wait for the database to answer before giving up.",
-)
+@WAIT_DB
 def reaper(interval: float, wait_db: float) -> None:
     """Start studies left queued, re-dispatch lost work batches and advance finished stages
     (distributed mode)."""

@@ -166,6 +166,17 @@ def _leased(store: Store, study_id: int, timeout: float = 120.0, stage_min: int 
     pytest.fail("no batch was leased in time")
 
 
+def _moved_within(store: Store, batch, since: float, bound: float) -> float:
+    """Seconds from ``since`` until ``batch`` (leased by a dead process) is done or leased by
+    another holder; fails after ``bound`` seconds."""
+    while time.monotonic() < since + bound:
+        b = store.batches.get(batch.key)
+        if b.status == "done" or (b.status == "leased" and b.worker_id != batch.worker_id):
+            return time.monotonic() - since
+        time.sleep(0.1)
+    pytest.fail(f"batch {batch.key} did not move within {bound} s: {b}")
+
+
 def _wait_done(store: Store, study_id: int, srv: Server):
     deadline = time.monotonic() + TIMEOUT
     while time.monotonic() < deadline:
@@ -208,15 +219,7 @@ def test_pool_survives_request_threads_and_a_killed_process(server, reference_sa
         killed_at = time.monotonic()
         os.kill(pid, signal.SIGKILL)
         # taken back at once (lease: 300 s) and leased again by the surviving or new process
-        deadline = killed_at + 10.0
-        while time.monotonic() < deadline:
-            b = store.batches.get(batch.key)
-            if b.status == "done" or (b.status == "leased" and b.worker_id != batch.worker_id):
-                break
-            time.sleep(0.1)
-        else:
-            pytest.fail(f"the killed process's batch did not move in 10 s: {b}")
-        moved_s = time.monotonic() - killed_at
+        moved_s = _moved_within(store, batch, killed_at, 10.0)
         study = _wait_done(store, study_id, server)
         assert _final_samples(store, study_id).tobytes() == reference_samples.samples.tobytes()
         kinds = [e.kind for e in store.events.list(study_id, limit=10_000)]
@@ -246,15 +249,7 @@ def test_server_killed_and_restarted(server, reference_samples) -> None:
         assert store.batches.get(batch.key).status == "leased"  # orphaned, lease 300 s
         restarted_at = time.monotonic()
         server.start()
-        deadline = restarted_at + 10.0
-        while time.monotonic() < deadline:
-            b = store.batches.get(batch.key)
-            if b.status == "done" or (b.status == "leased" and b.worker_id != batch.worker_id):
-                break
-            time.sleep(0.1)
-        else:
-            pytest.fail(f"the study did not move within 10 s of the restart: {b}")
-        moved_s = time.monotonic() - restarted_at
+        moved_s = _moved_within(store, batch, restarted_at, 10.0)
         _wait_done(store, study_id, server)
         assert _final_samples(store, study_id).tobytes() == reference_samples.samples.tobytes()
         kinds = [e.kind for e in store.events.list(study_id, limit=10_000)]
