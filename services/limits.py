@@ -163,8 +163,9 @@ def json_depth(raw: bytes) -> int:
     return deepest
 
 
-def check_json_depth(settings: Settings, raw: bytes | str, field: str = "body") -> None:
+def check_json_depth(raw: bytes | str, max_depth: int, field: str = "body") -> None:
+    """LimitError naming ``field`` when ``raw`` nests deeper than ``max_depth``."""
     data = raw.encode("utf-8", "surrogatepass") if isinstance(raw, str) else raw
     depth = json_depth(data)
-    if depth > settings.max_json_depth:
-        raise _over(field, "JSON nesting depth", depth, settings.max_json_depth, "max_json_depth")
+    if depth > max_depth:
+        raise _over(field, "JSON nesting depth", depth, max_depth, "max_json_depth")

@@ -26,7 +26,6 @@ import time
 import uuid
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
@@ -34,7 +33,7 @@ from services.config import Settings
 from services.store import Store
 from services.store.records import BatchKey
 
-from .local_pool import PoolEvent, SupervisedPool
+from .local_pool import Health, PoolEvent, SupervisedPool
 from .orchestrator import ContextCache, reap_once
 from .runtime import pool_process_main
 
@@ -44,12 +43,6 @@ log = logging.getLogger(__name__)
 LOOP_INTERVAL_S = 2.0
 #: the loop counts as hung when its last pass is older than this
 LOOP_STALE_S = 30.0
-
-
-@dataclass(frozen=True)
-class RuntimeHealth:
-    ok: bool
-    detail: str
 
 
 def _runtime_lock(database_url: str) -> IO[bytes] | None:
@@ -89,7 +82,7 @@ class LocalRuntime:
         self._lock_file: IO[bytes] | None = None
         self._next_reap = 0.0
         self._last_pass = time.monotonic()
-        self._health = RuntimeHealth(False, "the local pool is starting")
+        self._health = Health(False, "the local pool is starting")
         self._error: str | None = None
         self._thread = threading.Thread(target=self._run, name="scm-calib-local", daemon=True)
 
@@ -113,15 +106,15 @@ class LocalRuntime:
         with contextlib.suppress(OSError):  # already woken (buffer full), or closed
             self._wake_w.send(b"\0")
 
-    def health(self) -> RuntimeHealth:
+    def health(self) -> Health:
         """Whether the loop is alive and passing, and the pool complete (readiness)."""
         if self._error is not None:
-            return RuntimeHealth(False, self._error)
+            return Health(False, self._error)
         if not self._thread.is_alive():
-            return RuntimeHealth(False, "the local runtime's thread is not running")
+            return Health(False, "the local runtime's thread is not running")
         age = time.monotonic() - self._last_pass
         if age > LOOP_STALE_S:
-            return RuntimeHealth(False, f"the local runtime's loop has not run for {age:.0f} s")
+            return Health(False, f"the local runtime's loop has not run for {age:.0f} s")
         return self._health
 
     def pids(self) -> list[int]:
@@ -194,8 +187,7 @@ class LocalRuntime:
             reap_once(self.store, self.cache, self, redispatch_after=0.0)
         self._feed(pool)
         self._last_pass = time.monotonic()
-        h = pool.health()
-        self._health = RuntimeHealth(h.ok, h.detail)
+        self._health = pool.health()
         events = pool.wait(LOOP_INTERVAL_S, [self._wake_r])
         self._drain_wake()
         for event in events:

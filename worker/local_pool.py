@@ -20,7 +20,7 @@ import multiprocessing
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
@@ -65,15 +65,12 @@ class PoolEvent:
     exitcode: int | None = None
 
 
-@dataclass
-class PoolHealth:
+@dataclass(frozen=True)
+class Health:
+    """Readiness of the pool (and of the runtime around it): ok, and one line saying why."""
+
     ok: bool
     detail: str
-    size: int
-    alive: int
-    busy: int
-    restarts: int
-    last_death: str | None = field(default=None)
 
 
 class SupervisedPool:
@@ -198,7 +195,7 @@ class SupervisedPool:
 
     # ---- state ---------------------------------------------------------------------------
 
-    def health(self) -> PoolHealth:
+    def health(self) -> Health:
         """Complete when every process is up and warmed up (has said "ready")."""
         size = len(self._slots)
         up = sum(1 for s in self._slots if s.alive and s.ready)
@@ -221,7 +218,7 @@ class SupervisedPool:
             )
         else:
             ok, detail = True, f"{up} pool processes, {busy} busy"
-        return PoolHealth(ok, detail, size, up, busy, self.restarts, self.last_death)
+        return Health(ok, detail)
 
     def pids(self) -> list[int]:
         return [s.process.pid for s in self._slots if s.process is not None]

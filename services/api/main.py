@@ -27,7 +27,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from services.config import Settings, get_settings
-from services.limits import json_depth
+from services.limits import LimitError, check_json_depth
 from services.store import NotFoundError, SchemaVersionError, Store
 
 from .params import NOT_FOUND_PARAMS
@@ -247,14 +247,10 @@ class JsonDepthMiddleware:
             if not message.get("more_body", False):
                 break
         body = b"".join(chunks)
-        depth = json_depth(body)
-        if depth > self.max_depth:
-            response = _error(
-                422,
-                f"body: JSON nesting depth {depth} is over the limit of {self.max_depth} "
-                "(server setting SCM_CALIB_MAX_JSON_DEPTH)",
-            )
-            await response(scope, receive, send)
+        try:
+            check_json_depth(body, self.max_depth)
+        except LimitError as exc:
+            await _error(422, str(exc))(scope, receive, send)
             return
         sent = False
 

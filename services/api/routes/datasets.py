@@ -17,7 +17,7 @@ from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset, load_log, load_summary
-from services.limits import INT64_MAX, json_depth
+from services.limits import INT64_MAX, LimitError, check_json_depth
 from services.store import DatasetRecord
 
 from ..deps import SettingsDep, StoreDep, require_read, require_write
@@ -126,13 +126,10 @@ def _too_large(size: int, limit: int, field: str = "file") -> HTTPException:
 def _parse_metadata(text: str | bytes | None, max_depth: int) -> dict[str, Any]:
     if text is None or (isinstance(text, str | bytes) and not text.strip()):
         return {}
-    raw = text.encode("utf-8", "surrogatepass") if isinstance(text, str) else text
-    depth = json_depth(raw)
-    if depth > max_depth:
-        raise _unprocessable(
-            f"metadata: JSON nesting depth {depth} is over the limit of {max_depth} "
-            "(server setting SCM_CALIB_MAX_JSON_DEPTH)"
-        )
+    try:
+        check_json_depth(text, max_depth, "metadata")
+    except LimitError as exc:
+        raise _unprocessable(str(exc)) from None
     try:
         doc = json.loads(text)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:

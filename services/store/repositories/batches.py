@@ -63,6 +63,16 @@ def _held_by(owner: str) -> sa.ColumnElement[bool]:
     )
 
 
+def _still_held(batch_id: Any, worker_id: Any, attempt: Any) -> list[sa.ColumnElement[bool]]:
+    """The batch is leased by this holder in this attempt (its lease was not lost)."""
+    return [
+        WorkBatch.id == batch_id,
+        WorkBatch.status == "leased",
+        WorkBatch.worker_id == worker_id,
+        WorkBatch.attempts == attempt,
+    ]
+
+
 def _key_where(key: BatchKey) -> list[sa.ColumnElement[bool]]:
     return [
         WorkBatch.study_id == key.study_id,
@@ -289,10 +299,7 @@ class BatchRepository:
             res = s.execute(
                 sa.update(WorkBatch)
                 .where(
-                    WorkBatch.id == lease.batch_id,
-                    WorkBatch.status == "leased",
-                    WorkBatch.worker_id == lease.worker_id,
-                    WorkBatch.attempts == lease.attempt,
+                    *_still_held(lease.batch_id, lease.worker_id, lease.attempt),
                     _study_running(),
                 )
                 .values(heartbeat_at=now, lease_expires_at=now + self.db.lease_delta(lease_seconds))
@@ -311,12 +318,7 @@ class BatchRepository:
             )
             row = s.execute(
                 sa.update(WorkBatch)
-                .where(
-                    WorkBatch.id == lease.batch_id,
-                    WorkBatch.status == "leased",
-                    WorkBatch.worker_id == lease.worker_id,
-                    WorkBatch.attempts == lease.attempt,
-                )
+                .where(*_still_held(lease.batch_id, lease.worker_id, lease.attempt))
                 .values(status=status, worker_id=None, lease_expires_at=None, error=error)
                 .returning(WorkBatch.status)
                 .execution_options(synchronize_session=False)
@@ -439,12 +441,7 @@ class BatchRepository:
         cap = row.attempts >= self.db.max_attempts
         res = s.execute(
             sa.update(WorkBatch)
-            .where(
-                WorkBatch.id == row.id,
-                WorkBatch.status == "leased",
-                WorkBatch.worker_id == row.worker_id,
-                WorkBatch.attempts == row.attempts,
-            )
+            .where(*_still_held(row.id, row.worker_id, row.attempts))
             .values(
                 status="failed" if cap else "pending",
                 worker_id=None,
