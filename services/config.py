@@ -127,6 +127,11 @@ class Settings(BaseSettings):
     upload_max_bytes: int = Field(
         default=64 * 1024 * 1024, ge=1, description="Largest accepted SWT upload."
     )
+    max_concurrent_uploads: int = Field(
+        default=2,
+        ge=1,
+        description="Uploads parsed at once per API process; more answer 429 with Retry-After.",
+    )
     # ---- limits (services/limits.py), checked before anything is stored or allocated
     max_samples_per_stage: int = Field(
         default=20_000, ge=10, description="Samples (chains) per TMCMC stage; Morris points."

@@ -5,7 +5,9 @@ import json
 from collections.abc import Mapping
 from typing import Any
 
-from .csvtext import canonical_text
+from .csvtext import CanonicalDigest, decode_text
+
+LOG_HASH_PREFIX = b"scm-swt-log/1\n"
 
 
 def canonical_json(obj: Any) -> str:
@@ -13,14 +15,23 @@ def canonical_json(obj: Any) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
 
 
-def log_hash(data: bytes | str, metadata: Mapping[str, Any]) -> str:
+def log_digest() -> CanonicalDigest:
+    """A digest to feed a log's physical lines to; finish it with :func:`finish_log_hash`."""
+    return CanonicalDigest(LOG_HASH_PREFIX)
+
+
+def finish_log_hash(digest: CanonicalDigest, metadata: Mapping[str, Any]) -> str:
     """Hash of a time-series upload: canonical text (BOM, line endings, trailing blanks removed)
     plus the canonical JSON of the parsed metadata (conditions in SI and provenance)."""
-    h = hashlib.sha256(b"scm-swt-log/1\n")
-    h.update(canonical_text(data).encode("utf-8"))
-    h.update(b"\n")
-    h.update(canonical_json(metadata).encode("utf-8"))
-    return h.hexdigest()
+    return digest.finish(b"\n", canonical_json(metadata).encode("utf-8"))
+
+
+def log_hash(data: bytes | str, metadata: Mapping[str, Any]) -> str:
+    """:func:`finish_log_hash` of a whole text in memory."""
+    digest = log_digest()
+    for line in decode_text(data).split("\n"):
+        digest.add(line)
+    return finish_log_hash(digest, metadata)
 
 
 def summary_hash(content: Mapping[str, Any]) -> str:

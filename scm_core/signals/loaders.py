@@ -1,35 +1,56 @@
 """Loading and writing SWT datasets from files or uploaded bytes (the only module doing I/O)."""
 
+import io
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from .conditions import TestConditions
-from .csvtext import split_table
+from .csvtext import TableReader, text_lines
 from .dataset import DICT_FORMAT, SWTDataset, SWTSeries
 from .errors import LogFormatError
-from .hashing import log_hash, summary_hash
-from .logformat import format_log, parse_header_field, parse_log_text
+from .hashing import finish_log_hash, log_digest, summary_hash
+from .logformat import format_log, parse_header_field, parse_log_stream
 from .metadata import Metadata, merge_metadata
 from .processing import DEFAULT_ORDER, lowpass, steady_response
-from .summary import Summary, parse_summary_csv, parse_summary_json
+from .summary import MAX_SUMMARY_BYTES, Summary, parse_summary_csv, parse_summary_json
 from .validation import MAX_JITTER, MIN_WINDOW_SAMPLES, check_time_axis, window_mask
 
-Source = str | os.PathLike[str] | bytes
+#: a path, bytes in memory, or a seekable binary file (read from its start)
+Source = str | os.PathLike[str] | bytes | BinaryIO
 
 #: log column -> response key
 _RESPONSES = {"drawbar_pull": "F", "torque": "T", "sinkage": "z"}
 
 
-def _read(source: Source) -> tuple[bytes, Path | None]:
+@contextmanager
+def _open(source: Source) -> Iterator[tuple[BinaryIO, Path | None]]:
+    """A binary stream at the start of ``source`` and its path (None for bytes and files)."""
     if isinstance(source, bytes | bytearray):
-        return bytes(source), None
-    path = Path(source)
-    return path.read_bytes(), path
+        yield io.BytesIO(source), None
+    elif hasattr(source, "read"):
+        source.seek(0)
+        yield source, None
+    else:
+        path = Path(source)
+        with path.open("rb") as stream:
+            yield stream, path
+
+
+def _read_small(stream: BinaryIO, label: str) -> bytes:
+    """The whole of a summary or JSON dataset, refused past :data:`MAX_SUMMARY_BYTES`."""
+    data = stream.read(MAX_SUMMARY_BYTES + 1)
+    if len(data) > MAX_SUMMARY_BYTES:
+        raise LogFormatError(
+            f"{label}: over {MAX_SUMMARY_BYTES} bytes, too large for a summary or JSON dataset "
+            "(a time-series log is CSV with a time column)"
+        )
+    return data
 
 
 def _label(path: Path | None, name: str | None, default: str) -> str:
@@ -74,19 +95,20 @@ def load_log(
     ``cutoff_hz`` (None: min(1 Hz, 0.2 x rate)). Raises :class:`LogFormatError` naming the
     file, line, column or unit; ``ValueError`` for bad parameters (cutoff above Nyquist).
     """
-    data, path = _read(source)
-    label = _label(path, name, "log")
-    try:
-        table = parse_log_text(data)
-        side = _read_sidecar(path) if (path is not None and sidecar) else {}
-        meta = merge_metadata(
-            [("file header", table.metadata), ("sidecar", side), ("metadata", metadata or {})]
-        )
-        t = table.columns["time"]
-        rate = check_time_axis(t, table.lines, max_jitter=max_jitter)
-        window_mask(t, offset, min_window_samples)
-    except LogFormatError as exc:
-        raise LogFormatError(f"{label}: {exc}") from None
+    with _open(source) as (stream, path):
+        label = _label(path, name, "log")
+        digest = log_digest()
+        try:
+            table = parse_log_stream(stream, digest)
+            side = _read_sidecar(path) if (path is not None and sidecar) else {}
+            meta = merge_metadata(
+                [("file header", table.metadata), ("sidecar", side), ("metadata", metadata or {})]
+            )
+            t = table.columns["time"]
+            rate = check_time_axis(t, table.lines, max_jitter=max_jitter)
+            window_mask(t, offset, min_window_samples)
+        except LogFormatError as exc:
+            raise LogFormatError(f"{label}: {exc}") from None
     cols = table.columns
     steady = steady_response(
         t, cols.get("drawbar_pull"), cols.get("torque"), cols.get("sinkage"), offset, cutoff_hz,
@@ -102,7 +124,7 @@ def load_log(
         conditions=meta.conditions,
         responses=steady.stats(),
         source_kind="timeseries",
-        content_hash=log_hash(data, _metadata_dict(meta)),
+        content_hash=finish_log_hash(digest, _metadata_dict(meta)),
         provenance=meta.provenance,
         window=steady.window,
         n_samples=steady.n_samples,
@@ -153,11 +175,16 @@ def load_summary(
         if isinstance(source, Mapping):
             summary = parse_summary_json(source, metadata)
         else:
-            data, path = _read(source)
+            with _open(source) as (stream, path):
+                data = _read_small(stream, _label(path, name, "summary"))
             parse = parse_summary_json if _is_json(data, path) else parse_summary_csv
             summary = parse(data, metadata)
     except LogFormatError as exc:
-        raise LogFormatError(f"{_label(path, name, 'summary')}: {exc}") from None
+        message = str(exc)
+        label = _label(path, name, "summary")
+        raise LogFormatError(
+            message if message.startswith(label) else f"{label}: {message}"
+        ) from None
     default = summary.name or (path.stem if path else "summary")
     return _summary_dataset(summary, name or default)
 
@@ -170,24 +197,31 @@ def load_dataset(
     JSON: a stored dataset (``to_dict`` output) or a summary. CSV: a time-series log when the
     header has a time column, else a summary. ``log_options`` go to :func:`load_log`.
     """
-    data, path = _read(source)
     name = log_options.pop("name", None)
-    if _is_json(data, path):
+    with _open(source) as (stream, path):
+        label = _label(path, name, "dataset")
+        head = stream.read(4096)
+        if _is_json(head, path):
+            stream.seek(0)
+            data = _read_small(stream, label)
+            try:
+                doc = json.loads(data.decode("utf-8-sig"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise LogFormatError(f"{label}: not valid JSON ({exc})") from None
+            if isinstance(doc, dict) and doc.get("format") == DICT_FORMAT:
+                return SWTDataset.from_dict(doc)
+            return load_summary(data if path is None else path, metadata, name=name)
+        stream.seek(0)
+        reader = TableReader(text_lines(stream))
         try:
-            doc = json.loads(data.decode("utf-8-sig"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            label = _label(path, name, "dataset")
-            raise LogFormatError(f"{label}: not valid JSON ({exc})") from None
-        if isinstance(doc, dict) and doc.get("format") == DICT_FORMAT:
-            return SWTDataset.from_dict(doc)
-        return load_summary(data if path is None else path, metadata, name=name)
-    try:
-        header = split_table(data).header
-    except LogFormatError as exc:
-        raise LogFormatError(f"{_label(path, name, 'dataset')}: {exc}") from None
-    if any(parse_header_field(h)[0] == "time" for h in header):
-        return load_log(data if path is None else path, metadata, name=name, **log_options)
-    return load_summary(data if path is None else path, metadata, name=name)
+            reader.read_head()
+        except LogFormatError as exc:
+            raise LogFormatError(f"{label}: {exc}") from None
+        is_log = any(parse_header_field(h)[0] == "time" for h in reader.header)
+        target = stream if path is None else path
+        if is_log:
+            return load_log(target, metadata, name=name, **log_options)
+        return load_summary(target, metadata, name=name)
 
 
 def write_log(

@@ -5,18 +5,19 @@ Columns with unknown names are ignored (they need no unit). Known columns withou
 brackets are refused, as are duplicate columns, empty, non-numeric or non-finite cells.
 """
 
+import io
 import json
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
-from .csvtext import CsvTable, split_table
+from .csvtext import CanonicalDigest, TableReader, text_lines
 from .errors import LogFormatError
 from .metadata import CONDITION_KEYS, parse_metadata_lines
-from .units import SI_UNIT, UNITS, unit_factor
+from .units import PLAUSIBLE_MAX, SI_UNIT, UNITS, plausible_message, unit_factor
 
 #: canonical column -> (quantity, lower-case aliases)
 COLUMNS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -60,12 +61,11 @@ def parse_header_field(field: str) -> tuple[str | None, str | None]:
     return column_name(m.group("name") if m else field), (m.group("unit") if m else None)
 
 
-def _parse_header(table: CsvTable) -> dict[str, tuple[int, str]]:
+def _parse_header(header: list[str], line: int) -> dict[str, tuple[int, str]]:
     """Map canonical column -> (field index, unit)."""
     found: dict[str, tuple[int, str]] = {}
     seen: dict[str, int] = {}
-    line = table.header_line
-    for i, field in enumerate(table.header):
+    for i, field in enumerate(header):
         if field in seen:
             raise LogFormatError(
                 f"line {line}: duplicate column '{field}' (columns {seen[field] + 1} and {i + 1})"
@@ -81,7 +81,7 @@ def _parse_header(table: CsvTable) -> dict[str, tuple[int, str]]:
                 f"e.g. '{field} [{SI_UNIT[quantity]}]'"
             )
         if name in found:
-            other = table.header[found[name][0]]
+            other = header[found[name][0]]
             raise LogFormatError(
                 f"line {line}: duplicate column '{name}': '{other}' (column {found[name][0] + 1})"
                 f" and '{field}' (column {i + 1})"
@@ -92,7 +92,7 @@ def _parse_header(table: CsvTable) -> dict[str, tuple[int, str]]:
         raise LogFormatError(
             f"line {line}: missing required column(s) "
             f"{', '.join(missing) or 'drawbar_pull, torque or sinkage'} (header has: "
-            f"{', '.join(table.header)}; required: time and at least one of drawbar_pull, "
+            f"{', '.join(header)}; required: time and at least one of drawbar_pull, "
             "torque, sinkage, or t and F, T, z, each with its unit in brackets)"
         )
     return found
@@ -126,23 +126,143 @@ def cells_to_float(cells: list[str], rows: list[int], header: str) -> np.ndarray
     return values
 
 
+def check_plausible(
+    values: np.ndarray, quantity: str, cells: list[str], rows: list[int], header: str
+) -> None:
+    """Refuse SI ``values`` beyond :data:`~.units.PLAUSIBLE_MAX`, naming the first bad cell."""
+    bad = np.flatnonzero(np.abs(values) > PLAUSIBLE_MAX[quantity])
+    if bad.size:
+        k = int(bad[0])
+        problem = plausible_message(quantity, float(values[k]))
+        raise LogFormatError(
+            f"line {rows[k]}, column '{header}': '{cells[k].strip()}' is {problem}"
+        )
+
+
+class _Column:
+    """A growing 1-D array written chunk by chunk: one large allocation (returned to the
+    system when freed) instead of many chunk arrays to concatenate, which would fragment the
+    heap and double the peak."""
+
+    def __init__(self, capacity: int, dtype: type) -> None:
+        self._data = np.empty(max(capacity, 1), dtype=dtype)
+        self._n = 0
+
+    def extend(self, values: np.ndarray) -> None:
+        end = self._n + values.size
+        if end > self._data.size:
+            grown = np.empty(max(end, 2 * self._data.size), dtype=self._data.dtype)
+            grown[: self._n] = self._data[: self._n]
+            self._data = grown
+        self._data[self._n : end] = values
+        self._n = end
+
+    def values(self) -> np.ndarray:
+        return self._data[: self._n]
+
+
+def _remaining_bytes(stream: BinaryIO) -> int:
+    """Bytes from the position to the end of a seekable stream (0 when unknown)."""
+    try:
+        here = stream.tell()
+        end = stream.seek(0, io.SEEK_END)
+        stream.seek(here)
+    except (OSError, ValueError, AttributeError):
+        return 0
+    return max(end - here, 0)
+
+
+def _fast_chunk(
+    lines: list[str],
+    reader: TableReader,
+    found: dict[str, tuple[int, str]],
+    factors: dict[str, float],
+) -> dict[str, np.ndarray] | None:
+    """SI columns of a chunk read by numpy's C parser, or None when the chunk needs the
+    checked path: quotes, a ragged row, a cell numpy cannot read, or a value to refuse."""
+    delimiter = reader.delimiter
+    width = len(reader.header) - 1
+    if any(('"' in line) or line.count(delimiter) != width for line in lines):
+        return None
+    names = list(found)
+    try:
+        table = np.loadtxt(
+            lines,
+            delimiter=delimiter,
+            usecols=[found[name][0] for name in names],
+            dtype=np.float64,
+            comments=None,
+            ndmin=2,
+        )
+    except ValueError:
+        return None
+    out = {}
+    for k, name in enumerate(names):
+        values = table[:, k] * factors[name]
+        bound = PLAUSIBLE_MAX[COLUMNS[name][0]]
+        if not (np.all(np.isfinite(values)) and np.all(np.abs(values) <= bound)):
+            return None
+        out[name] = values
+    return out
+
+
+def _checked_chunk(
+    lines: list[str],
+    numbers: list[int],
+    reader: TableReader,
+    found: dict[str, tuple[int, str]],
+    factors: dict[str, float],
+) -> dict[str, np.ndarray]:
+    """SI columns of a chunk, cell by cell, naming the line and column of the first bad cell."""
+    rows = reader.split_rows(lines, numbers)
+    out = {}
+    for name, (index, _) in found.items():
+        header = reader.header[index]
+        cells = [row[index] for row in rows]
+        values = cells_to_float(cells, numbers, header) * factors[name]
+        check_plausible(values, COLUMNS[name][0], cells, numbers, header)
+        out[name] = values
+    return out
+
+
+def parse_log_stream(stream: BinaryIO, digest: CanonicalDigest | None = None) -> LogTable:
+    """Parse a log from a binary stream into SI columns (s, N, Nm, m, -) with per-sample file
+    line numbers, in chunks of rows (memory: the columns plus one chunk of cells). Every
+    physical line also goes to ``digest`` (the content hash of the canonical text)."""
+    reader = TableReader(text_lines(stream), digest)
+    reader.read_head()
+    metadata = parse_metadata_lines(reader.metadata_lines)
+    found = _parse_header(reader.header, reader.header_line)
+    factors = {}
+    for name, (index, unit) in found.items():
+        where = f"line {reader.header_line}, column '{reader.header[index]}'"
+        factors[name] = unit_factor(COLUMNS[name][0], unit, where)
+    size = _remaining_bytes(stream)
+    columns: dict[str, _Column] = {}
+    line_numbers: _Column | None = None
+    for lines, numbers in reader.line_chunks():
+        values = _fast_chunk(lines, reader, found, factors)
+        if values is None:  # something to report (or quoting): the exact, cell-by-cell path
+            values = _checked_chunk(lines, numbers, reader, found, factors)
+        if line_numbers is None:  # size the columns once: file size / mean line length
+            per_line = sum(map(len, lines)) / len(lines) + 1.0
+            expected = int(1.05 * size / per_line) + len(lines) if size else len(lines)
+            columns = {name: _Column(expected, np.float64) for name in found}
+            line_numbers = _Column(expected, np.int64)
+        for name in found:
+            columns[name].extend(values[name])
+        line_numbers.extend(np.asarray(numbers, dtype=np.int64))
+    if line_numbers is None:
+        raise LogFormatError(f"no data rows after the header (line {reader.header_line})")
+    units = {name: unit for name, (_, unit) in found.items()}
+    arrays = {name: column.values() for name, column in columns.items()}
+    return LogTable(arrays, line_numbers.values(), metadata, units)
+
+
 def parse_log_text(data: bytes | str) -> LogTable:
     """Parse log text into SI columns (s, N, Nm, m, -) with per-sample file line numbers."""
-    table = split_table(data)
-    metadata = parse_metadata_lines(table.metadata_lines)
-    found = _parse_header(table)
-    if not table.rows:
-        raise LogFormatError(f"no data rows after the header (line {table.header_line})")
-    columns: dict[str, np.ndarray] = {}
-    units: dict[str, str] = {}
-    for name, (index, unit) in found.items():
-        header = table.header[index]
-        where = f"line {table.header_line}, column '{header}'"
-        factor = unit_factor(COLUMNS[name][0], unit, where)
-        cells = [row[index] for row in table.rows]
-        columns[name] = cells_to_float(cells, table.row_lines, header) * factor
-        units[name] = unit
-    return LogTable(columns, np.asarray(table.row_lines), metadata, units)
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    return parse_log_stream(io.BytesIO(raw))
 
 
 def _meta_value(key: str, value: Any) -> str:

@@ -7,6 +7,7 @@ the run is steady; the steady means enter the likelihood, eq. (15).
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import fft as sp_fft
 from scipy import signal
 
 #: Default low-pass cutoff (Hz). Grouser passage on an SWT rig is of order 0.1-2 Hz; 1 Hz keeps
@@ -16,6 +17,9 @@ DEFAULT_CUTOFF_HZ = 1.0
 DEFAULT_ORDER = 4
 #: Sokal's window constant: sum the autocorrelation up to the first lag M >= C * tau(M).
 SOKAL_C = 5.0
+#: block length of the lag-product FFTs, and the first range of lags tried for Sokal's window
+_BLOCK = 1 << 16
+_FIRST_LAGS = 1024
 
 
 @dataclass(frozen=True)
@@ -81,16 +85,32 @@ def lowpass(
     return signal.sosfiltfilt(sos, x, padlen=padlen)
 
 
-def autocorrelation(x: np.ndarray) -> np.ndarray:
-    """Normalised autocorrelation rho_k, k = 0..n-1 (biased estimator, via FFT)."""
+def lag_products(d: np.ndarray, max_lag: int) -> np.ndarray:
+    """s_k = sum_i d_i d_(i+k) for k = 0..max_lag (< d.size), by FFT over blocks.
+
+    Each block of B >= max_lag samples is correlated with itself and the max_lag samples that
+    follow (zero padding to B + max_lag points: no circular wrap), so every pair (i, i + k) is
+    counted once and the memory is O(B + max_lag) rather than O(2 d.size).
+    """
+    n = d.size
+    lag = min(int(max_lag), n - 1)
+    block = max(lag, _BLOCK)
+    nfft = sp_fft.next_fast_len(block + lag, real=True)
+    out = np.zeros(lag + 1)
+    for start in range(0, n, block):
+        head = sp_fft.rfft(d[start : start + block], nfft)
+        tail = sp_fft.rfft(d[start : start + block + lag], nfft)
+        out += sp_fft.irfft(np.conj(head) * tail, nfft)[: lag + 1]
+    return out
+
+
+def autocorrelation(x: np.ndarray, max_lag: int | None = None) -> np.ndarray:
+    """Normalised autocorrelation rho_k, k = 0..max_lag (default n - 1; biased estimator)."""
     x = np.asarray(x, dtype=np.float64)
     n = x.size
-    d = x - x.mean()
-    nfft = 1 << (2 * n - 1).bit_length()
-    f = np.fft.rfft(d, nfft)
-    acov = np.fft.irfft(f * np.conj(f), nfft)[:n]
+    acov = lag_products(x - x.mean(), n - 1 if max_lag is None else max_lag)
     if acov[0] <= 0:
-        return np.zeros(n)
+        return np.zeros(acov.size)
     return acov / acov[0]
 
 
@@ -100,16 +120,23 @@ def integrated_autocorr_time(x: np.ndarray, c: float = SOKAL_C) -> float:
     Sokal's automatic window: the sum runs to the first lag M with M >= c tau(M), which keeps
     the truncation bias ~exp(-c) for exponentially decaying correlations while bounding the
     estimator's variance, var(tau)/tau^2 ~ 2 (2M + 1) / n. tau is floored at 1 (never claim
-    more precision than independent samples) and is 1 for a constant signal.
+    more precision than independent samples) and is 1 for a constant signal. The lags are
+    computed in growing ranges (1024, x4, ... up to n - 1) until the window closes, so memory
+    follows M, not n.
     """
-    rho = autocorrelation(x)
-    if rho[0] == 0:
-        return 1.0
-    taus = 2.0 * np.cumsum(rho) - 1.0
-    lags = np.arange(taus.size)
-    stop = lags >= c * taus
-    m = int(np.argmax(stop)) if stop.any() else taus.size - 1
-    return max(float(taus[m]), 1.0)
+    x = np.asarray(x, dtype=np.float64)
+    n = x.size
+    lag = min(_FIRST_LAGS, n - 1)
+    while True:
+        rho = autocorrelation(x, lag)
+        if rho[0] == 0:
+            return 1.0
+        taus = 2.0 * np.cumsum(rho) - 1.0
+        stop = np.arange(taus.size) >= c * taus
+        if stop.any() or lag >= n - 1:
+            m = int(np.argmax(stop)) if stop.any() else taus.size - 1
+            return max(float(taus[m]), 1.0)
+        lag = min(4 * lag, n - 1)
 
 
 def standard_error(x: np.ndarray) -> tuple[float, float]:

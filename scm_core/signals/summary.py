@@ -38,15 +38,18 @@ import numpy as np
 
 from .csvtext import CsvTable, split_table
 from .errors import LogFormatError
-from .logformat import COLUMNS, cells_to_float, column_name, parse_header_field
+from .logformat import COLUMNS, cells_to_float, check_plausible, column_name, parse_header_field
 from .metadata import Metadata, merge_metadata, parse_metadata_lines
 from .processing import ResponseStat
-from .units import SI_UNIT, unit_factor
+from .units import SI_UNIT, plausible_message, unit_factor
 
 #: response key -> log column it is measured as
 RESPONSE_COLUMNS = {"F": "drawbar_pull", "T": "torque", "z": "sinkage"}
 _COLUMN_RESPONSE = {c: k for k, c in RESPONSE_COLUMNS.items()}
 _TOP_KEYS = ("name", "conditions", "provenance", "responses", "n_trials")
+#: largest summary or JSON dataset file read (a summary of many trials is a few kB; only
+#: time-series logs are large, and those are read in chunks)
+MAX_SUMMARY_BYTES = 4 * 1024 * 1024
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,10 @@ def _stat(key: str, mean: float, sd: float, n_trials: int, unit: str, where: str
         raise LogFormatError(f"{where}: mean and sd must be finite (got {mean!r}, {sd!r})")
     if sd < 0:
         raise LogFormatError(f"{where}: sd = {sd!r} {unit} is negative")
+    for label, value in (("mean", mean * factor), ("sd", sd * factor)):
+        problem = plausible_message(quantity, value)
+        if problem is not None:
+            raise LogFormatError(f"{where}: {label} {problem}")
     se = sd / math.sqrt(n_trials)
     return ResponseStat(mean * factor, se * factor, sd * factor, float(n_trials))
 
@@ -212,7 +219,11 @@ def _per_trial(table: CsvTable, where: str) -> tuple[dict[str, ResponseStat], in
         raise LogFormatError(f"{where}: {n} trial row(s); need at least 2 to estimate an sd")
     stats = {}
     for key, (i, unit) in found.items():
-        x = cells_to_float([r[i] for r in table.rows], table.row_lines, table.header[i])
+        cells = [r[i] for r in table.rows]
+        x = cells_to_float(cells, table.row_lines, table.header[i])
+        quantity = COLUMNS[RESPONSE_COLUMNS[key]][0]
+        factor = unit_factor(quantity, unit, f"{where} column '{table.header[i]}'")
+        check_plausible(x * factor, quantity, cells, table.row_lines, table.header[i])
         stats[key] = _stat(key, float(x.mean()), float(np.std(x, ddof=1)), n, unit, where)
     return stats, n
 

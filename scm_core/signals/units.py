@@ -45,6 +45,38 @@ SI_UNIT: dict[str, str] = {
     "count": "",
 }
 
+#: largest plausible magnitude per quantity (SI). No single-wheel test comes within orders of
+#: magnitude of these (a 100 t wheel load, 10 m of sinkage); they catch unit mistakes and values
+#: whose squares overflow (1e308) before any statistics are computed. Time allows Unix epoch
+#: stamps in seconds (1.7e9 s); slip allows a drive-convention slip of a nearly locked wheel
+#: (1 - v/(omega r) = -1000 at omega r = v/1000).
+PLAUSIBLE_MAX: dict[str, float] = {
+    "time": 1e11,
+    "force": 1e6,
+    "torque": 1e5,
+    "length": 10.0,
+    "slip": 1e3,
+    "angular_velocity": 1e3,
+    "speed": 1e2,
+    "count": 1e4,
+}
+
+
+def plausible_message(quantity: str, value: float) -> str | None:
+    """Why ``value`` (SI) is not a plausible ``quantity``, or None when it is."""
+    bound = PLAUSIBLE_MAX[quantity]
+    if not math.isfinite(value):
+        return f"non-finite value {value!r}"
+    if abs(value) > bound:
+        unit = SI_UNIT[quantity]
+        unit = "" if unit in ("", "-") else f" {unit}"
+        return (
+            f"{value:g}{unit} is outside the plausible range of a {quantity.replace('_', ' ')} "
+            f"(|value| <= {bound:g}{unit}; check the unit)"
+        )
+    return None
+
+
 _NUMBER_WITH_UNIT = re.compile(
     r"^\s*(?P<num>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(?P<unit>\S.*?)?\s*$"
 )
@@ -91,4 +123,7 @@ def parse_value(text: str, quantity: str, where: str, default_unit: str | None =
     value = float(m.group("num")) * unit_factor(quantity, unit, where)
     if not math.isfinite(value):
         raise LogFormatError(f"{where}: value '{text}' is not finite")
+    problem = plausible_message(quantity, value)
+    if problem is not None:
+        raise LogFormatError(f"{where}: {problem}")
     return value

@@ -3,6 +3,11 @@
 Write endpoints always need ``Authorization: Bearer <token>``; read endpoints need it too when
 ``settings.read_requires_token``. Health endpoints never do. Tokens are checked against the
 hashes in ``SCM_CALIB_API_TOKENS`` (:meth:`services.config.Settings.token_is_valid`).
+
+An endpoint declares its need with the dependency :func:`require_write` or :func:`require_read`
+(:func:`route_needs_token` reads it back); the application checks the token before it reads
+the request's body (``services.api.main.TokenFirstMiddleware``), so a request without a valid
+token is answered 401 whatever its body, and documents the need in its OpenAPI schema.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ __all__ = [
     "get_store",
     "require_read",
     "require_write",
+    "route_needs_token",
 ]
 
 _CHALLENGE = {"WWW-Authenticate": "Bearer"}
@@ -90,3 +96,11 @@ def require_read(request: Request, settings: SettingsDep) -> None:
     """Dependency of the read endpoints (a token only with ``read_requires_token``)."""
     if settings.read_requires_token:
         check_token(request, settings)
+
+
+def route_needs_token(route: Any, settings: Settings) -> bool:
+    """Whether the endpoint of ``route`` (an ``APIRoute``) needs a valid token under
+    ``settings``: it depends on :func:`require_write`, or on :func:`require_read` while
+    ``settings.read_requires_token``."""
+    needs = {getattr(d, "dependency", None) for d in getattr(route, "dependencies", ())}
+    return require_write in needs or (require_read in needs and settings.read_requires_token)

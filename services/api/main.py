@@ -9,13 +9,16 @@ work runs:
 * distributed mode: new work batches are sent to Celery (``celery_dispatcher(settings)``); Celery
   workers run them and a separate ``scm-calib reaper`` re-dispatches lost work.
 
-Errors are ``{"detail": "..."}`` with one line that names the field or resource.
+Errors are ``{"detail": "..."}`` with one line that names the field or resource, and the OpenAPI
+document says so (:func:`describe_answers`): every error response is ``ErrorOut``, endpoints that
+need a token carry the ``bearerAuth`` security requirement, and a request without a valid token
+for such an endpoint is answered 401 before its body is read (:class:`TokenFirstMiddleware`).
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Iterable
 from contextlib import asynccontextmanager
 from importlib import metadata
 from typing import Any
@@ -25,17 +28,38 @@ from fastapi import FastAPI, HTTPException, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from fastapi.routing import APIRoute
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.formparsers import MultiPartException
+from starlette.routing import Match
 
 from services.config import Settings, get_settings
 from services.limits import LimitError, check_json_depth
 from services.store import NotFoundError, SchemaVersionError, Store
 
+from .deps import check_token, route_needs_token
 from .params import NOT_FOUND_PARAMS
-from .routes import datasets, health, pooled, presets, sensitivity, studies
+from .routes import (
+    ERROR_DESCRIPTIONS,
+    ERROR_HEADERS,
+    datasets,
+    health,
+    pooled,
+    presets,
+    sensitivity,
+    studies,
+)
+from .schemas import ErrorOut
 
 log = logging.getLogger(__name__)
 
-__all__ = ["API_DESCRIPTION", "create_app", "format_validation_errors"]
+__all__ = [
+    "API_DESCRIPTION",
+    "BEARER_SCHEME",
+    "create_app",
+    "describe_answers",
+    "format_validation_errors",
+]
 
 #: largest request body of the endpoints other than uploads
 JSON_BODY_LIMIT = 4 * 1024 * 1024
@@ -48,9 +72,14 @@ Bayesian (TMCMC) calibration of Soil Contact Model parameters from single-wheel 
 Upload SWT logs (`POST /datasets`), submit a study (`POST /studies`, a preset of the paper or a
 case document), follow its progress (`GET /studies/{id}`), then read the posterior
 (`.../summary`, `.../stages/{j}/samples`). Screen the soil parameters first with a Morris
-sensitivity study (`POST /sensitivity`). Write endpoints need `Authorization: Bearer <token>`.
-Errors are `{"detail": "..."}`.
+sensitivity study (`POST /sensitivity`). Write endpoints need `Authorization: Bearer <token>`
+(read endpoints too when the server requires it; see each operation's security): without a valid
+one they answer 401, whatever the body. Errors are `{"detail": "..."}`, one line naming the field
+or resource.
 """
+
+#: name of the bearer-token security scheme in the OpenAPI document
+BEARER_SCHEME = "bearerAuth"
 
 
 def _version() -> str:
@@ -121,9 +150,63 @@ def _error(code: int, detail: str, headers: dict[str, str] | None = None) -> JSO
     return JSONResponse({"detail": detail}, status_code=code, headers=headers)
 
 
+def _api_routes(app: Any) -> list[APIRoute]:
+    """The endpoints of the API (their routers' routes; ``app.router.routes`` holds included
+    routers rather than their routes in recent FastAPI versions)."""
+    return getattr(app.state, "api_routes", [])
+
+
+def _route_of(app: Any, scope: Any) -> APIRoute | None:
+    """The endpoint that will answer the request of ``scope`` (path and method), if any."""
+    for route in _api_routes(app):
+        match, _ = route.matches(scope)
+        if match is Match.FULL:
+            return route
+    return None
+
+
+def allowed_methods(app: Any, scope: Any) -> list[str]:
+    """The methods of every endpoint at the path of ``scope`` (Starlette's own 405 names only
+    those of the first endpoint it finds at the path)."""
+    methods: set[str] = set()
+    for route in _api_routes(app):
+        match, _ = route.matches(scope)
+        if match is not Match.NONE:
+            methods |= route.methods
+    return sorted(methods)
+
+
+def _unparsable_body(cause: BaseException) -> str:
+    """The 422 message of a body the framework could not parse (FastAPI and Starlette answer
+    400): JSON that is not text, a malformed multipart form or one over its limits."""
+    if isinstance(cause, UnicodeDecodeError):
+        return f"body: invalid JSON: not UTF-8, UTF-16 or UTF-32 text ({cause})"
+    if isinstance(cause, MultiPartException):
+        return f"body: invalid multipart form: {cause.message}"
+    text = " ".join(str(cause).split())
+    return f"body: cannot be parsed ({type(cause).__name__}{': ' + text if text else ''})"
+
+
 def _install_error_handlers(app: FastAPI) -> None:
-    @app.exception_handler(HTTPException)
-    async def _http(request: Request, exc: HTTPException) -> JSONResponse:
+    @app.exception_handler(StarletteHTTPException)  # also FastAPI's HTTPException
+    async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        if exc.status_code == 405:
+            own = (exc.headers or {}).get("Allow", "")  # e.g. /openapi.json, not an endpoint
+            allowed = allowed_methods(request.app, request.scope) or [
+                m.strip() for m in own.split(",") if m.strip()
+            ]
+            listed = ", ".join(allowed) or "none"
+            return _error(
+                405,
+                f"method {request.method} not allowed on {request.url.path} (allowed: {listed})",
+                {"Allow": ", ".join(allowed)},
+            )
+        cause = exc.__cause__ or (None if exc.__suppress_context__ else exc.__context__)
+        if exc.status_code == 400 and cause is not None:
+            # the framework's answer to a body it cannot parse (FastAPI: JSON that is not
+            # text; Starlette: a malformed multipart form, too many fields or files): 422,
+            # as for any other invalid body (this API raises no 400 of its own)
+            return _error(422, _unparsable_body(cause))
         detail = exc.detail if isinstance(exc.detail, str) else str(jsonable_encoder(exc.detail))
         return _error(exc.status_code, detail, getattr(exc, "headers", None))
 
@@ -211,6 +294,32 @@ class BodyLimitMiddleware:
         await self.app(scope, limited, send)
 
 
+class TokenFirstMiddleware:
+    """Answer 401 (with ``WWW-Authenticate: Bearer``) to a request for an endpoint that needs
+    a token (:func:`services.api.deps.route_needs_token`) and carries no valid one, before
+    anything reads its body: the answer does not depend on the body (malformed JSON, a body
+    over the size limit, too deep a document). The endpoint's own dependency checks the token
+    again."""
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        api = scope.get("app") if scope["type"] == "http" else None
+        route = _route_of(api, scope) if api is not None else None
+        if route is not None:
+            settings = api.state.settings
+            if route_needs_token(route, settings):
+                try:
+                    check_token(Request(scope), settings)
+                except HTTPException as exc:
+                    await _error(exc.status_code, str(exc.detail), exc.headers)(
+                        scope, receive, send
+                    )
+                    return
+        await self.app(scope, receive, send)
+
+
 class JsonDepthMiddleware:
     """Refuse a JSON request body nested deeper than ``max_depth`` with 422 before anything
     parses it (a deep enough document makes ``json.loads`` or pydantic recurse past
@@ -262,6 +371,86 @@ class JsonDepthMiddleware:
             return await receive()
 
         await self.app(scope, replay, send)
+
+
+# ---------------------------------------------------------------------------- OpenAPI
+
+_ERROR_REF = "#/components/schemas/ErrorOut"
+#: FastAPI's default 422 body, which this API never sends
+_FASTAPI_VALIDATION = ("HTTPValidationError", "ValidationError")
+
+
+def _error_doc(code: int) -> dict[str, Any]:
+    doc: dict[str, Any] = {
+        "description": ERROR_DESCRIPTIONS.get(code, "Error."),
+        "content": {"application/json": {"schema": {"$ref": _ERROR_REF}}},
+    }
+    if code in ERROR_HEADERS:
+        doc["headers"] = {k: dict(v) for k, v in ERROR_HEADERS[code].items()}
+    return doc
+
+
+def describe_answers(schema: dict[str, Any], routes: Iterable[Any], settings: Settings) -> None:
+    """Make FastAPI's OpenAPI document (changed in place) say what the server sends:
+
+    * 422 is ``ErrorOut`` (``{"detail": "<one line>"}``) everywhere, not FastAPI's
+      ``HTTPValidationError`` (an array of errors), which is removed;
+    * every POST documents 413 (:class:`BodyLimitMiddleware`) and, with a body, 422
+      (malformed or too deep JSON);
+    * the bearer-token scheme (``components.securitySchemes.bearerAuth``), required by each
+      operation that needs a token under ``settings`` (writes; reads too with
+      ``read_requires_token``), which documents 401 with ``WWW-Authenticate``.
+    """
+    components = schema.setdefault("components", {})
+    schemas = components.setdefault("schemas", {})
+    for name in _FASTAPI_VALIDATION:
+        schemas.pop(name, None)
+    if "ErrorOut" not in schemas:  # pragma: no cover - every router documents errors
+        schemas["ErrorOut"] = ErrorOut.model_json_schema()
+    components["securitySchemes"] = {
+        BEARER_SCHEME: {
+            "type": "http",
+            "scheme": "bearer",
+            "description": "An API token of the server (SCM_CALIB_API_TOKENS): "
+            "`Authorization: Bearer <token>`.",
+        }
+    }
+    for route in routes:
+        if not isinstance(route, APIRoute) or not route.include_in_schema:
+            continue
+        for method in route.methods:
+            op = schema.get("paths", {}).get(route.path_format, {}).get(method.lower())
+            if op is None:
+                continue
+            responses = op.setdefault("responses", {})
+            for code, response in list(responses.items()):
+                ref = (
+                    response.get("content", {})
+                    .get("application/json", {})
+                    .get("schema", {})
+                    .get("$ref", "")
+                )
+                if ref.rsplit("/", 1)[-1] in _FASTAPI_VALIDATION:
+                    responses[code] = _error_doc(int(code))
+            if method in ("POST", "PUT", "PATCH"):
+                responses.setdefault("413", _error_doc(413))
+                if "requestBody" in op:
+                    responses.setdefault("422", _error_doc(422))
+            if route_needs_token(route, settings):
+                op["security"] = [{BEARER_SCHEME: []}]
+                responses.setdefault("401", _error_doc(401))
+            op["responses"] = dict(sorted(responses.items()))
+
+
+def _install_openapi(app: FastAPI, settings: Settings) -> None:
+    base = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            describe_answers(base(), _api_routes(app), settings)
+        return app.openapi_schema  # type: ignore[return-value]
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 # ---------------------------------------------------------------------------- factory
@@ -333,8 +522,14 @@ def create_app(
         return JSON_BODY_LIMIT, f"body: over the limit of {JSON_BODY_LIMIT} bytes"
 
     app.add_middleware(JsonDepthMiddleware, max_depth=settings.max_json_depth)
-    app.add_middleware(BodyLimitMiddleware, limit_for=limit_for)  # outermost: runs first
+    app.add_middleware(BodyLimitMiddleware, limit_for=limit_for)
+    app.add_middleware(TokenFirstMiddleware)  # outermost: runs first
     _install_error_handlers(app)
-    for module in (health, datasets, presets, studies, sensitivity, pooled):
-        app.include_router(module.router)
+    routers = [m.router for m in (health, datasets, presets, studies, sensitivity, pooled)]
+    for router in routers:
+        app.include_router(router)
+    app.state.api_routes = [
+        r for router in routers for r in router.routes if isinstance(r, APIRoute)
+    ]
+    _install_openapi(app, settings)
     return app

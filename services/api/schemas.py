@@ -27,6 +27,16 @@ class _In(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+#: a study is made from exactly one of a preset name and a case document (the other absent or
+#: null); the server's check, in the OpenAPI document
+PRESET_OR_CASE: dict[str, Any] = {
+    "oneOf": [
+        {"required": ["preset"], "properties": {"preset": {"type": "string"}}},
+        {"required": ["case"], "properties": {"case": {"type": "object"}}},
+    ]
+}
+
+
 class ErrorOut(BaseModel):
     detail: str = Field(description="What is wrong, naming the field or resource.")
 
@@ -124,6 +134,8 @@ class StudyCreate(_In):
     """A new study: a preset name or a full case document, the stored datasets to fit, and
     optional overrides of the case's settings."""
 
+    model_config = ConfigDict(json_schema_extra=PRESET_OR_CASE)
+
     preset: str | None = Field(None, description="The paper's case: '1', '2a' or '2b'.")
     case: dict[str, Any] | None = Field(
         None, description="A case document (the TOML case file as JSON); data.files is ignored."
@@ -218,6 +230,8 @@ class SensitivityCreate(_In):
     """A Morris screening of the SCM soil parameters (paper section 4.4, Figure 4) under the
     test conditions of one stored dataset, with a preset's or a case document's nominal
     values and simulator settings."""
+
+    model_config = ConfigDict(json_schema_extra=PRESET_OR_CASE)
 
     preset: str | None = Field(None, description="The paper's case: '1', '2a' or '2b'.")
     case: dict[str, Any] | None = Field(
@@ -343,7 +357,7 @@ class SummaryOut(BaseModel):
 
 class PooledRequest(_In):
     study_ids: list[Annotated[int, Field(ge=0, le=ID_MAX)]] = Field(
-        max_length=1000, description="Completed studies with the same parameters."
+        min_length=1, max_length=1000, description="Completed studies with the same parameters."
     )
     n_per_study: int | None = Field(
         None,

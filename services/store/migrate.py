@@ -12,6 +12,7 @@ database: it raises :class:`SchemaVersionError` unless the database is at the he
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
@@ -106,8 +107,10 @@ def downgrade(url: str | URL | None, rev: str) -> None:
     _run(url, "downgrade", rev)
 
 
+@functools.lru_cache(maxsize=1)
 def head_revision() -> str:
-    """The newest revision in ``migrations/versions``."""
+    """The newest revision in ``migrations/versions`` (read once per process: the code that
+    runs is the code that started, whatever appears on disk later)."""
     head = ScriptDirectory.from_config(alembic_config()).get_current_head()
     if head is None:
         raise RuntimeError(f"no revisions in {migrations_dir()}")

@@ -26,6 +26,8 @@ __all__ = [
     "STUDY_STATUSES",
     "Base",
     "Dataset",
+    "DatasetChunk",
+    "DatasetUpload",
     "Event",
     "Sample",
     "Stage",
@@ -72,9 +74,36 @@ class Dataset(Base):
     filename: Mapped[str | None] = mapped_column(sa.String(255))
     media_type: Mapped[str | None] = mapped_column(sa.String(100))
     size_bytes: Mapped[int] = mapped_column(sa.BigInteger)
-    raw: Mapped[bytes | None] = mapped_column(sa.LargeBinary, deferred=True)
     meta: Mapped[dict[str, Any]] = mapped_column(JSONType)
     processed: Mapped[dict[str, Any]] = mapped_column(JSONType)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class DatasetChunk(Base):
+    """The bytes of a dataset as uploaded, in pieces of at most 1 MiB (``seq`` 0, 1, ...), so
+    that large logs are written and read without holding them whole, on SQLite and PostgreSQL
+    alike."""
+
+    __tablename__ = "dataset_chunks"
+
+    dataset_id: Mapped[int] = mapped_column(
+        BigIntId, sa.ForeignKey("datasets.id", ondelete="CASCADE"), primary_key=True
+    )
+    seq: Mapped[int] = mapped_column(sa.Integer, primary_key=True)
+    data: Mapped[bytes] = mapped_column(sa.LargeBinary)
+
+
+class DatasetUpload(Base):
+    """The hash of an upload as sent (raw bytes, metadata field, offset) and the dataset it
+    gave, so an identical re-upload is answered before any parsing. Several uploads (line
+    endings, BOM, metadata in the file or in the field) may give one dataset."""
+
+    __tablename__ = "dataset_uploads"
+
+    upload_hash: Mapped[str] = mapped_column(sa.String(64), primary_key=True)
+    dataset_id: Mapped[int] = mapped_column(
+        BigIntId, sa.ForeignKey("datasets.id", ondelete="CASCADE"), index=True
+    )
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 

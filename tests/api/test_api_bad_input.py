@@ -84,6 +84,15 @@ def _ragged_log() -> bytes:
     return b"\n".join(lines)
 
 
+def _absurd_log() -> bytes:
+    """Drawbar pull of 1e308 N on line 301: finite, but its square overflows."""
+    lines = LOG.read_bytes().split(b"\n")
+    cells = lines[300].split(b",")
+    cells[1] = b"1e308"
+    lines[300] = b",".join(cells)
+    return b"\n".join(lines)
+
+
 # (id, method, path, request kwargs (a function of env), status, words the message must contain)
 CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] = [
     ("malformed-json", "POST", "/studies",
@@ -152,6 +161,12 @@ CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] =
     ("csv-ragged-row", "POST", "/datasets",
      lambda e: {"files": {"file": ("ragged.csv", _ragged_log(), "text/csv")}}, 422,
      ("file ragged.csv", "line 201")),
+    ("csv-absurd-value", "POST", "/datasets",
+     lambda e: {"files": {"file": ("absurd.csv", _absurd_log(), "text/csv")}}, 422,
+     ("file absurd.csv", "line 301, column 'drawbar_pull [N]'", "plausible range")),
+    ("summary-absurd-mean", "POST", "/datasets",
+     lambda e: {"json": {**summary_doc(8.0), "responses": {"F": {"mean": 1e308, "sd": 1.0}}}},
+     422, ("body", "response 'F': mean", "plausible range")),
     ("csv-not-utf8", "POST", "/datasets",
      lambda e: {"files": {"file": ("bin.csv", b"\xff\xfe\x00binary", "text/csv")}}, 422,
      ("file bin.csv", "UTF-8")),
@@ -249,6 +264,27 @@ def test_bad_request_changes_nothing(env: Env, method, path, kwargs, status, wor
     assert after == before
     if status == 401:
         assert r.headers.get("www-authenticate") == "Bearer"
+
+
+def test_identical_upload_is_answered_before_parsing(
+    env: Env, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The same bytes, metadata and offset as an earlier upload: 200 with the stored record
+    from the upload hash alone (the parser, replaced by one that fails, is never called); other
+    metadata is parsed again."""
+    from services.api.routes import datasets as route
+
+    def no_parsing(*args: Any) -> None:
+        raise AssertionError("parsed again")
+
+    monkeypatch.setattr(route, "parse_upload", no_parsing)
+    before = row_counts(env.url)
+    again = upload_file(env.client)
+    assert again.status_code == 200, again.text
+    assert again.json()["id"] == env.dataset_id and again.json()["created"] is False
+    assert row_counts(env.url) == before
+    with pytest.raises(AssertionError, match="parsed again"):
+        upload_file(env.client, offset="41")
 
 
 def test_identical_upload_returns_same_dataset(env: Env) -> None:

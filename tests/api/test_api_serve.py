@@ -4,34 +4,27 @@
 from __future__ import annotations
 
 import json
-import os
-import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-import httpx
 import pytest
 from click.testing import CliRunner
-from test_api_support import LOG, LOG2, ROOT, TOKEN, free_port, fresh_database, tiny_case
+from test_api_support import (
+    LOG,
+    LOG2,
+    ROOT,
+    TOKEN,
+    free_port,
+    fresh_database,
+    serve_env,
+    serving,
+    tiny_case,
+)
 
 from services.cli.main import cli
 from services.client import SCMCalibClient, SCMCalibError
-
-START_TIMEOUT = 60.0
-
-
-def _env(tmp: Path, **extra: str) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("SCM_CALIB_")}
-    env.update(
-        SCM_CALIB_DATA_DIR=str(tmp / "data"),
-        SCM_CALIB_API_TOKENS=TOKEN,
-        NUMBA_NUM_THREADS="1",
-        PYTHONUNBUFFERED="1",
-        **extra,
-    )
-    return env
 
 
 def _cli(*args: str, env: dict[str, str], cwd: Path, timeout: float = 120.0):
@@ -49,42 +42,8 @@ def _cli(*args: str, env: dict[str, str], cwd: Path, timeout: float = 120.0):
 def server(tmp_path_factory: pytest.TempPathFactory):
     """A fresh embedded ``scm-calib serve`` (new data directory, 2 local workers), shared by
     the tests of this module and stopped with SIGINT at the end (exit code 0)."""
-    tmp_path = tmp_path_factory.mktemp("serve")
-    port = free_port()
-    env = _env(tmp_path)
-    log = open(tmp_path / "serve.log", "w")  # noqa: SIM115 (closed below)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "services.cli", "serve", "--port", str(port), "--workers", "2"],
-        env=env,
-        cwd=tmp_path,  # no .env of the checkout is read
-        stdout=log,
-        stderr=subprocess.STDOUT,
-    )
-    base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + START_TIMEOUT
-    try:
-        while True:
-            try:
-                # ready: database writable and the local pool warmed up
-                if httpx.get(base + "/health/ready", timeout=2.0).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if proc.poll() is not None or time.monotonic() > deadline:
-                pytest.fail(f"serve did not come up:\n{(tmp_path / 'serve.log').read_text()}")
-            time.sleep(0.2)
-        yield base, env, tmp_path, proc.pid
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-                pytest.fail("serve did not stop within 30 s of SIGINT")
-        log.close()
-    assert proc.returncode == 0, (tmp_path / "serve.log").read_text()
+    with serving(tmp_path_factory.mktemp("serve")) as server:
+        yield server
 
 
 def test_client_and_upload_cli_against_serve(server) -> None:
@@ -162,7 +121,7 @@ def test_upload_cli_errors(server) -> None:
 
 def test_serve_refuses_a_database_at_the_wrong_revision(tmp_path: Path) -> None:
     with fresh_database("postgresql", tmp_path, migrate=False) as url:
-        env = _env(tmp_path, SCM_CALIB_DATABASE_URL=url)
+        env = serve_env(tmp_path, SCM_CALIB_DATABASE_URL=url)
         r = _cli("serve", "--port", str(free_port()), env=env, cwd=tmp_path, timeout=60)
         assert r.returncode == 1, r.stderr
         assert "scm-calib db upgrade" in r.stderr and "base" in r.stderr
@@ -183,7 +142,7 @@ def test_worker_and_reaper_need_the_database_and_say_why_in_one_line(tmp_path: P
     """Neither a Celery worker nor the reaper starts (or says ready) on a database that does
     not answer: exit 1 with one line naming it, no traceback."""
     dead = f"postgresql://nobody@127.0.0.1:{free_port()}/nothing"
-    env = _env(tmp_path, SCM_CALIB_BROKER_URL="redis://127.0.0.1:6379/15")
+    env = serve_env(tmp_path, SCM_CALIB_BROKER_URL="redis://127.0.0.1:6379/15")
     env["SCM_CALIB_DATABASE_URL"] = dead
     for command in ("worker", "reaper"):
         proc = _cli(command, "--wait-db", "1", env=env, cwd=tmp_path, timeout=60)

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
+import subprocess
+import sys
 import time
 import uuid
 import warnings
@@ -19,6 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import httpx
 import pytest
 import sqlalchemy as sa
 
@@ -42,7 +46,16 @@ AUTH = {"Authorization": f"Bearer {TOKEN}"}
 PG_ENV = "SCM_CALIB_TEST_PG_URL"
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/postgres"
 BACKENDS = ["sqlite", "postgresql"]
-TABLES = ("datasets", "study_datasets", "studies", "stages", "work_batches", "samples", "events")
+TABLES = (
+    "datasets",
+    "dataset_uploads",
+    "study_datasets",
+    "studies",
+    "stages",
+    "work_batches",
+    "samples",
+    "events",
+)
 
 
 # ---------------------------------------------------------------------------- databases
@@ -223,3 +236,69 @@ def detail(response) -> str:
 
 def dumps(doc: Any) -> str:
     return json.dumps(doc)
+
+
+# ---------------------------------------------------------------------------- a real server
+
+#: seconds ``scm-calib serve`` has to get ready (database migrated, local pool warmed up)
+SERVE_START_TIMEOUT = 60.0
+
+
+def serve_env(tmp: Path, **extra: str) -> dict[str, str]:
+    """The environment of a ``scm-calib`` subprocess: none of the caller's ``SCM_CALIB_*``
+    settings, data directory (SQLite database) in ``tmp``, the test token, one numba thread."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SCM_CALIB_")}
+    env.update(
+        SCM_CALIB_DATA_DIR=str(tmp / "data"),
+        SCM_CALIB_API_TOKENS=TOKEN,
+        NUMBA_NUM_THREADS="1",
+        PYTHONUNBUFFERED="1",
+        **extra,
+    )
+    return env
+
+
+@contextmanager
+def serving(
+    tmp: Path, env: dict[str, str] | None = None, workers: int = 2
+) -> Iterator[tuple[str, dict[str, str], Path, int]]:
+    """A fresh embedded ``scm-calib serve`` subprocess on a free port of 127.0.0.1 (data
+    directory in ``tmp``, ``workers`` local workers, its log in ``tmp/serve.log``), once ready
+    (database writable and the local pool warmed up): yields (base URL, env, tmp, pid). Stopped
+    with SIGINT on exit, which it must answer with exit code 0 within 30 s."""
+    env = serve_env(tmp) if env is None else env
+    port = free_port()
+    log_path = tmp / "serve.log"
+    log = open(log_path, "w")  # noqa: SIM115 (closed below)
+    command = ["serve", "--port", str(port), "--workers", str(workers)]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "services.cli", *command],
+        env=env,
+        cwd=tmp,  # no .env of the checkout is read
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    base = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + SERVE_START_TIMEOUT
+    try:
+        while True:
+            try:
+                if httpx.get(base + "/health/ready", timeout=2.0).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                pass
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"serve did not come up:\n{log_path.read_text()}")
+            time.sleep(0.2)
+        yield base, env, tmp, proc.pid
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+                pytest.fail("serve did not stop within 30 s of SIGINT")
+        log.close()
+    assert proc.returncode == 0, log_path.read_text()

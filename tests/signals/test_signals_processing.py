@@ -132,3 +132,31 @@ def test_autocorrelation_time_edge_cases():
     assert integrated_autocorr_time(ar1(20000, -0.5, 4)) == 1.0
     se, n_eff = standard_error(np.full(50, 2.0))
     assert se == 0.0 and n_eff == 50
+
+
+@pytest.mark.parametrize(("n", "max_lag"), [(10, 9), (1000, 50), (70_000, 3), (140_001, 2000)])
+def test_blocked_lag_products_equal_the_direct_sums(n, max_lag):
+    """sum_i d_i d_(i+k) over blocks (pairs straddling block edges included) equals the
+    direct sum, to rounding (relative 1e-9 of s_0)."""
+    from scm_core.signals.processing import lag_products
+
+    d = np.random.default_rng(n).normal(size=n)
+    direct = np.array([d[: n - k] @ d[k:] for k in range(max_lag + 1)])
+    np.testing.assert_allclose(lag_products(d, max_lag), direct, rtol=0, atol=1e-9 * direct[0])
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.9, 0.999])
+def test_windowed_tau_equals_the_full_fft_estimate(phi):
+    """Growing lag ranges give Sokal's tau of the full-length FFT autocorrelation (numpy's
+    FFT, zero-padded to a power of two), also when the window reaches far (phi 0.999: tau of
+    about 2000 samples)."""
+    x = ar1(200_000, phi, 9)
+    n = x.size
+    d = x - x.mean()
+    f = np.fft.rfft(d, 1 << (2 * n - 1).bit_length())
+    acov = np.fft.irfft(f * np.conj(f))[:n]
+    taus = 2.0 * np.cumsum(acov / acov[0]) - 1.0
+    stop = np.arange(n) >= 5.0 * taus
+    expected = max(taus[int(np.argmax(stop))], 1.0)
+    assert integrated_autocorr_time(x) == pytest.approx(expected, rel=1e-9)
+    assert integrated_autocorr_time(x) == pytest.approx((1 + phi) / (1 - phi), rel=0.35)

@@ -17,7 +17,17 @@ from services.store.engine import make_engine
 from services.store.migrate import head_revision, migrations_dir
 from services.store.models import Base
 
-TABLES = {"datasets", "studies", "study_datasets", "stages", "work_batches", "samples", "events"}
+TABLES = {
+    "datasets",
+    "dataset_uploads",
+    "dataset_chunks",
+    "studies",
+    "study_datasets",
+    "stages",
+    "work_batches",
+    "samples",
+    "events",
+}
 
 
 def _tables(url: str) -> set[str]:
@@ -30,8 +40,8 @@ def _tables(url: str) -> set[str]:
 
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
-    assert (migrations_dir() / "versions" / "0002_study_kind.py").is_file()
-    assert head_revision() == "0002"
+    assert (migrations_dir() / "versions" / "0003_dataset_uploads.py").is_file()
+    assert head_revision() == "0003"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -71,14 +81,14 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0002") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0003") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0002"
+    assert info.value.current == "ffff" and info.value.head == "0003"
 
     engine = make_engine(empty_url)
     try:
         with engine.begin() as conn:
-            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0002'"))
+            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0003'"))
     finally:
         engine.dispose()
     with Store.open(empty_url) as store:
@@ -93,13 +103,13 @@ def test_cli_db_commands(empty_url: str) -> None:
 
     res = runner.invoke(cli, ["db", "upgrade", "--url", empty_url])
     assert res.exit_code == 0, res.output
-    assert "base -> 0002" in res.output
+    assert "base -> 0003" in res.output
 
     res = runner.invoke(cli, ["db", "current", "--url", empty_url])
-    assert res.exit_code == 0 and "revision 0002" in res.output and "up to date" in res.output
+    assert res.exit_code == 0 and "revision 0003" in res.output and "up to date" in res.output
 
     res = runner.invoke(cli, ["db", "downgrade", "base", "--url", empty_url])
-    assert res.exit_code == 0 and "0002 -> base" in res.output
+    assert res.exit_code == 0 and "0003 -> base" in res.output
     assert current_revision(empty_url) is None
 
 
@@ -112,7 +122,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0002"
+        assert current_revision(url) == "0003"
     finally:
         get_settings.cache_clear()
 
@@ -137,5 +147,31 @@ def test_upgrade_0001_to_0002_keeps_studies_as_calibrations(empty_url: str) -> N
         downgrade(empty_url, "0001")
         with engine.connect() as conn:
             assert conn.execute(sa.text("SELECT name FROM studies")).scalars().all() == ["old"]
+    finally:
+        engine.dispose()
+
+
+def test_upgrade_0002_to_0003_moves_raw_bytes_into_chunks_and_back(empty_url: str) -> None:
+    """A dataset stored at 0002 with 2.5 MiB of raw bytes keeps them at 0003 (three chunks,
+    read back whole by the store) and again after a downgrade to 0002."""
+    upgrade(empty_url, "0002")
+    raw = bytes(range(256)) * (10 * 1024)  # 2.5 MiB
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO datasets (content_hash, name, source_kind, size_bytes, raw, meta, processed,"
+        " created_at) VALUES ('h', 'old', 'timeseries', :n, :raw, '{}', '{}', :t)"
+    )
+    try:
+        with engine.begin() as conn:
+            conn.execute(insert, {"n": len(raw), "raw": raw, "t": "2025-01-01 00:00:00"})
+        upgrade(empty_url)
+        with engine.connect() as conn:
+            seqs = conn.execute(sa.text("SELECT seq FROM dataset_chunks ORDER BY seq")).scalars()
+            assert list(seqs) == [0, 1, 2]
+        with Store.open(empty_url) as store:
+            assert store.datasets.raw(1) == raw
+        downgrade(empty_url, "0002")
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT raw FROM datasets")).scalar_one() == raw
     finally:
         engine.dispose()

@@ -40,6 +40,22 @@ def test_dataset_dedup_by_hash(store: Store, make_dataset) -> None:
     assert [e.payload["dataset_id"] for e in events] == [rec.id, other.id]
 
 
+def test_upload_hashes_point_at_their_dataset(store: Store, make_dataset) -> None:
+    """Two uploads as sent (say LF and CRLF) that give one dataset both find it; an unknown
+    upload finds nothing; recording an upload twice is harmless."""
+    ds, raw = make_dataset(shift=3.0)
+    assert store.datasets.find_upload("a" * 64) is None
+    rec, created = store.datasets.add(ds, raw, upload_hash="a" * 64)
+    assert created
+    again, created2 = store.datasets.add(ds, raw.replace(b"\n", b"\r\n"), upload_hash="b" * 64)
+    assert not created2 and again.id == rec.id
+    store.datasets.add(ds, raw, upload_hash="a" * 64)
+    assert store.datasets.find_upload("a" * 64).id == rec.id
+    assert store.datasets.find_upload("b" * 64).id == rec.id
+    assert store.datasets.find_upload("c" * 64) is None
+    assert store.datasets.list().total == 1
+
+
 def test_concurrent_identical_uploads_make_one_row(store: Store, make_dataset, open_store) -> None:
     ds, raw = make_dataset(shift=2.0)
     stores = [open_store() for _ in range(4)]

@@ -182,6 +182,8 @@ def test_samples_pagination(store: Store, toy) -> None:
     assert joined.tobytes() == full.samples.tobytes()
     joined_r = np.concatenate([p.arrays.responses for p in pages])
     assert np.array_equal(joined_r, full.responses, equal_nan=True)
+    for start in (2**63 - 10, 2**63 - 1, 2**64):  # past the index column: empty, no error
+        assert len(store.samples.page(sid, 0, start=start, limit=5000).arrays) == 0
     beyond = store.samples.page(sid, 0, start=100, limit=20)
     assert len(beyond.arrays) == 0 and beyond.next_start is None
     assert len(store.samples.arrays(sid, 1)) == 0  # stage 1 planned, no population yet

@@ -6,23 +6,30 @@ stored record instead of 201.
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import math
-from dataclasses import replace
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, replace
 from pathlib import PurePath
-from typing import Annotated, Any
+from typing import Annotated, Any, BinaryIO
 
 from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset, load_log, load_summary
+from scm_core.signals.hashing import canonical_json
+from scm_core.signals.summary import MAX_SUMMARY_BYTES
 from services.limits import INT64_MAX, LimitError, check_json_depth
 from services.store import DatasetRecord
 
 from ..deps import SettingsDep, StoreDep, require_read, require_write
 from ..params import DatasetId
 from ..schemas import DatasetOut, DatasetPage, SeriesOut
+from ..upload_slots import upload_slots
 from . import errors
 
 router = APIRouter(prefix="/datasets", tags=["datasets"], dependencies=[Depends(require_read)])
@@ -36,6 +43,7 @@ SERIES_UNITS = {
     "slip": "-",
 }
 DEFAULT_OFFSET = 40.0
+_HASH_CHUNK = 1 << 20
 
 _UPLOAD_BODY = {
     "requestBody": {
@@ -152,16 +160,20 @@ def _parse_offset(text: str | None) -> float:
 
 
 def parse_upload(
-    raw: bytes, metadata: dict[str, Any], filename: str | None, offset: float
+    source: bytes | BinaryIO, metadata: dict[str, Any], filename: str | None, offset: float
 ) -> SWTDataset:
-    """Validate and process an uploaded dataset; 422 with the loader's message (line, column,
-    unit) prefixed by ``file <name>`` (``body`` for a JSON summary sent as the body)."""
+    """Validate and process an uploaded dataset (read in chunks from ``source``); 422 with the
+    loader's message (line, column, unit) prefixed by ``file <name>`` (``body`` for a JSON
+    summary sent as the body)."""
     label = f"file {filename}" if filename else "body"
+    stream = io.BytesIO(source) if isinstance(source, bytes) else source
+    stream.seek(0)
+    is_json = stream.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{")
     try:
-        if raw.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{"):
-            ds = load_summary(raw, metadata or None)
+        if is_json:  # a summary; never a stored dataset's own JSON with its hash
+            ds = load_summary(stream, metadata or None)
         else:
-            ds = load_dataset(raw, metadata or None, offset=offset)
+            ds = load_dataset(stream, metadata or None, offset=offset, keep_series=False)
     except (LogFormatError, ValueError) as exc:
         message = str(exc)
         for default in ("log: ", "summary: ", "dataset: "):
@@ -174,10 +186,36 @@ def parse_upload(
     return ds
 
 
-async def _read_upload(
-    request: Request, limit: int, max_depth: int
-) -> tuple[bytes, dict, str | None, str, float]:
-    """(raw, metadata, filename, media_type, offset) of a multipart or JSON upload."""
+@dataclass
+class Upload:
+    """An upload as received: the file (seekable, spooled to disk when large), its size, the
+    parsed form fields, and the hash of all of it as sent (:func:`upload_hash`)."""
+
+    file: BinaryIO
+    size: int
+    metadata: dict[str, Any]
+    filename: str | None
+    media_type: str
+    offset: float
+    digest: str = ""
+
+
+def upload_hash(file: BinaryIO, metadata: dict[str, Any], offset: float) -> str:
+    """sha256 of the bytes as sent, the metadata field (canonical JSON) and the offset: equal
+    for an identical re-upload, which is then answered without parsing."""
+    h = hashlib.sha256(b"scm-upload/1\n")
+    h.update(canonical_json({"metadata": metadata, "offset": offset}).encode("utf-8"))
+    h.update(b"\n")
+    file.seek(0)
+    while chunk := file.read(_HASH_CHUNK):
+        h.update(chunk)
+    file.seek(0)
+    return h.hexdigest()
+
+
+@asynccontextmanager
+async def _received(request: Request, limit: int, max_depth: int) -> AsyncIterator[Upload]:
+    """The multipart or JSON upload of ``request`` (files closed on exit)."""
     ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if ctype == "multipart/form-data":
         async with request.form(max_files=2, max_fields=10) as form:
@@ -186,35 +224,48 @@ async def _read_upload(
                 raise _unprocessable(
                     "file: required (a multipart file field 'file' with the SWT log or summary)"
                 )
-            raw = await file.read(limit + 1)
-            if len(raw) > limit:
-                raise _too_large(len(raw), limit)
+            size = file.size if file.size is not None else await run_in_threadpool(_size, file.file)
+            if size > limit:
+                raise _too_large(size, limit)
             meta_field = form.get("metadata")
             if isinstance(meta_field, UploadFile):
                 meta_field = await meta_field.read()
             offset_field = form.get("offset")
             if isinstance(offset_field, UploadFile):
                 raise _unprocessable("offset: must be a plain form field")
-            metadata = _parse_metadata(meta_field, max_depth)
-            offset = _parse_offset(offset_field)
-            media_type = file.content_type or "application/octet-stream"
-            return raw, metadata, file.filename, media_type, offset
+            yield Upload(
+                file=file.file,
+                size=size,
+                metadata=_parse_metadata(meta_field, max_depth),
+                filename=file.filename,
+                media_type=file.content_type or "application/octet-stream",
+                offset=_parse_offset(offset_field),
+            )
+        return
     if ctype == "application/json":
         raw = await request.body()
-        if len(raw) > limit:
-            raise _too_large(len(raw), limit, "body")
+        if len(raw) > min(limit, MAX_SUMMARY_BYTES):
+            raise _too_large(len(raw), min(limit, MAX_SUMMARY_BYTES), "body")
         try:
             doc = json.loads(raw)
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise _unprocessable(f"body: invalid JSON ({exc})") from None
         if not isinstance(doc, dict):
             raise _unprocessable("body: a summary dataset must be a JSON object")
-        return raw, {}, None, "application/json", DEFAULT_OFFSET
+        yield Upload(io.BytesIO(raw), len(raw), {}, None, "application/json", DEFAULT_OFFSET)
+        return
     raise HTTPException(
         415,
         "Content-Type must be multipart/form-data (field 'file', optional 'metadata' JSON) "
         "or application/json (a summary dataset)",
     )
+
+
+def _size(file: BinaryIO) -> int:
+    file.seek(0, io.SEEK_END)
+    size = file.tell()
+    file.seek(0)
+    return size
 
 
 @router.post(
@@ -226,7 +277,7 @@ async def _read_upload(
     openapi_extra=_UPLOAD_BODY,
     responses={
         200: {"model": DatasetOut, "description": "Identical content already stored."},
-        **errors(401, 413, 415, 422),
+        **errors(401, 413, 415, 422, 429),
     },
 )
 async def upload_dataset(
@@ -234,17 +285,30 @@ async def upload_dataset(
 ) -> DatasetOut:
     """Upload a time-series log or a summary: multipart ``file`` (+ ``metadata`` JSON object,
     ``offset`` in s), or a JSON summary document as the body. The log is validated (units,
-    monotone time, finite values, long enough for the offset) and processed (filtered, steady
-    means). 201 when stored, 200 with the existing record when identical content exists; 413
-    over the size limit; 422 naming the line, column or unit of a malformed file."""
-    limit = settings.upload_max_bytes
-    raw, metadata, filename, media_type, offset = await _read_upload(
-        request, limit, settings.max_json_depth
-    )
-    ds = await run_in_threadpool(parse_upload, raw, metadata, filename, offset)
-    rec, created = await run_in_threadpool(
-        lambda: store.datasets.add(ds, raw, meta=metadata, filename=filename, media_type=media_type)
-    )
+    monotone time, finite and physically plausible values, long enough for the offset) and
+    processed (filtered, steady means) in chunks. 201 when stored; 200 with the existing
+    record when identical content exists (an upload identical as sent is answered before
+    parsing); 413 over the size limit; 422 naming the line, column or unit of a malformed
+    file; 429 with Retry-After while the most uploads at once are being processed."""
+    async with (
+        upload_slots(request.app, settings).hold(),
+        _received(request, settings.upload_max_bytes, settings.max_json_depth) as up,
+    ):
+        up.digest = await run_in_threadpool(upload_hash, up.file, up.metadata, up.offset)
+        rec = await run_in_threadpool(store.datasets.find_upload, up.digest)
+        created = False
+        if rec is None:
+            ds = await run_in_threadpool(parse_upload, up.file, up.metadata, up.filename, up.offset)
+            rec, created = await run_in_threadpool(
+                lambda: store.datasets.add(
+                    ds,
+                    up.file,
+                    meta=up.metadata,
+                    filename=up.filename,
+                    media_type=up.media_type,
+                    upload_hash=up.digest,
+                )
+            )
     response.status_code = 201 if created else 200
     response.headers["Location"] = f"/datasets/{rec.id}"
     return dataset_out(rec, created)

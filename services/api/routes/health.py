@@ -13,6 +13,7 @@ from services.store.migrate import check_revision
 
 from ..deps import SettingsDep, token_ok
 from ..schemas import CheckOut, HealthOut, ReadyOut
+from ..upload_slots import upload_slots
 from . import errors
 
 router = APIRouter(prefix="/health", tags=["health"])
@@ -111,7 +112,8 @@ def health(request: Request) -> HealthOut:
 )
 def ready(request: Request, settings: SettingsDep):
     """The database is reachable, at the code's schema revision and takes writes; the
-    embedded server's local pool is complete (distributed mode: the broker is reachable).
+    embedded server's local pool is complete (distributed mode: the broker is reachable);
+    ``uploads`` tells how many upload slots are in use (never a reason to be not ready).
     503 with what failed otherwise. Database and broker are named (and their drivers'
     messages given) only to callers with a valid token."""
     reveal = token_ok(request, settings)
@@ -121,6 +123,10 @@ def ready(request: Request, settings: SettingsDep):
         checks["pool"] = check_pool(getattr(state, "runtime", None))
     else:
         checks["broker"] = check_broker(settings, reveal)
+    slots = upload_slots(request.app, settings)  # informative: full slots answer 429, not 503
+    checks["uploads"] = CheckOut(
+        ok=True, detail=f"{slots.busy} of {slots.limit} upload slots in use"
+    )
     failed = [f"{name}: {c.detail}" for name, c in checks.items() if not c.ok]
     if failed:
         body = ReadyOut(status="not ready", detail="; ".join(failed), checks=checks)

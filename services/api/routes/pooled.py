@@ -23,6 +23,11 @@ from . import errors
 router = APIRouter(prefix="/pooled", tags=["pooled"], dependencies=[Depends(require_read)])
 
 
+#: one ``study_ids`` item of the query form: at least one id; ids separated by commas, spaces
+#: around them and empty items ignored
+IDS_PATTERN = r"^(?: *,)* *[0-9]+ *(?:, *(?:[0-9]+ *)?)*$"
+
+
 def _unprocessable(message: str) -> HTTPException:
     return HTTPException(422, message)
 
@@ -113,21 +118,26 @@ def pooled_post(body: PooledRequest, store: StoreDep) -> PooledOut:
 def pooled_get(
     store: StoreDep,
     study_ids: Annotated[
-        list[str], Query(description="Repeat the parameter, or give ids comma-separated.")
+        list[str],
+        Query(
+            description="Repeat the parameter, or give ids comma-separated.",
+            json_schema_extra={"items": {"type": "string", "pattern": IDS_PATTERN}},
+        ),
     ],
     n_per_study: Annotated[int | None, Query(ge=2, le=COUNT_MAX)] = None,
     seed: Annotated[int, Query(ge=0, le=SEED_MAX)] = 0,
 ) -> PooledOut:
     ids: list[int] = []
-    for part in (p.strip() for item in study_ids for p in item.split(",")):
-        if not part:
-            continue
-        try:
+    for item in study_ids:  # what IDS_PATTERN admits
+        parts = [p.strip(" ") for p in item.split(",")]
+        if not any(parts):
+            raise _unprocessable(f"query.study_ids: no study id in {item[:40]!r}")
+        for part in filter(None, parts):
+            if not (part.isascii() and part.isdigit()):
+                raise _unprocessable(f"query.study_ids: not a study id: {part[:40]!r}")
+            if len(part.lstrip("0")) > 19 or int(part) > ID_MAX:  # beyond BIGINT: no study
+                raise _unprocessable(f"query.study_ids: no study with id {part[:40]}")
             ids.append(int(part))
-        except ValueError:
-            raise _unprocessable(f"query.study_ids: not a study id: {part!r}") from None
-        if not 0 <= ids[-1] <= ID_MAX:
-            raise _unprocessable(f"query.study_ids: no study with id {part}")
     if len(ids) > 1000:
         raise _unprocessable(f"query.study_ids: {len(ids)} studies, at most 1000")
     return pooled_summary(store, PooledRequest(study_ids=ids, n_per_study=n_per_study, seed=seed))

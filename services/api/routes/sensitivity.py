@@ -24,7 +24,7 @@ from ..params import StudyId
 from ..schemas import SensitivityCreate, SensitivityOut, SensitivityPage
 from ..views import sensitivity_out
 from . import errors
-from .studies import base_case, check_runs, create_and_start, parse_statuses
+from .studies import base_case, check_runs, create_and_start, parse_statuses, status_query
 
 router = APIRouter(
     prefix="/sensitivity", tags=["sensitivity"], dependencies=[Depends(require_read)]
@@ -113,9 +113,7 @@ def create_sensitivity(
 )
 def list_sensitivity(
     store: StoreDep,
-    status: Annotated[
-        str | None, Query(description="Filter: one status or several, comma-separated.")
-    ] = None,
+    status: Annotated[str | None, status_query("sensitivity studies")] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
     offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> SensitivityPage:

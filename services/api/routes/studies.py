@@ -227,25 +227,38 @@ def create_study(
 # ---------------------------------------------------------------------------- reading
 
 
+_ANY_STATUS = "|".join(STUDY_STATUSES)
+#: what ``?status=`` accepts: statuses separated by commas, spaces around them and empty
+#: items ignored (the pattern of the parameter in the OpenAPI document)
+STATUS_PATTERN = rf"^ *(?:(?:{_ANY_STATUS}) *)?(?:, *(?:(?:{_ANY_STATUS}) *)?)*$"
+
+
+def status_query(what: str) -> Any:
+    """The ``?status=`` parameter of a list of ``what``."""
+    return Query(
+        description=f"Filter {what}: one status or several, comma-separated "
+        f"({', '.join(STUDY_STATUSES)}).",
+        json_schema_extra={"pattern": STATUS_PATTERN},
+    )
+
+
 def parse_statuses(status: str | None) -> list[str] | None:
-    """``?status=a,b`` as a list (None: all); 422 naming ``query.status`` for an unknown one."""
-    if not status:
-        return None
-    statuses = [s.strip() for s in status.split(",") if s.strip()]
-    unknown = [s for s in statuses if s not in STUDY_STATUSES]
+    """``?status=a,b`` as a list (None: all); 422 naming ``query.status`` for an unknown one.
+    Items are separated by commas; spaces around them and empty items are ignored
+    (:data:`STATUS_PATTERN`)."""
+    items = [s.strip(" ") for s in (status or "").split(",")]
+    unknown = [s for s in items if s and s not in STUDY_STATUSES]
     if unknown:
         raise _unprocessable(
             f"query.status: unknown status {unknown[0]!r}; one of {', '.join(STUDY_STATUSES)}"
         )
-    return statuses
+    return [s for s in items if s] or None
 
 
 @router.get("", response_model=StudyPage, summary="List studies", responses=errors(401, 422))
 def list_studies(
     store: StoreDep,
-    status: Annotated[
-        str | None, Query(description="Filter: one status or several, comma-separated.")
-    ] = None,
+    status: Annotated[str | None, status_query("studies")] = None,
     kind: Annotated[
         Literal["tmcmc", "morris"] | None,
         Query(description="Filter: calibrations (tmcmc) or sensitivity studies (morris)."),

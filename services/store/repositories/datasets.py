@@ -1,17 +1,18 @@
 """Uploaded SWT datasets: immutable, unique by content hash.
 
-A dataset row holds the bytes as uploaded (``raw``, optional for datasets built in code), the
-upload metadata (``meta``: whatever the uploader sent besides the file), and the processed
-dataset (``processed``: ``SWTDataset.to_dict(include_series=False)``: conditions, provenance,
-steady means, standard errors and processing parameters). The filtered series are not stored;
-they are recomputed from ``raw`` when needed.
+A dataset row holds the upload metadata (``meta``: whatever the uploader sent besides the
+file) and the processed dataset (``processed``: ``SWTDataset.to_dict(include_series=False)``:
+conditions, provenance, steady means, standard errors and processing parameters). The bytes as
+uploaded (optional for datasets built in code) are rows of ``dataset_chunks`` of at most 1 MiB
+each. The filtered series are not stored; they are recomputed from the raw bytes when needed.
 """
 
 from __future__ import annotations
 
+import io
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, BinaryIO
 
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql, sqlite
@@ -21,15 +22,17 @@ from scm_core.signals import SWTDataset
 
 from ..engine import jsonable
 from ..errors import NotFoundError
-from ..models import Dataset
+from ..models import Dataset, DatasetChunk, DatasetUpload
 from ..records import DatasetRecord, Page
 from .base import Database
 from .events import append_event
 
 __all__ = ["DatasetRepository"]
 
+#: largest piece of a dataset's raw bytes in one row
+RAW_CHUNK_BYTES = 1 << 20
 _NONFINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
-_LIST_COLUMNS = [c for c in Dataset.__table__.c if c.key != "raw"]
+_LIST_COLUMNS = list(Dataset.__table__.c)
 
 
 def _record(row: Any) -> DatasetRecord:
@@ -65,17 +68,25 @@ def _restore_floats(processed: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _insert_ignore(session: Session, values: dict[str, Any]) -> int | None:
-    """INSERT ... ON CONFLICT (content_hash) DO NOTHING RETURNING id."""
+def _insert_ignore(session: Session, model: Any, key: str, values: dict[str, Any]) -> bool:
+    """INSERT ... ON CONFLICT (key) DO NOTHING; True when a row was inserted."""
     dialect = session.get_bind().dialect.name
     insert = postgresql.insert if dialect == "postgresql" else sqlite.insert
     stmt = (
-        insert(Dataset)
+        insert(model)
         .values(**values)
-        .on_conflict_do_nothing(index_elements=["content_hash"])
-        .returning(Dataset.id)
+        .on_conflict_do_nothing(index_elements=[key])
+        .returning(model.__table__.c[key])
     )
-    return session.execute(stmt).scalar_one_or_none()
+    return session.execute(stmt).scalar_one_or_none() is not None
+
+
+def _write_chunks(session: Session, dataset_id: int, stream: BinaryIO) -> None:
+    """Store ``stream`` as ``dataset_chunks`` rows of at most 1 MiB."""
+    seq = 0
+    while chunk := stream.read(RAW_CHUNK_BYTES):
+        session.execute(sa.insert(DatasetChunk).values(dataset_id=dataset_id, seq=seq, data=chunk))
+        seq += 1
 
 
 class DatasetRepository:
@@ -85,46 +96,58 @@ class DatasetRepository:
     def add(
         self,
         dataset: SWTDataset,
-        raw: bytes | None = None,
+        raw: bytes | BinaryIO | None = None,
         *,
         meta: Mapping[str, Any] | None = None,
         filename: str | None = None,
         media_type: str | None = None,
+        upload_hash: str | None = None,
     ) -> tuple[DatasetRecord, bool]:
         """Store a dataset unless one with the same content hash exists.
 
         Returns (record, created). An identical re-upload (same ``dataset.content_hash``)
         returns the existing row unchanged and created=False, also under concurrent uploads.
+        ``upload_hash`` (the upload as sent) is recorded for :meth:`find_upload`. ``raw`` (bytes
+        or a seekable binary file) is stored in pieces of 1 MiB, never held whole.
         """
         if not dataset.content_hash:
             raise ValueError("dataset has no content_hash")
         now = self.db.now()
+        stream = io.BytesIO(raw) if isinstance(raw, bytes | bytearray) else raw
+        size = 0
+        if stream is not None:
+            size = stream.seek(0, io.SEEK_END)
+            stream.seek(0)
         values = {
             "content_hash": dataset.content_hash,
             "name": dataset.name[:200],
             "source_kind": dataset.source_kind,
             "filename": filename,
             "media_type": media_type,
-            "size_bytes": len(raw) if raw is not None else 0,
-            "raw": raw,
+            "size_bytes": size,
             "meta": jsonable(dict(meta or {})),
             "processed": jsonable(dataset.to_dict(include_series=False)),
             "created_at": now,
         }
         with self.db.write() as s:
-            new_id = _insert_ignore(s, values)
-            if new_id is not None:
+            created = _insert_ignore(s, Dataset, "content_hash", values)
+            row = s.execute(
+                sa.select(*_LIST_COLUMNS).where(Dataset.content_hash == dataset.content_hash)
+            ).one()
+            if created and stream is not None:
+                _write_chunks(s, row.id, stream)
+            if created:
                 append_event(
                     s,
                     None,
                     "dataset_added",
-                    {"dataset_id": new_id, "content_hash": dataset.content_hash},
+                    {"dataset_id": row.id, "content_hash": dataset.content_hash},
                     now,
                 )
-            row = s.execute(
-                sa.select(*_LIST_COLUMNS).where(Dataset.content_hash == dataset.content_hash)
-            ).one()
-            return _record(row), new_id is not None
+            if upload_hash is not None:
+                upload = {"upload_hash": upload_hash, "dataset_id": row.id, "created_at": now}
+                _insert_ignore(s, DatasetUpload, "upload_hash", upload)
+            return _record(row), created
 
     def get(self, dataset_id: int) -> DatasetRecord:
         with self.db.read() as s:
@@ -140,6 +163,16 @@ class DatasetRepository:
             ).first()
         return None if row is None else _record(row)
 
+    def find_upload(self, upload_hash: str) -> DatasetRecord | None:
+        """The dataset an identical earlier upload gave (same bytes, metadata and offset)."""
+        with self.db.read() as s:
+            row = s.execute(
+                sa.select(*_LIST_COLUMNS)
+                .join(DatasetUpload, DatasetUpload.dataset_id == Dataset.id)
+                .where(DatasetUpload.upload_hash == upload_hash)
+            ).first()
+        return None if row is None else _record(row)
+
     def load(self, dataset_id: int) -> SWTDataset:
         """The processed dataset (without series) as an SWTDataset."""
         return SWTDataset.from_dict(_restore_floats(self.get(dataset_id).processed))
@@ -147,10 +180,14 @@ class DatasetRepository:
     def raw(self, dataset_id: int) -> bytes | None:
         """The bytes as uploaded (None for datasets stored without them)."""
         with self.db.read() as s:
-            row = s.execute(sa.select(Dataset.raw).where(Dataset.id == dataset_id)).first()
-        if row is None:
-            raise NotFoundError(f"dataset {dataset_id} not found")
-        return row.raw
+            if s.scalar(sa.select(Dataset.id).where(Dataset.id == dataset_id)) is None:
+                raise NotFoundError(f"dataset {dataset_id} not found")
+            chunks = s.scalars(
+                sa.select(DatasetChunk.data)
+                .where(DatasetChunk.dataset_id == dataset_id)
+                .order_by(DatasetChunk.seq)
+            ).all()
+        return b"".join(chunks) if chunks else None
 
     def list(self, *, limit: int = 50, offset: int = 0) -> Page[DatasetRecord]:
         """Datasets, newest first."""

@@ -88,6 +88,10 @@ def stage_id_of(session: Session, study_id: int, stage_index: int) -> int:
     return int(sid)
 
 
+#: the largest sample index (an INTEGER column)
+_INDEX_MAX = 2**31 - 1
+
+
 class SampleRepository:
     def __init__(self, db: Database) -> None:
         self.db = db
@@ -105,11 +109,12 @@ class SampleRepository:
     def page(
         self, study_id: int, stage_index: int, *, start: int = 0, limit: int = 500
     ) -> SamplePage:
-        """Samples ``start`` .. ``start + limit - 1`` (keyset on the sample index)."""
-        start = max(int(start), 0)
-        limit = max(int(limit), 0)
+        """Samples ``start`` .. ``start + limit - 1`` (keyset on the sample index; bounds past
+        the column's largest value are clipped to it, where no sample can be)."""
+        start = min(max(int(start), 0), _INDEX_MAX)
+        end = min(start + max(int(limit), 0), _INDEX_MAX)
         with self.db.read() as s:
             sid = stage_id_of(s, study_id, stage_index)
             total = int(s.scalar(sa.select(sa.func.count()).where(Sample.stage_id == sid)) or 0)
-            arrays = fetch_arrays(s, sid, start, start + limit)
+            arrays = fetch_arrays(s, sid, start, end)
         return SamplePage(start=start, total=total, arrays=arrays)
