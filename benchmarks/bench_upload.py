@@ -5,7 +5,8 @@ Run: ``python benchmarks/bench_upload.py [--mb 15 60] [--repeats 3] [--baseline 
 Two tables, medians of ``--repeats`` runs:
 
 * **parse**: ``load_dataset(path, keep_series=False)`` in a fresh process per run: wall time and
-  peak RSS rise (``ru_maxrss`` after minus ``VmRSS`` before). With ``--baseline REF`` the same
+  peak RSS rise (``VmHWM`` after minus ``VmRSS`` before, the peak reset after the imports
+  through ``/proc/self/clear_refs``). With ``--baseline REF`` the same
   is run on a git worktree of REF (e.g. the commit before chunked parsing) in the same session,
   so before and after share the machine's noise.
 * **server**: ``scm-calib serve`` (temporary SQLite database, 2 pool processes) on 127.0.0.1:
@@ -39,16 +40,20 @@ TOKEN = "bench-token"
 BYTES_PER_ROW = 75.6  # measured for this generator
 
 PARSE_SNIPPET = """
-import resource, sys, time
+import sys, time
 from pathlib import Path
 from scm_core.signals import load_dataset
-status = Path("/proc/self/status").read_text().splitlines()
-before = next(int(x.split()[1]) for x in status if x.startswith("VmRSS:"))
+
+def status(key):
+    lines = Path("/proc/self/status").read_text().splitlines()
+    return next(int(x.split()[1]) for x in lines if x.startswith(key + ":"))
+
+Path("/proc/self/clear_refs").write_text("5")  # peak := current, after the imports
+before = status("VmRSS")
 t0 = time.perf_counter()
 load_dataset(sys.argv[1], keep_series=False)
 dt = time.perf_counter() - t0
-after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-print(dt, (after - before) / 1024.0)
+print(dt, (status("VmHWM") - before) / 1024.0)
 """
 
 
