@@ -32,6 +32,7 @@ from scm_core.calibration import (
 )
 from scm_core.inference.tmcmc_stage import PointEvaluation, StageState
 from scm_core.signals import SWTDataset
+from scm_core.validation_text import first_error, one_line
 from services.store import Store
 from services.store.errors import NotFoundError
 from services.store.records import (
@@ -150,10 +151,9 @@ def _check_configuration(
         )
     except (ValidationError, ValueError) as exc:
         field = f"dataset_id: dataset {dataset_id}"
+        text = one_line(exc)
         if isinstance(exc, ValidationError):
-            err = exc.errors()[0]
-            loc = [str(p) for p in err.get("loc", ())]
-            text = f"{'.'.join(loc)}: {str(err.get('msg', '')).removeprefix('Value error, ')}"
+            loc = first_error(exc)[0]
             factor = (
                 "k_star"
                 if loc and loc[-1] in ("k_c", "k_phi") and design.names[0] == "k_star"
@@ -161,8 +161,6 @@ def _check_configuration(
             )
             if factor in design.names:
                 field = f"bounds.{factor}"
-        else:
-            text = str(exc)
         raise SensitivityInputError(
             f"{field}: invalid simulator configuration at the centre of the factor box: {text}"
         ) from None

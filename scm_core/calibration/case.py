@@ -63,6 +63,7 @@ from scm_core.inference.priors import (
 )
 from scm_core.inference.tmcmc_stage import TMCMCSettings
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
+from scm_core.validation_text import first_error, one_line
 
 __all__ = [
     "CALIBRATABLE",
@@ -405,17 +406,13 @@ def _strip_cls(msg: str) -> str:
 
 
 def _describe(exc: ValidationError) -> str:
-    err = exc.errors()[0]
-    loc = [str(p) for p in err.get("loc", ())]
-    # pydantic reports union members as an extra location element; keep the user's path
-    loc = [p for p in loc if p not in ("float", "int", "bool", "str")]
+    loc, msg, err = first_error(exc)
     where = ".".join(loc) or "case"
     kind = err.get("type", "")
     if kind == "missing":
         return f"{where}: required field is missing"
     if kind == "extra_forbidden":
         return f"{where}: unknown field"
-    msg = err.get("msg", "invalid value").removeprefix("Value error, ")
     if "input" in err and kind != "model_type":
         return f"{where}: {msg} (got {err['input']!r})"
     return f"{where}: {msg}"
@@ -425,11 +422,7 @@ def _validate_config(cls: type[BaseModel], values: dict[str, Any], label: str) -
     try:
         cls.model_validate(values)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = ".".join(str(p) for p in err.get("loc", ()))
-        msg = err.get("msg", "invalid value").removeprefix("Value error, ")
-        where = f"{label}.{loc}" if loc else label
-        raise CaseError(f"{where}: {msg}") from None
+        raise CaseError(one_line(exc, label)) from None
 
 
 # ---------------------------------------------------------------------- presets

@@ -40,6 +40,7 @@ from scm_core.simulator import (
     simulate_swt,
 )
 from scm_core.simulator.layout import N_PARAMS, pack
+from scm_core.validation_text import one_line
 
 from .case import CALIBRATABLE, RESPONSES, RIG_FIELDS, SOIL_FIELDS, WHEEL_FIELDS, CaseDefinition
 
@@ -184,6 +185,19 @@ class StudyModel:
         ValidationError for invalid values."""
         d = self.datasets[dataset] if isinstance(dataset, int) else dataset_terms(dataset)
         return build_configs(self.nominal, self.simulator, d.conditions, self.values(theta))
+
+    def config_problem(
+        self, theta: ArrayLike, at: str = "the prior medians"
+    ) -> tuple[int, str] | None:
+        """(dataset index, one-line reason) of the first dataset whose simulator configuration
+        cannot be built at ``theta`` (e.g. the prior medians: the study would fail on its first
+        batch), or None."""
+        for k in range(self.n_datasets):
+            try:
+                self.configs(theta, k)
+            except (ValidationError, ValueError) as exc:
+                return k, f"invalid simulator configuration at {at}: {one_line(exc)}"
+        return None
 
     def pack_rows(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """Packed simulator rows (m * n_datasets, N_PARAMS), row i * n + k for point i and

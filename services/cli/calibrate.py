@@ -412,17 +412,10 @@ def _default_batch_size(n_samples: int, workers: int | None) -> int:
 def _precheck(case: CaseDefinition, model: StudyModel) -> None:
     """Refuse a study whose configuration cannot be built at the prior medians."""
     theta = case.prior().ppf(np.full(len(case.parameters), 0.5))
-    for k, d in enumerate(model.datasets):
-        try:
-            model.configs(theta, k)
-        except ValidationError as exc:
-            err = exc.errors()[0]
-            loc = ".".join(str(p) for p in err.get("loc", ()))
-            msg = err.get("msg", "").removeprefix("Value error, ")
-            raise CLIError(
-                f"dataset {d.name}: invalid simulator configuration at the prior medians: "
-                f"{loc + ': ' if loc else ''}{msg}"
-            ) from None
+    problem = model.config_problem(theta)
+    if problem is not None:
+        k, why = problem
+        raise CLIError(f"dataset {model.datasets[k].name}: {why}")
 
 
 @click.command()

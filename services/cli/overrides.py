@@ -8,6 +8,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, resolve_rig
+from scm_core.validation_text import first_error
 
 CONFIG_TYPES: tuple[type[BaseModel], ...] = (SoilParams, WheelGeometry, RigConfig)
 
@@ -54,9 +55,8 @@ def build_configs(items: Iterable[str]) -> tuple[SoilParams, WheelGeometry, RigC
 
 
 def _one_line(exc: ValidationError, given: dict[str, Any]) -> str:
-    err = exc.errors()[0]
-    loc = ".".join(str(x) for x in err.get("loc", ()))
-    msg = err.get("msg", "invalid value").removeprefix("Value error, ")
+    parts, msg, _ = first_error(exc)
+    loc = ".".join(parts)
     if loc:
         return f"invalid value for {loc}={given.get(loc, '?')!s}: {msg}"
     return msg

@@ -23,6 +23,7 @@ from test_api_support import (
     fresh_database,
     row_counts,
     summary_doc,
+    tiny_case,
     upload_file,
 )
 
@@ -303,3 +304,24 @@ def test_identical_upload_returns_same_dataset(env: Env) -> None:
     after = row_counts(env.url)
     assert after["datasets"] == before["datasets"] + 1
     assert after["events"] == before["events"] + 1  # one "dataset_added"
+
+
+def test_case_invalid_on_a_dataset_at_the_prior_medians_is_refused(env: Env) -> None:
+    """A 1.5 cm wheel (from the dataset) with the case's 9 mm grousers cannot be built
+    (grousers at most half the radius): 422 naming the dataset and the reason, before any
+    study is stored."""
+    doc = summary_doc(9.0, name="small wheel")
+    doc["conditions"] = {**doc["conditions"], "R": 0.015}
+    small = env.client.post("/datasets", json=doc, headers=AUTH)
+    assert small.status_code == 201, small.text
+    before = row_counts(env.url)
+    r = env.client.post(
+        "/studies", json={"case": tiny_case(), "dataset_ids": [small.json()["id"]]}, headers=AUTH
+    )
+    assert r.status_code == 422, r.text
+    assert detail(r) == (
+        f"dataset_ids: dataset {small.json()['id']} (small wheel): invalid simulator "
+        "configuration at the prior medians: grouser_height must be at most half the rim "
+        "radius R"
+    )
+    assert row_counts(env.url) == before

@@ -163,22 +163,14 @@ def precheck(
     except (ValidationError, ValueError) as exc:
         raise _unprocessable(f"dataset_ids: {exc}") from None
     theta = case.prior().ppf(np.full(len(case.parameters), 0.5))
-    for k, d in enumerate(model.datasets):
-        try:
-            model.configs(theta, k)
-        except (ValidationError, ValueError) as exc:
-            if isinstance(exc, ValidationError):
-                err = exc.errors()[0]
-                loc = ".".join(str(p) for p in err.get("loc", ()))
-                msg = str(err.get("msg", "")).removeprefix("Value error, ")
-                text = f"{loc}: {msg}" if loc else msg
-            else:
-                text = str(exc)
-            raise _unprocessable(
-                f"dataset_ids: dataset {dataset_ids[k]} ({d.name}): invalid simulator "
-                f"configuration at the prior medians: {text}"
-            ) from None
-        if settings is not None:
+    problem = model.config_problem(theta)
+    if problem is not None:
+        k, why = problem
+        raise _unprocessable(
+            f"dataset_ids: dataset {dataset_ids[k]} ({model.datasets[k].name}): {why}"
+        )
+    if settings is not None:
+        for k in range(model.n_datasets):
             check_runs(settings, model, theta, k, dataset_ids[k])
 
 
