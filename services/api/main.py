@@ -36,6 +36,7 @@ from starlette.routing import Match
 from services.config import Settings, get_settings
 from services.limits import LimitError, check_json_depth
 from services.store import NotFoundError, SchemaVersionError, Store
+from services.studies import StudyRequestError
 
 from .deps import check_token, route_needs_token
 from .params import NOT_FOUND_PARAMS
@@ -188,6 +189,10 @@ def _unparsable_body(cause: BaseException) -> str:
 
 
 def _install_error_handlers(app: FastAPI) -> None:
+    @app.exception_handler(StudyRequestError)
+    async def _study_request(request: Request, exc: StudyRequestError) -> JSONResponse:
+        return _error(422, str(exc))
+
     @app.exception_handler(StarletteHTTPException)  # also FastAPI's HTTPException
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         if exc.status_code == 405:

@@ -3,11 +3,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
-from fastapi import Path
+from fastapi import HTTPException, Path, Query
 
 from services.limits import INT32_MAX, INT64_MAX
+from services.store.models import STUDY_STATUSES
 
 StudyId = Annotated[int, Path(ge=0, le=INT64_MAX, description="A study's id.")]
 DatasetId = Annotated[int, Path(ge=0, le=INT64_MAX, description="A dataset's id.")]
@@ -22,3 +23,32 @@ StageIndex = Annotated[
 
 #: path parameters whose out-of-range values answer 404 (resource named in the message)
 NOT_FOUND_PARAMS = {"study_id": "study", "dataset_id": "dataset", "stage": "stage"}
+
+
+_ANY_STATUS = "|".join(STUDY_STATUSES)
+#: what ``?status=`` accepts: statuses separated by commas, spaces around them and empty
+#: items ignored (the pattern of the parameter in the OpenAPI document)
+STATUS_PATTERN = rf"^ *(?:(?:{_ANY_STATUS}) *)?(?:, *(?:(?:{_ANY_STATUS}) *)?)*$"
+
+
+def status_query(what: str) -> Any:
+    """The ``?status=`` parameter of a list of ``what``."""
+    return Query(
+        description=f"Filter {what}: one status or several, comma-separated "
+        f"({', '.join(STUDY_STATUSES)}).",
+        json_schema_extra={"pattern": STATUS_PATTERN},
+    )
+
+
+def parse_statuses(status: str | None) -> list[str] | None:
+    """``?status=a,b`` as a list (None: all); 422 naming ``query.status`` for an unknown one.
+    Items are separated by commas; spaces around them and empty items are ignored
+    (:data:`STATUS_PATTERN`)."""
+    items = [s.strip(" ") for s in (status or "").split(",")]
+    unknown = [s for s in items if s and s not in STUDY_STATUSES]
+    if unknown:
+        raise HTTPException(
+            422,
+            f"query.status: unknown status {unknown[0]!r}; one of {', '.join(STUDY_STATUSES)}",
+        )
+    return [s for s in items if s] or None

@@ -15,9 +15,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_api_support import AUTH, api_client, detail, fresh_database
 
+from services.api.params import STATUS_PATTERN, parse_statuses
 from services.api.routes import errors
 from services.api.routes.pooled import IDS_PATTERN
-from services.api.routes.studies import STATUS_PATTERN, parse_statuses
 from services.store.models import STUDY_STATUSES
 
 WRITES = {("post", "/datasets"), ("post", "/studies"), ("post", "/studies/{study_id}/cancel")}

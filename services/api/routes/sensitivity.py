@@ -11,28 +11,21 @@ from __future__ import annotations
 
 from typing import Annotated
 
-import numpy as np
 from fastapi import APIRouter, Depends, HTTPException, Query, Response
 
-from scm_core.calibration import StudyModel
-from services.limits import INT64_MAX, LimitError, check_simulator_settings, check_study_size
+from services.limits import INT64_MAX
 from services.store import Store, StudyRecord
-from worker.morris_study import SensitivityInputError, sensitivity_spec
+from services.studies import base_case, create_and_start, sensitivity_request
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
-from ..params import StudyId
+from ..params import StudyId, parse_statuses, status_query
 from ..schemas import SensitivityCreate, SensitivityOut, SensitivityPage
 from ..views import sensitivity_out
 from . import errors
-from .studies import base_case, check_runs, create_and_start, parse_statuses, status_query
 
 router = APIRouter(
     prefix="/sensitivity", tags=["sensitivity"], dependencies=[Depends(require_read)]
 )
-
-
-def _unprocessable(message: str) -> HTTPException:
-    return HTTPException(422, " ".join(str(message).split()))
 
 
 def _get(store: Store, study_id: int) -> StudyRecord:
@@ -64,41 +57,18 @@ def create_sensitivity(
     ``dataset_id``, with the case's nominal values and simulator settings. Bounds: ``bounds``,
     else the case's prior for a calibrated factor, else the defaults (Table 2 for n, phi, J).
     Any problem answers 422 naming the field, and nothing is stored."""
-    case = base_case(body.preset, body.case)
-    try:
-        check_simulator_settings(settings, dict(case.simulator))
-    except LimitError as exc:
-        raise _unprocessable(str(exc)) from None
-    try:
-        spec = sensitivity_spec(
-            store,
-            case,
-            body.dataset_id,
-            r=body.r,
-            levels=body.levels,
-            seed=body.seed,
-            joint_k=not body.separate_k,
-            bounds=body.bounds,
-            batch_size=body.batch_size,
-            name=body.name,
-        )
-    except SensitivityInputError as exc:
-        raise _unprocessable(str(exc)) from None
-    try:
-        check_study_size(
-            settings,
-            n_samples=spec.n_samples,
-            max_stages=0,
-            steps_per_chain=0,
-            dataset_ids=spec.dataset_ids,
-            batch_size=spec.batch_size,
-            samples_field="r",
-        )
-    except LimitError as exc:
-        raise _unprocessable(str(exc)) from None
-    model = StudyModel(case, [store.datasets.load(body.dataset_id)])
-    check_runs(
-        settings, model, case.prior().ppf(np.full(len(case.parameters), 0.5)), 0, body.dataset_id
+    spec = sensitivity_request(
+        store,
+        settings,
+        base_case(body.preset, body.case),
+        body.dataset_id,
+        r=body.r,
+        levels=body.levels,
+        seed=body.seed,
+        joint_k=not body.separate_k,
+        bounds=body.bounds,
+        batch_size=body.batch_size,
+        name=body.name,
     )
     study_id = create_and_start(store, spec, dispatcher)
     response.headers["Location"] = f"/sensitivity/{study_id}"

@@ -14,29 +14,19 @@ import math
 from collections.abc import Iterator
 from typing import Annotated, Any, Literal
 
-import numpy as np
 from fastapi import APIRouter, Body, Depends, HTTPException, Query, Response
 from fastapi.responses import StreamingResponse
-from pydantic import ValidationError
 
-from scm_core.calibration import CaseDefinition, CaseError, StudyModel, preset_case
-from scm_core.simulator.layout import pack
-from services.config import Settings
+from scm_core.calibration import CaseDefinition
 from services.limits import (
     INT64_MAX,
-    LimitError,
-    check_run_size,
-    check_simulator_settings,
-    check_study_size,
 )
-from services.store import Store, StudySpec
-from services.store.models import STUDY_STATUSES
-from worker.orchestrator import DEFAULT_BATCH_SIZE, StudyInputError, start_study, study_spec
+from services.store import Store
+from services.studies import base_case, calibration_spec, create_and_start, with_overrides
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
-from ..params import StageIndex, StudyId
+from ..params import StageIndex, StudyId, parse_statuses, status_query
 from ..schemas import (
-    SEED_MAX,
     CancelRequest,
     EventOut,
     SamplesPage,
@@ -71,118 +61,14 @@ _SAMPLER_OVERRIDES = ("n_samples", "moves", "n_steps", "max_stages")
 _TOP_OVERRIDES = ("name", "seed", "likelihood")
 
 
-def _unprocessable(message: str) -> HTTPException:
-    return HTTPException(422, " ".join(str(message).split()))
-
-
 # ---------------------------------------------------------------------------- submission
 
 
-def base_case(preset: str | None, document: dict[str, Any] | None) -> CaseDefinition:
-    """The case named by a request: a preset of the paper or a case document (exactly one);
-    422 naming the field (``preset``, ``case.parameters.k_phi`` ...)."""
-    if (preset is None) == (document is None):
-        raise _unprocessable(
-            "preset: give exactly one of 'preset' (a name: 1, 2a, 2b) or 'case' (a case document)"
-        )
-    if preset is not None:
-        try:
-            return preset_case(preset)
-        except CaseError as exc:
-            raise _unprocessable(f"preset: {exc}") from None
-    try:
-        return CaseDefinition.from_dict(document or {})
-    except CaseError as exc:
-        text = str(exc)
-        raise _unprocessable(text if text.startswith("case") else f"case.{text}") from None
-
-
 def build_case(body: StudyCreate) -> CaseDefinition:
-    """The case of a request: the preset or the case document, with the overrides applied;
-    422 naming the field (``preset``, ``case.parameters.k_phi``, ``n_samples`` ...)."""
-    case = base_case(body.preset, body.case)
+    """The case of a request: the preset or the case document, with the overrides applied."""
     sampler = {k: getattr(body, k) for k in _SAMPLER_OVERRIDES if getattr(body, k) is not None}
     top = {k: getattr(body, k) for k in _TOP_OVERRIDES if getattr(body, k) is not None}
-    if sampler or top:
-        try:
-            case = case.with_changes(**top, **({"sampler": sampler} if sampler else {}))
-        except CaseError as exc:
-            raise _unprocessable(str(exc).removeprefix("sampler.")) from None
-    if case.seed > SEED_MAX:
-        raise _unprocessable(f"seed: must be < 2**63 (got {case.seed})")
-    return case
-
-
-def check_limits(
-    settings: Settings,
-    case: CaseDefinition,
-    dataset_ids: list[int],
-    batch_size: int | None = None,
-) -> None:
-    """The service's limits on the study's size (samples, stages, datasets, batches, model
-    runs) and its simulator table, before any dataset is read; 422 naming the field."""
-    sampler = case.tmcmc_settings()
-    try:
-        check_simulator_settings(settings, dict(case.simulator))
-        check_study_size(
-            settings,
-            n_samples=case.sampler.n_samples,
-            max_stages=case.sampler.max_stages,
-            steps_per_chain=sampler.n_steps or sampler.max_steps,
-            dataset_ids=dataset_ids,
-            batch_size=batch_size or case.sampler.batch_size or DEFAULT_BATCH_SIZE,
-        )
-    except LimitError as exc:
-        raise _unprocessable(str(exc)) from None
-
-
-def check_runs(settings: Settings, model: StudyModel, theta: Any, k: int, dataset_id: int) -> None:
-    """One run's size (time steps, grid cells, output rate) on dataset ``k`` of ``model`` at
-    ``theta`` against the service's limits (the size depends on the wheel, the test
-    conditions and the simulator settings, not on the soil); 422 naming the field."""
-    where = f"dataset {dataset_id} ({model.datasets[k].name})"
-    try:
-        prm = pack(*model.configs(theta, k))
-    except (ValidationError, ValueError):
-        return  # not a valid configuration: the caller's own check names the field
-    try:
-        check_run_size(settings, prm, where)
-    except LimitError as exc:
-        raise _unprocessable(str(exc)) from None
-
-
-def precheck(
-    store: Store, case: CaseDefinition, dataset_ids: list[int], settings: Settings | None = None
-) -> None:
-    """Refuse a case whose simulator configuration cannot be built at the prior medians on
-    the datasets' test conditions (the study would fail on its first batch), or whose runs
-    are over the service's limits (time steps, grid cells, output rate)."""
-    datasets = [store.datasets.load(d) for d in dataset_ids]
-    try:
-        model = StudyModel(case, datasets)
-    except (ValidationError, ValueError) as exc:
-        raise _unprocessable(f"dataset_ids: {exc}") from None
-    theta = case.prior().ppf(np.full(len(case.parameters), 0.5))
-    problem = model.config_problem(theta)
-    if problem is not None:
-        k, why = problem
-        raise _unprocessable(
-            f"dataset_ids: dataset {dataset_ids[k]} ({model.datasets[k].name}): {why}"
-        )
-    if settings is not None:
-        for k in range(model.n_datasets):
-            check_runs(settings, model, theta, k, dataset_ids[k])
-
-
-def create_and_start(store: Store, spec: StudySpec, dispatcher: Any) -> int:
-    """Store a validated study and start it; returns its id. A failed dispatch is logged and
-    not an error: the batches stay pending and the reaper (or the local loop) sends them."""
-    record = store.studies.create(spec)
-    try:
-        start_study(store, record.id, dispatcher)
-    except Exception:
-        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
-    return record.id
+    return with_overrides(base_case(body.preset, body.case), top, sampler)
 
 
 @router.post(
@@ -204,47 +90,13 @@ def create_study(
     with optional overrides (``seed``, ``n_samples``, ``moves``, ``n_steps``, ``max_stages``,
     ``likelihood``, ``name``, ``batch_size``), and start it. Any problem answers 422 naming
     the field, and nothing is stored."""
-    case = build_case(body)
-    check_limits(settings, case, body.dataset_ids, body.batch_size)
-    try:
-        spec = study_spec(store, case, body.dataset_ids, body.batch_size)
-    except StudyInputError as exc:
-        raise _unprocessable(str(exc)) from None
-    precheck(store, case, list(spec.dataset_ids), settings)
+    spec = calibration_spec(store, settings, build_case(body), body.dataset_ids, body.batch_size)
     study_id = create_and_start(store, spec, dispatcher)
     response.headers["Location"] = f"/studies/{study_id}"
     return study_out(store, store.studies.get(study_id))
 
 
 # ---------------------------------------------------------------------------- reading
-
-
-_ANY_STATUS = "|".join(STUDY_STATUSES)
-#: what ``?status=`` accepts: statuses separated by commas, spaces around them and empty
-#: items ignored (the pattern of the parameter in the OpenAPI document)
-STATUS_PATTERN = rf"^ *(?:(?:{_ANY_STATUS}) *)?(?:, *(?:(?:{_ANY_STATUS}) *)?)*$"
-
-
-def status_query(what: str) -> Any:
-    """The ``?status=`` parameter of a list of ``what``."""
-    return Query(
-        description=f"Filter {what}: one status or several, comma-separated "
-        f"({', '.join(STUDY_STATUSES)}).",
-        json_schema_extra={"pattern": STATUS_PATTERN},
-    )
-
-
-def parse_statuses(status: str | None) -> list[str] | None:
-    """``?status=a,b`` as a list (None: all); 422 naming ``query.status`` for an unknown one.
-    Items are separated by commas; spaces around them and empty items are ignored
-    (:data:`STATUS_PATTERN`)."""
-    items = [s.strip(" ") for s in (status or "").split(",")]
-    unknown = [s for s in items if s and s not in STUDY_STATUSES]
-    if unknown:
-        raise _unprocessable(
-            f"query.status: unknown status {unknown[0]!r}; one of {', '.join(STUDY_STATUSES)}"
-        )
-    return [s for s in items if s] or None
 
 
 @router.get("", response_model=StudyPage, summary="List studies", responses=errors(401, 422))
