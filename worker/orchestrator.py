@@ -100,6 +100,12 @@ def work_batches(
     return out
 
 
+def service_batch_size(case: CaseDefinition, requested: int | None = None) -> int:
+    """Chains per work batch of a service study: the request's, else the case's, else
+    :data:`DEFAULT_BATCH_SIZE` (stages then cut it by guided self-scheduling)."""
+    return int(requested or case.sampler.batch_size or DEFAULT_BATCH_SIZE)
+
+
 def study_spec(
     store: Store, case: CaseDefinition, dataset_ids: Sequence[int], batch_size: int | None = None
 ) -> StudySpec:
@@ -113,7 +119,7 @@ def study_spec(
             store.datasets.get(int(did))
         except NotFoundError:
             raise StudyInputError(f"dataset_ids: no dataset with id {did}") from None
-    size = batch_size or case.sampler.batch_size or DEFAULT_BATCH_SIZE
+    size = service_batch_size(case, batch_size)
     return StudySpec(
         name=case.name,
         case=case.to_dict(),
@@ -135,9 +141,19 @@ def submit_study(
     batch_size: int | None = None,
 ):
     """Create a study and start it (stage 0 batches are dispatched when a dispatcher is given)."""
-    record = store.studies.create(study_spec(store, case, dataset_ids, batch_size))
-    start_study(store, record.id, dispatcher)
-    return store.studies.get(record.id)
+    spec = study_spec(store, case, dataset_ids, batch_size)
+    return store.studies.get(create_and_start(store, spec, dispatcher))
+
+
+def create_and_start(store: Store, spec: StudySpec, dispatcher: Dispatcher | None) -> int:
+    """Store a validated study and start it; returns its id. A failed dispatch is logged and
+    not an error: the batches stay pending and the reaper (or the local loop) sends them."""
+    record = store.studies.create(spec)
+    try:
+        start_study(store, record.id, dispatcher)
+    except Exception:
+        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
+    return record.id
 
 
 def start_study(store: Store, study_id: int, dispatcher: Dispatcher | None) -> None:

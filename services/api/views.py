@@ -6,9 +6,9 @@ Kept apart from the routers so that the routes stay thin and these can be tested
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from fastapi import HTTPException
@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scm_core.calibration import RESPONSES
 from scm_core.inference.posterior import credible_interval, summarize
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
+from services.store.records import Page
 
 from .schemas import (
     FactorOut,
@@ -30,6 +31,21 @@ from .schemas import (
 
 ACTIVE = ("queued", "running")
 FINISHED_OK = ("completed", "stalled")
+
+
+PageT = TypeVar("PageT")
+
+
+def page_out(model: Callable[..., PageT], page: Page, item: Callable[[Any], Any]) -> PageT:
+    """The response model ``model`` of one page of a store listing, ``item`` applied to each
+    record (items, total, limit, offset, next_offset)."""
+    return model(
+        items=[item(r) for r in page.items],
+        total=page.total,
+        limit=page.limit,
+        offset=page.offset,
+        next_offset=page.next_offset,
+    )
 
 
 def num(x: Any) -> float | None:

@@ -7,7 +7,6 @@ message starts with the request's field (``preset``, ``case.parameters.k_phi``, 
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Mapping
 from typing import Any
 
@@ -26,9 +25,7 @@ from services.limits import (
 )
 from services.store import Store, StudySpec
 from worker.morris_study import SensitivityInputError, sensitivity_spec
-from worker.orchestrator import DEFAULT_BATCH_SIZE, StudyInputError, start_study, study_spec
-
-log = logging.getLogger(__name__)
+from worker.orchestrator import StudyInputError, service_batch_size, study_spec
 
 
 class StudyRequestError(ValueError):
@@ -85,7 +82,7 @@ def _check_limits(
             max_stages=case.sampler.max_stages,
             steps_per_chain=sampler.n_steps or sampler.max_steps,
             dataset_ids=dataset_ids,
-            batch_size=batch_size or case.sampler.batch_size or DEFAULT_BATCH_SIZE,
+            batch_size=service_batch_size(case, batch_size),
         )
     except LimitError as exc:
         raise StudyRequestError(str(exc)) from None
@@ -172,14 +169,3 @@ def sensitivity_request(
     model = StudyModel(case, [store.datasets.load(dataset_id)])
     check_runs(settings, model, case.prior().ppf(np.full(len(case.parameters), 0.5)), 0, dataset_id)
     return spec
-
-
-def create_and_start(store: Store, spec: StudySpec, dispatcher: Any) -> int:
-    """Store a validated study and start it; returns its id. A failed dispatch is logged and
-    not an error: the batches stay pending and the reaper (or the local loop) sends them."""
-    record = store.studies.create(spec)
-    try:
-        start_study(store, record.id, dispatcher)
-    except Exception:
-        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
-    return record.id

@@ -30,6 +30,7 @@ from ..deps import SettingsDep, StoreDep, require_read, require_write
 from ..params import DatasetId
 from ..schemas import DatasetOut, DatasetPage, SeriesOut
 from ..upload_slots import upload_slots
+from ..views import page_out
 from . import errors
 
 router = APIRouter(prefix="/datasets", tags=["datasets"], dependencies=[Depends(require_read)])
@@ -322,13 +323,7 @@ def list_datasets(
 ) -> DatasetPage:
     """Datasets, newest first."""
     page = store.datasets.list(limit=limit, offset=offset)
-    return DatasetPage(
-        items=[dataset_out(r) for r in page.items],
-        total=page.total,
-        limit=limit,
-        offset=offset,
-        next_offset=page.next_offset,
-    )
+    return page_out(DatasetPage, page, dataset_out)
 
 
 @router.get(

@@ -20,7 +20,7 @@ from services.studies import base_case, create_and_start, sensitivity_request
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
 from ..params import StudyId, parse_statuses, status_query
 from ..schemas import SensitivityCreate, SensitivityOut, SensitivityPage
-from ..views import sensitivity_out
+from ..views import page_out, sensitivity_out
 from . import errors
 
 router = APIRouter(
@@ -89,13 +89,7 @@ def list_sensitivity(
 ) -> SensitivityPage:
     """Sensitivity studies, newest first, with their results."""
     page = store.studies.list(parse_statuses(status), kind="morris", limit=limit, offset=offset)
-    return SensitivityPage(
-        items=[sensitivity_out(store, s) for s in page.items],
-        total=page.total,
-        limit=limit,
-        offset=offset,
-        next_offset=page.next_offset,
-    )
+    return page_out(SensitivityPage, page, lambda s: sensitivity_out(store, s))
 
 
 @router.get(

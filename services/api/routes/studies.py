@@ -39,6 +39,7 @@ from ..schemas import (
 from ..views import (
     num,
     num_list,
+    page_out,
     parameter_names,
     parameter_summaries,
     parameter_units,
@@ -113,13 +114,7 @@ def list_studies(
     """Studies of both kinds, newest first."""
     statuses = parse_statuses(status)
     page = store.studies.list(statuses, kind=kind, limit=limit, offset=offset)
-    return StudyPage(
-        items=[study_brief(s) for s in page.items],
-        total=page.total,
-        limit=limit,
-        offset=offset,
-        next_offset=page.next_offset,
-    )
+    return page_out(StudyPage, page, study_brief)
 
 
 @router.get(
