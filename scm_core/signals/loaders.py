@@ -135,10 +135,15 @@ def load_log(
     )
 
 
+def looks_like_json(head: bytes) -> bool:
+    """Whether the first bytes of a file start a JSON object (BOM and blanks skipped)."""
+    return head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{")
+
+
 def _is_json(data: bytes, path: Path | None) -> bool:
     if path is not None and path.suffix.lower() in (".json", ".csv"):
         return path.suffix.lower() == ".json"
-    return data.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{")
+    return looks_like_json(data)
 
 
 def _summary_dataset(summary: Summary, name: str) -> SWTDataset:

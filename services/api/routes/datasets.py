@@ -22,6 +22,7 @@ from starlette.datastructures import UploadFile
 
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset, load_log, load_summary
 from scm_core.signals.hashing import canonical_json
+from scm_core.signals.loaders import looks_like_json
 from scm_core.signals.summary import MAX_SUMMARY_BYTES
 from services.limits import INT64_MAX, LimitError, check_json_depth
 from services.store import DatasetRecord
@@ -169,7 +170,7 @@ def parse_upload(
     label = f"file {filename}" if filename else "body"
     stream = io.BytesIO(source) if isinstance(source, bytes) else source
     stream.seek(0)
-    is_json = stream.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"{")
+    is_json = looks_like_json(stream.read(4096))
     try:
         if is_json:  # a summary; never a stored dataset's own JSON with its hash
             ds = load_summary(stream, metadata or None)
