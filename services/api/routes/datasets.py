@@ -190,16 +190,14 @@ def parse_upload(
 
 @dataclass
 class Upload:
-    """An upload as received: the file (seekable, spooled to disk when large), its size, the
-    parsed form fields, and the hash of all of it as sent (:func:`upload_hash`)."""
+    """An upload as received: the file (seekable, spooled to disk when large) and the parsed
+    form fields."""
 
     file: BinaryIO
-    size: int
     metadata: dict[str, Any]
     filename: str | None
     media_type: str
     offset: float
-    digest: str = ""
 
 
 def upload_hash(file: BinaryIO, metadata: dict[str, Any], offset: float) -> str:
@@ -237,7 +235,6 @@ async def _received(request: Request, limit: int, max_depth: int) -> AsyncIterat
                 raise _unprocessable("offset: must be a plain form field")
             yield Upload(
                 file=file.file,
-                size=size,
                 metadata=_parse_metadata(meta_field, max_depth),
                 filename=file.filename,
                 media_type=file.content_type or "application/octet-stream",
@@ -254,7 +251,7 @@ async def _received(request: Request, limit: int, max_depth: int) -> AsyncIterat
             raise _unprocessable(f"body: invalid JSON ({exc})") from None
         if not isinstance(doc, dict):
             raise _unprocessable("body: a summary dataset must be a JSON object")
-        yield Upload(io.BytesIO(raw), len(raw), {}, None, "application/json", DEFAULT_OFFSET)
+        yield Upload(io.BytesIO(raw), {}, None, "application/json", DEFAULT_OFFSET)
         return
     raise HTTPException(
         415,
@@ -296,8 +293,8 @@ async def upload_dataset(
         upload_slots(request.app, settings).hold(),
         _received(request, settings.upload_max_bytes, settings.max_json_depth) as up,
     ):
-        up.digest = await run_in_threadpool(upload_hash, up.file, up.metadata, up.offset)
-        rec = await run_in_threadpool(store.datasets.find_upload, up.digest)
+        digest = await run_in_threadpool(upload_hash, up.file, up.metadata, up.offset)
+        rec = await run_in_threadpool(store.datasets.find_upload, digest)
         created = False
         if rec is None:
             ds = await run_in_threadpool(parse_upload, up.file, up.metadata, up.filename, up.offset)
@@ -308,7 +305,7 @@ async def upload_dataset(
                     meta=up.metadata,
                     filename=up.filename,
                     media_type=up.media_type,
-                    upload_hash=up.digest,
+                    upload_hash=digest,
                 )
             )
     response.status_code = 201 if created else 200
