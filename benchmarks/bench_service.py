@@ -63,9 +63,10 @@ def run_once(n_workers: int, tmp: Path, case_file: Path) -> dict[str, float]:
     from services.config import Settings
     from services.store import Store
     from services.store.migrate import upgrade
+    from services.studies import calibration_spec, create_and_start
     from worker.celery_app import make_celery
     from worker.dispatch import CeleryDispatcher
-    from worker.orchestrator import submit_study, wait_for_study
+    from worker.orchestrator import wait_for_study
 
     name = f"scm_calib_bench_{uuid.uuid4().hex[:8]}"
     with psycopg.connect(ADMIN, autocommit=True) as conn:
@@ -99,8 +100,9 @@ def run_once(n_workers: int, tmp: Path, case_file: Path) -> dict[str, float]:
         meta = json.loads(LOG.with_suffix(".json").read_text())
         rec, _ = store.datasets.add(load_log(raw, metadata=meta), raw, meta=meta)
         dispatcher = CeleryDispatcher(make_celery(Settings(database_url=url, broker_url=broker)))
-        study = submit_study(store, case, [rec.id], dispatcher)
-        final = wait_for_study(store, study.id, timeout=1800, poll=0.2)
+        spec = calibration_spec(store, Settings(), case, [rec.id])
+        study_id = create_and_start(store, spec, dispatcher)
+        final = wait_for_study(store, study_id, timeout=1800, poll=0.2)
         assert final.status in ("completed", "stalled"), final.error
         row = breakdown(store, final, n_workers)
         store.close()

@@ -32,6 +32,7 @@ from .sensitivity import (
     sensitivity_design,
 )
 from .synthetic import NoiseModel, SyntheticError, SyntheticLog, synthesize_log
+from .update import UpdateLikelihood
 
 __all__ = [
     "CALIBRATABLE",
@@ -55,6 +56,7 @@ __all__ = [
     "StudyModel",
     "SyntheticError",
     "SyntheticLog",
+    "UpdateLikelihood",
     "analyze_sensitivity",
     "build_configs",
     "dataset_terms",

@@ -11,6 +11,9 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc import StageStart, TMCMCResult, tmcmc_batched
 from scm_core.inference.tmcmc_stage import LogLikelihoodBatch, StageState, TMCMCSettings
@@ -32,6 +35,7 @@ def run_tmcmc(
     on_stage_start: Callable[[StageStart], Any] | None = None,
     on_batch: Callable[[int], Any] | None = None,
     on_stage: Callable[[StageState], Any] | None = None,
+    stage0_samples: NDArray[np.float64] | None = None,
 ) -> TMCMCResult:
     """Run (or resume) TMCMC; see :func:`scm_core.inference.tmcmc_batched`.
 
@@ -39,7 +43,8 @@ def run_tmcmc(
     with its number of evaluations; ``on_stage(state)`` after a stage finished (stage 0
     included; not called for the stages of ``resume_from``). Use ``on_stage`` to checkpoint: an
     exception raised there (or a KeyboardInterrupt anywhere) stops the run, and the stages
-    saved so far resume it bit-identically.
+    saved so far resume it bit-identically. ``stage0_samples``: stage 0's points instead of
+    prior draws (a posterior update, see :func:`scm_core.inference.tmcmc_batched`).
     """
     return tmcmc_batched(
         log_likelihood_batch,
@@ -53,4 +58,5 @@ def run_tmcmc(
         settings=settings or TMCMCSettings(),
         on_stage_start=on_stage_start,
         on_batch=on_batch,
+        stage0_samples=stage0_samples,
     )

@@ -256,13 +256,16 @@ class StudyModel:
         return out
 
     def log_likelihood_from_means(
-        self, means: NDArray[np.float64], sigma: NDArray[np.float64]
+        self,
+        means: NDArray[np.float64],
+        sigma: NDArray[np.float64],
+        datasets: Sequence[int] | None = None,
     ) -> NDArray[np.float64]:
         """log L (m,) from simulated means (m, n_datasets, 3) and sigmas (m, n_used); summed
-        over datasets in order (row results independent of m)."""
+        over ``datasets`` (default all) in order (row results independent of m)."""
         func = LIKELIHOODS[self.likelihood]
         total = np.zeros(means.shape[0])
-        for k in range(self.n_datasets):
+        for k in range(self.n_datasets) if datasets is None else datasets:
             cols = self.likelihood_columns[k]
             if not cols:
                 continue

@@ -179,6 +179,7 @@ def tmcmc_batched(
     settings: TMCMCSettings | None = None,
     on_stage_start: Callable[[StageStart], Any] | None = None,
     on_batch: Callable[[int], Any] | None = None,
+    stage0_samples: NDArray[np.float64] | None = None,
 ) -> TMCMCResult:
     """Sample the posterior prior(theta) L(theta) / Z with TMCMC and estimate log Z.
 
@@ -192,7 +193,10 @@ def tmcmc_batched(
     for those stages) continues the run bit-identically.
     ``moves``, ``n_steps``, ``target_cov`` and ``max_stages`` override, when not None, the
     fields of ``settings`` (see :class:`TMCMCSettings`; defaults "resample-move", adaptive
-    n_steps, 1.0, 50).
+    n_steps, 1.0, 50). ``stage0_samples`` (n_samples, d): stage 0's points instead of prior
+    draws; a posterior update passes the earlier posterior's population with a likelihood that
+    gives log b = log L(earlier data) (see :mod:`.tmcmc_stage`), and the log evidence is then
+    the incremental one.
     """
     overrides = {
         "moves": moves,
@@ -212,7 +216,14 @@ def tmcmc_batched(
         stages = list(resume_from)
         _check_resume(stages, prior, n_samples, seed)
     else:
-        X = initial_samples(prior, n_samples, seed)
+        if stage0_samples is None:
+            X = initial_samples(prior, n_samples, seed)
+        else:
+            X = np.array(stage0_samples, dtype=float)
+            if X.shape != (n_samples, prior.dim):
+                raise ValueError(
+                    f"stage0_samples has shape {X.shape}, expected ({n_samples}, {prior.dim})"
+                )
         batches = chain_batches(n_samples, batch_size)
         if on_stage_start is not None:
             on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))

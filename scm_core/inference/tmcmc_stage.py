@@ -20,6 +20,12 @@ order, returning log L (m,) or a tuple (log L (m,), responses (m, k)). NaN and +
 as failed runs (log L = -inf) and counted; they are never raised. Proposals outside the prior's
 support are rejected without a model run.
 
+A third element, log b (m,), makes the untempered part of the target prior x b instead of the
+prior: the stages then temper from prior x b (exponent 0) to prior x b x L (exponent 1), and
+``log_prior`` of states and results holds log prior + log b. A posterior update (paper section
+5.3) uses it with b = L(earlier data) and stage 0 = the earlier posterior's population, so the
+evidence it accumulates is the incremental one, Z(new | old) (see :func:`initial_state`).
+
 Two move schemes (``TMCMCSettings.moves``):
 
 * ``"resample-move"`` (default): every resampled point starts a chain of ``n_steps`` Metropolis
@@ -75,7 +81,10 @@ __all__ = [
 MOVES = ("resample-move", "leader")
 
 LogLikelihoodBatch = Callable[
-    [NDArray[np.float64]], NDArray[np.float64] | tuple[NDArray[np.float64], NDArray[np.float64]]
+    [NDArray[np.float64]],
+    NDArray[np.float64]
+    | tuple[NDArray[np.float64], NDArray[np.float64]]
+    | tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
 ]
 
 
@@ -406,18 +415,23 @@ class ChainBatchResult:
 
 @dataclass(frozen=True, eq=False)
 class PointEvaluation:
-    """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures."""
+    """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures,
+    and log b (m,) where the likelihood gives a base density (else None; see the module doc)."""
 
     log_likelihood: NDArray[np.float64]
     responses: NDArray[np.float64] | None
     failed_runs: int
+    log_base: NDArray[np.float64] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "log_likelihood": encode_array(self.log_likelihood),
             "responses": encode_array(self.responses),
             "failed_runs": int(self.failed_runs),
         }
+        if self.log_base is not None:
+            out["log_base"] = encode_array(self.log_base)
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PointEvaluation:
@@ -425,6 +439,7 @@ class PointEvaluation:
             log_likelihood=decode_array(data["log_likelihood"]),
             responses=decode_array(data.get("responses")),
             failed_runs=int(data["failed_runs"]),
+            log_base=decode_array(data.get("log_base")),
         )
 
 
@@ -464,16 +479,27 @@ def _clean_log_likelihood(values: ArrayLike, m: int) -> tuple[NDArray[np.float64
 
 def _call_batch(
     log_likelihood_batch: LogLikelihoodBatch, X: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, int]:
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, int, NDArray[np.float64] | None]:
+    """(log L, responses or None, failed runs, log b or None) at the points X (m, d); a point
+    whose log b is not finite counts as failed and gets log L = log b = -inf."""
     out = log_likelihood_batch(X)
     m = X.shape[0]
+    base = None
     if isinstance(out, tuple):
-        ll_raw, resp_raw = out
+        ll_raw, resp_raw, *rest = out
         resp = np.asarray(resp_raw, dtype=float).reshape(m, -1)
+        if rest:
+            base = np.asarray(rest[0], dtype=float).reshape(-1)
+            if base.shape[0] != m:
+                raise ValueError(f"log_likelihood_batch returned {base.shape[0]} log b for {m}")
     else:
         ll_raw, resp = out, None
+    if base is not None:
+        bad_base = ~np.isfinite(base)
+        ll_raw = np.where(bad_base, np.nan, np.asarray(ll_raw, dtype=float).reshape(-1))
+        base = np.where(bad_base, -np.inf, base)
     ll, n_failed = _clean_log_likelihood(ll_raw, m)
-    return ll, resp, n_failed
+    return ll, resp, n_failed, base
 
 
 def plausibility_weights(
@@ -631,8 +657,8 @@ def evaluate_points(X: ArrayLike, log_likelihood_batch: LogLikelihoodBatch) -> P
     X = np.asarray(X, dtype=float)
     if X.shape[0] == 0:
         return PointEvaluation(np.empty(0), None, 0)
-    ll, resp, n_failed = _call_batch(log_likelihood_batch, X)
-    return PointEvaluation(ll, resp, n_failed)
+    ll, resp, n_failed, base = _call_batch(log_likelihood_batch, X)
+    return PointEvaluation(ll, resp, n_failed, base)
 
 
 def initial_state(
@@ -642,19 +668,30 @@ def initial_state(
     seed: int,
     settings: TMCMCSettings,
 ) -> StageState:
-    """Stage-0 state from the prior draws and their evaluations (in order, concatenated)."""
+    """Stage-0 state from the samples and their evaluations (in order, concatenated).
+
+    ``samples`` are prior draws, or, for a posterior update, the population of the earlier
+    posterior prior x b evaluated by a likelihood giving log b (then ``log_prior`` = log prior +
+    log b, exponent 0 targets prior x b and the evidence accumulated is Z(new | old)).
+    """
     ll = np.concatenate([e.log_likelihood for e in evaluations])
     if ll.shape[0] != samples.shape[0]:
         raise ValueError(f"{ll.shape[0]} evaluations for {samples.shape[0]} samples")
-    resps = [e.responses for e in evaluations if e.log_likelihood.shape[0] > 0]
+    nonempty = [e for e in evaluations if e.log_likelihood.shape[0] > 0]
+    resps = [e.responses for e in nonempty]
     responses = None if any(r is None for r in resps) else np.concatenate(resps, axis=0)
+    log_prior = np.asarray(prior.log_pdf(samples), dtype=float)
+    if nonempty and all(e.log_base is not None for e in nonempty):
+        log_prior = log_prior + np.concatenate([e.log_base for e in nonempty])
+    elif any(e.log_base is not None for e in nonempty):
+        raise ValueError("some stage-0 evaluations give log b and some do not")
     n = samples.shape[0]
     return StageState(
         stage=0,
         exponent=0.0,
         samples=np.asarray(samples, dtype=float),
         log_likelihood=ll,
-        log_prior=np.asarray(prior.log_pdf(samples), dtype=float),
+        log_prior=log_prior,
         responses=responses,
         beta=float(settings.beta0),
         acceptance_rate=math.nan,
@@ -859,8 +896,10 @@ def run_chains(
         n_ok = int(np.count_nonzero(ok))
         out_of_support += active.size - n_ok
         if n_ok:
-            ll_ok, resp_ok, n_failed = _call_batch(log_likelihood_batch, x_prop[ok])
+            ll_ok, resp_ok, n_failed, base_ok = _call_batch(log_likelihood_batch, x_prop[ok])
             ll_prop[ok] = ll_ok
+            if base_ok is not None:
+                lp_prop[ok] = lp_prop[ok] + base_ok
             model_runs += n_ok
             failed_runs += n_failed
             if resp is not None:

@@ -33,6 +33,7 @@ PRESET_OR_CASE: dict[str, Any] = {
     "oneOf": [
         {"required": ["preset"], "properties": {"preset": {"type": "string"}}},
         {"required": ["case"], "properties": {"case": {"type": "object"}}},
+        {"required": ["update_of"], "properties": {"update_of": {"type": "integer"}}},
     ]
 }
 
@@ -132,13 +133,22 @@ class PresetOut(BaseModel):
 
 class StudyCreate(_In):
     """A new study: a preset name or a full case document, the stored datasets to fit, and
-    optional overrides of the case's settings."""
+    optional overrides of the case's settings; or ``update_of`` a completed calibration with
+    new datasets (a posterior update, paper section 5.3: the case is the earlier study's)."""
 
     model_config = ConfigDict(json_schema_extra=PRESET_OR_CASE)
 
     preset: str | None = Field(None, description="The paper's case: '1', '2a' or '2b'.")
     case: dict[str, Any] | None = Field(
         None, description="A case document (the TOML case file as JSON); data.files is ignored."
+    )
+    update_of: int | None = Field(
+        None,
+        ge=0,
+        le=ID_MAX,
+        description="Update the posterior of this completed calibration with the new "
+        "dataset_ids: stage 0 is its final population and only the new datasets' likelihood "
+        "is tempered. Its log_evidence is then log Z(new | old); the total is in its result.",
     )
     dataset_ids: list[Annotated[int, Field(ge=0, le=ID_MAX)]] = Field(
         default_factory=list, description="Stored datasets (POST /datasets), likelihood order."
@@ -190,8 +200,9 @@ class ProgressOut(BaseModel):
 
 class StudyBrief(BaseModel):
     id: int
-    kind: Literal["tmcmc", "morris"] = Field(
-        description="tmcmc: a calibration; morris: a sensitivity study (see /sensitivity)."
+    kind: str = Field(
+        description="The study's kind: tmcmc a calibration; morris a sensitivity study (see "
+        "/sensitivity); others as the service's registry has them."
     )
     name: str
     status: str

@@ -18,6 +18,7 @@ from scm_core.calibration import RESPONSES
 from scm_core.inference.posterior import credible_interval, summarize
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 from services.store.records import Page
+from services.studies.kinds import kind_of
 
 from .schemas import (
     FactorOut,
@@ -165,14 +166,11 @@ def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
 
 def _stage_evaluations(store: Store, study: StudyRecord, stage: StageRecord) -> tuple:
     """(planned, done, batches_done, batches_total) evaluations of a stage, from its batches
-    and (after stage 0) the chain lengths of its plan."""
+    and (by the study's kind) its plan."""
     batches = store.batches.list(study.id, stage.stage_index)
-    lengths = [b.chain_stop - b.chain_start for b in batches]
-    if stage.stage_index > 0:
-        plan = store.stages.plan(study.id, stage.stage_index)
-        if plan is not None:
-            cl = np.asarray(plan.chain_length, dtype=np.int64)
-            lengths = [int(cl[b.chain_start : b.chain_stop].sum()) for b in batches]
+    plan = store.stages.plan(study.id, stage.stage_index) if stage.stage_index else None
+    ranges = [range(b.chain_start, b.chain_stop) for b in batches]
+    lengths = kind_of(study.kind).planned_runs(plan, ranges)
     planned = int(sum(lengths))
     done_flags = [b.status == "done" for b in batches]
     done = int(sum(n for n, ok in zip(lengths, done_flags, strict=True) if ok))

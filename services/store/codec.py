@@ -1,10 +1,12 @@
-"""Compact, exact binary forms of the TMCMC objects kept in the database.
+"""Compact, exact binary forms of the objects study kinds keep in the database.
 
-Blobs (stage plans, batch results) are ``.npz`` archives (no pickle): every numpy array field of
-the object is stored with its dtype and shape, everything else (ints, floats, prior, settings) in
-a JSON header made by the object's own ``to_dict`` with the arrays left out. Decoding calls
-``from_dict`` on the header and puts the arrays back, so the round trip is bit-exact, including
--inf log-likelihoods and NaN diagnostics.
+The store holds stage plans and batch results as opaque blobs; a study kind makes them with
+:func:`encode` and reads them with :func:`decode`, naming the class it expects. Blobs are
+``.npz`` archives (no pickle): every numpy array field of the dataclass is stored with its dtype
+and shape, everything else (ints, floats, prior, settings) in a JSON header made by the object's
+own ``to_dict`` with the arrays left out. Decoding calls ``from_dict`` on the header and puts
+the arrays back, so the round trip is bit-exact, including -inf log-likelihoods and NaN
+diagnostics.
 
 Per-sample rows store vectors as little-endian float64 bytes (:func:`f64_bytes`,
 :func:`f64_matrix`).
@@ -16,44 +18,28 @@ import dataclasses
 import io
 import json
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference.tmcmc_stage import (
-    ChainBatchResult,
-    PointEvaluation,
-    StagePlan,
-    StageState,
-)
-
-__all__ = [
-    "BLOB_FORMAT",
-    "BatchResult",
-    "decode",
-    "encode",
-    "f64_bytes",
-    "f64_matrix",
-    "state_from_meta",
-    "state_meta",
-]
+__all__ = ["BLOB_FORMAT", "decode", "encode", "f64_bytes", "f64_matrix", "split"]
 
 BLOB_FORMAT = "scm-calib-blob/1"
 _HEADER = "__header__"
-_KINDS: dict[str, Any] = {
-    "StagePlan": StagePlan,
-    "ChainBatchResult": ChainBatchResult,
-    "PointEvaluation": PointEvaluation,
-    "StageState": StageState,
-}
-
-BatchResult = ChainBatchResult | PointEvaluation
-Encodable = StagePlan | ChainBatchResult | PointEvaluation | StageState
 
 
-def _split(obj: Any) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
-    """(to_dict of obj without its arrays, {field: array})."""
+class Serialisable(Protocol):
+    """A dataclass with ``to_dict`` and a classmethod ``from_dict`` (arrays may be None)."""
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+
+T = TypeVar("T")
+
+
+def split(obj: Any) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    """(``to_dict`` of the dataclass ``obj`` without its arrays, {field: array})."""
     arrays: dict[str, NDArray[Any]] = {}
     for f in dataclasses.fields(obj):
         value = getattr(obj, f.name)
@@ -65,12 +51,12 @@ def _split(obj: Any) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
     return meta, arrays
 
 
-def encode(obj: Encodable) -> bytes:
-    """Bytes of a StagePlan, ChainBatchResult, PointEvaluation or StageState."""
+def encode(obj: Serialisable) -> bytes:
+    """Bytes of a serialisable dataclass (see the module doc)."""
+    if not dataclasses.is_dataclass(obj) or not hasattr(obj, "to_dict"):
+        raise TypeError(f"cannot encode {type(obj).__name__}: not a dataclass with to_dict")
+    meta, arrays = split(obj)
     kind = type(obj).__name__
-    if kind not in _KINDS:
-        raise TypeError(f"cannot encode {kind}")
-    meta, arrays = _split(obj)
     header = {"format": BLOB_FORMAT, "kind": kind, "meta": meta, "arrays": sorted(arrays)}
     raw = json.dumps(header, allow_nan=False, separators=(",", ":")).encode("utf-8")
     buf = io.BytesIO()
@@ -78,39 +64,16 @@ def encode(obj: Encodable) -> bytes:
     return buf.getvalue()
 
 
-def decode(blob: bytes) -> Any:
-    """Inverse of :func:`encode`."""
+def decode(blob: bytes, cls: type[T]) -> T:
+    """Inverse of :func:`encode`; the blob must hold a ``cls``."""
     with np.load(io.BytesIO(blob), allow_pickle=False) as archive:
         header = json.loads(archive[_HEADER].tobytes().decode("utf-8"))
         if header.get("format") != BLOB_FORMAT:
             raise ValueError(f"not a {BLOB_FORMAT} blob (format {header.get('format')!r})")
+        if header.get("kind") != cls.__name__:
+            raise TypeError(f"blob holds a {header.get('kind')}, not a {cls.__name__}")
         arrays = {name: archive[name] for name in header["arrays"]}
-    cls = _KINDS[header["kind"]]
-    return dataclasses.replace(cls.from_dict(header["meta"]), **arrays)
-
-
-def state_meta(state: StageState) -> dict[str, Any]:
-    """The scalar fields of a StageState as strict JSON (its arrays live in sample rows)."""
-    meta, _ = _split(state)
-    arrays = ("samples", "log_likelihood", "log_prior", "responses")
-    return {k: v for k, v in meta.items() if k not in arrays}
-
-
-def state_from_meta(
-    meta: dict[str, Any],
-    samples: NDArray[np.float64],
-    log_likelihood: NDArray[np.float64],
-    log_prior: NDArray[np.float64],
-    responses: NDArray[np.float64] | None,
-) -> StageState:
-    data = dict(meta, samples=None, log_likelihood=None, log_prior=None, responses=None)
-    return dataclasses.replace(
-        StageState.from_dict(data),
-        samples=samples,
-        log_likelihood=log_likelihood,
-        log_prior=log_prior,
-        responses=responses,
-    )
+    return dataclasses.replace(cls.from_dict(header["meta"]), **arrays)  # type: ignore[attr-defined]
 
 
 def f64_bytes(row: NDArray[Any]) -> bytes:

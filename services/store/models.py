@@ -22,7 +22,7 @@ __all__ = [
     "STAGE_STATUSES",
     "STUDY_ACTIVE",
     "STUDY_FINAL",
-    "STUDY_KINDS",
+    "STUDY_KIND_PATTERN",
     "STUDY_STATUSES",
     "Base",
     "Dataset",
@@ -36,7 +36,8 @@ __all__ = [
     "WorkBatch",
 ]
 
-STUDY_KINDS = ("tmcmc", "morris")
+#: a study kind's name: the registry of ``services.studies.kinds`` says which exist
+STUDY_KIND_PATTERN = r"^[a-z][a-z0-9_]{0,15}$"
 STUDY_STATUSES = ("queued", "running", "completed", "failed", "cancelled", "stalled")
 STUDY_ACTIVE = ("queued", "running")
 STUDY_FINAL = ("completed", "failed", "cancelled", "stalled")
@@ -110,15 +111,16 @@ class DatasetUpload(Base):
 class Study(Base):
     """A study: case, priors, datasets, sampler settings, seed and progress.
 
-    kind "tmcmc": a calibration (stages of TMCMC chains). kind "morris": a sensitivity
-    screening (one stage whose "chains" are the Morris design points; ``priors`` holds the
-    factor box, ``sampler`` the design settings and ``result`` the Morris statistics).
+    ``kind`` names the plug-in that runs it (``services.studies.kinds``): "tmcmc" a
+    calibration (stages of TMCMC chains), "morris" a sensitivity screening (one stage whose
+    "chains" are the Morris design points; ``priors`` holds the factor box, ``sampler`` the
+    design settings and ``result`` the Morris statistics) ... ``payload``: the kind's own
+    settings (JSON), ``result``: what the kind stores when the study ends.
     """
 
     __tablename__ = "studies"
     __table_args__ = (
         sa.CheckConstraint(_in("status", STUDY_STATUSES), name="status"),
-        sa.CheckConstraint(_in("kind", STUDY_KINDS), name="kind"),
         sa.Index("ix_studies_status_id", "status", "id"),
         sa.Index("ix_studies_kind_id", "kind", "id"),
     )
@@ -141,6 +143,7 @@ class Study(Base):
     failed_runs: Mapped[int] = mapped_column(sa.BigInteger, default=0)
     error: Mapped[str | None] = mapped_column(sa.Text)
     result: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
+    payload: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)

@@ -10,21 +10,20 @@ from typing import Any, Generic, Literal, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference.tmcmc_stage import StagePlan, StageState
-
-from .codec import BatchResult
-
 __all__ = [
     "AdvanceOutcome",
     "BatchKey",
     "BatchLease",
+    "BatchOutput",
     "BatchRecord",
     "CompleteOutcome",
     "DatasetRecord",
     "EventRecord",
     "Page",
+    "PlannedStage",
     "ReapReport",
     "ReduceInput",
+    "ReducedStage",
     "Reducer",
     "SampleArrays",
     "SamplePage",
@@ -82,8 +81,9 @@ class StudySpec:
     priors: ``JointPrior.to_dict()``; sampler: ``TMCMCSettings.to_dict()`` (plus whatever the
     orchestrator needs); case and simulator: free JSON. ``dataset_ids`` in likelihood order.
     seed: 0 <= seed < 2**63. batch_size: chains per work batch (None: orchestrator decides).
-    kind: "tmcmc" (a calibration) or "morris" (a sensitivity study: n_samples design points,
-    priors the factor box, sampler the design settings).
+    kind: the plug-in that runs it ("tmcmc" a calibration, "morris" a sensitivity study:
+    n_samples design points, priors the factor box, sampler the design settings ...; see
+    ``services.studies.kinds``). payload: the kind's own settings (JSON).
     """
 
     name: str
@@ -96,11 +96,13 @@ class StudySpec:
     simulator: Mapping[str, Any] = field(default_factory=dict)
     batch_size: int | None = None
     kind: str = "tmcmc"
+    payload: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
 class StudyRecord:
-    """A study; ``result``: the Morris statistics of a finished sensitivity study (else None)."""
+    """A study; ``result``: what its kind stored when it ended (e.g. the Morris statistics of a
+    sensitivity study), ``payload``: the kind's own settings."""
 
     id: int
     kind: str
@@ -125,6 +127,7 @@ class StudyRecord:
     started_at: datetime | None
     finished_at: datetime | None
     result: dict[str, Any] | None = None
+    payload: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -272,29 +275,77 @@ class SamplePage:
         return nxt if nxt < self.total and len(self.arrays) else None
 
 
+@dataclass(frozen=True, eq=False)
+class PlannedStage:
+    """What the store keeps of a stage's plan: the study kind's ``blob`` (opaque here, see
+    :mod:`.codec`), the number of chains (or points) its batches cover and the diagnostics
+    shown with the stage (None where the kind has none)."""
+
+    stage: int
+    n_chains: int
+    blob: bytes
+    exponent: float | None = None
+    prev_exponent: float | None = None
+    beta: float | None = None
+    ess: float | None = None
+    log_evidence_increment: float | None = None
+    n_steps: int | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedStage:
+    """A reduced stage: its population (stored row by row, bit-exact), the counters added to
+    the study, the diagnostics shown with the stage and ``meta``, the kind's own JSON about
+    the stage (read back with the population, e.g. to rebuild its state)."""
+
+    stage: int
+    population: SampleArrays
+    model_runs: int
+    failed_runs: int
+    exponent: float | None = None
+    acceptance: float | None = None
+    ess: float | None = None
+    log_evidence: float | None = None
+    log_evidence_var: float | None = None
+    n_steps: int | None = None
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class BatchOutput:
+    """A work batch's result as the store keeps it: the kind's ``blob`` and the stage and
+    chain (or point) range it covers, checked against the batch it is stored for."""
+
+    stage: int
+    start: int
+    stop: int
+    blob: bytes
+
+
 @dataclass(frozen=True)
 class ReduceInput:
-    """Handed to the reducer inside the advance transaction."""
+    """Handed to the reducer inside the advance transaction: the stage's plan blob (None for
+    a stage opened without one) and its batches' result blobs in batch order."""
 
     study: StudyRecord
     stage: StageRecord
-    plan: StagePlan | None
-    results: list[BatchResult]
+    plan: bytes | None
+    results: list[bytes]
 
 
 @dataclass(frozen=True, eq=False)
 class StageAdvance:
-    """The reducer's answer: the population of the reduced stage and what comes next.
+    """The reducer's answer: the reduced stage and what comes next.
 
     next_plan with next_batches (consecutive ranges covering chains 0..n_chains-1) opens
     stage + 1. With next_plan None the study ends with ``final_status`` ("completed",
     "stalled" or "failed", with ``error``). ``payload``: extra fields for the "stage_done"
     event (strict JSON after non-finite floats become strings). ``result``: a JSON document
-    stored on the study when it ends (the Morris statistics of a sensitivity study).
+    stored on the study when it ends (e.g. the Morris statistics of a sensitivity study).
     """
 
-    state: StageState
-    next_plan: StagePlan | None = None
+    reduced: ReducedStage
+    next_plan: PlannedStage | None = None
     next_batches: Sequence[range] = ()
     final_status: str | None = None
     error: str | None = None

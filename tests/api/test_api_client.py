@@ -7,7 +7,7 @@ from test_api_support import EXAMPLES, TOKEN, api_client, fresh_database, summar
 
 from scm_core.calibration import load_case
 from services.client import SCMCalibClient, SCMCalibError, SCMCalibTimeoutError
-from worker.orchestrator import work_batches
+from services.studies import work_batches
 
 
 @pytest.fixture

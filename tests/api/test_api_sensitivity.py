@@ -17,7 +17,8 @@ from test_api_support import AUTH, TOKEN, api_client, fresh_database, upload_fil
 from scm_core.calibration import CaseDefinition, run_sensitivity
 from services.client import SCMCalibClient
 from services.store import Store
-from worker.orchestrator import load_datasets, work_batches
+from services.studies import work_batches
+from services.studies.datasets import load_datasets
 
 TIMEOUT = 300.0
 CASE = {

@@ -18,9 +18,10 @@ from svc_support import LEASE_SECONDS, add_example_dataset, service_env
 
 from services.config import Settings
 from services.store import Store
+from services.studies import calibration_spec, create_and_start
 from worker.celery_app import make_celery
 from worker.dispatch import CeleryDispatcher
-from worker.orchestrator import submit_study, wait_for_study
+from worker.orchestrator import wait_for_study
 
 TIMEOUT = 600.0  # s; the undisturbed study takes ~30-60 s on two cores
 
@@ -63,12 +64,17 @@ def _wait_for_lease(store, study_id, stage_min=1, timeout=120.0):
     pytest.fail("no batch was leased in time")
 
 
+def _submit(store, case, dataset_id, dispatcher):
+    spec = calibration_spec(store, Settings(), case, [dataset_id])
+    return store.studies.get(create_and_start(store, spec, dispatcher))
+
+
 def test_two_workers_match_calibrate_and_double_delivery_counts_once(
     pg_url, redis_server, processes, svc_case, reference_samples
 ):
     store, dispatcher, _ = _setup(pg_url, redis_server.url, processes)
     ds = add_example_dataset(store, svc_case)
-    study = submit_study(store, svc_case, [ds], dispatcher)
+    study = _submit(store, svc_case, ds, dispatcher)
     # every batch of stage 0 is delivered a second time
     dispatcher.dispatch([b.key for b in store.batches.list(study.id, 0)])
     final = _assert_same_as_reference(store, study.id, reference_samples, processes)
@@ -81,7 +87,7 @@ def test_two_workers_match_calibrate_and_double_delivery_counts_once(
 def test_worker_killed_mid_batch(pg_url, redis_server, processes, svc_case, reference_samples):
     store, dispatcher, workers = _setup(pg_url, redis_server.url, processes)
     ds = add_example_dataset(store, svc_case)
-    study = submit_study(store, svc_case, [ds], dispatcher)
+    study = _submit(store, svc_case, ds, dispatcher)
     batch = _wait_for_lease(store, study.id, stage_min=1)
     pid = int(batch.worker_id.split(":")[1])
     victim = next(w for w in workers if w.pid == pid)
@@ -95,7 +101,7 @@ def test_worker_killed_mid_batch(pg_url, redis_server, processes, svc_case, refe
 def test_broker_restart_mid_stage(pg_url, redis_server, processes, svc_case, reference_samples):
     store, dispatcher, _ = _setup(pg_url, redis_server.url, processes)
     ds = add_example_dataset(store, svc_case)
-    study = submit_study(store, svc_case, [ds], dispatcher)
+    study = _submit(store, svc_case, ds, dispatcher)
     _wait_for_lease(store, study.id, stage_min=1)
     redis_server.stop()  # queued messages are gone with it (no persistence)
     time.sleep(2.0)

@@ -20,6 +20,10 @@ import sqlalchemy as sa
 
 from scm_core.inference import JointPrior, TMCMCSettings, Uniform
 from scm_core.inference.tmcmc_stage import (
+    ChainBatchResult,
+    PointEvaluation,
+    StagePlan,
+    StageState,
     chain_batches,
     initial_samples,
     initial_state,
@@ -28,10 +32,12 @@ from scm_core.inference.tmcmc_stage import (
     stage_status,
 )
 from scm_core.signals import load_summary
-from services.store import ReduceInput, StageAdvance, Store, StudySpec
+from services.store import BatchKey, BatchOutput, ReduceInput, StageAdvance, Store, StudySpec
+from services.store.codec import decode, encode
 from services.store.engine import make_engine, normalise_url
 from services.store.migrate import upgrade
 from services.store.models import Base
+from services.studies.kinds.calibration import load_stage_state, planned_stage, reduced_stage
 
 PG_ENV = "SCM_CALIB_TEST_PG_URL"
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/postgres"
@@ -249,19 +255,40 @@ class Toy:
     def initial_points(self, seed: int) -> np.ndarray:
         return initial_samples(self.prior, self.n_samples, seed)
 
-    def reduce(self, inp: ReduceInput) -> StageAdvance:
-        """The orchestrator's reducer: stage state, then the next plan or the end."""
+    @staticmethod
+    def output(result, key: BatchKey, chains: range) -> BatchOutput:
+        """A TMCMC batch result as the store keeps it."""
+        return BatchOutput(key.stage_index, chains.start, chains.stop, encode(result))
+
+    @staticmethod
+    def plan(store: Store, study_id: int, stage_index: int) -> StagePlan | None:
+        blob = store.stages.plan(study_id, stage_index)
+        return None if blob is None else decode(blob, StagePlan)
+
+    @staticmethod
+    def state(store: Store, study_id: int, stage_index: int) -> StageState:
+        return load_stage_state(store, study_id, stage_index)
+
+    def reduced_state(self, inp: ReduceInput) -> StageState:
+        """The stage's TMCMC state from the reducer's input."""
         if inp.stage.stage_index == 0:
             X = self.initial_points(inp.study.seed)
-            state = initial_state(self.prior, X, inp.results, inp.study.seed, self.settings)
-        else:
-            state = reduce_stage(inp.plan, inp.results)
+            points = [decode(b, PointEvaluation) for b in inp.results]
+            return initial_state(self.prior, X, points, inp.study.seed, self.settings)
+        chains = [decode(b, ChainBatchResult) for b in inp.results]
+        return reduce_stage(decode(inp.plan, StagePlan), chains)
+
+    def reduce(self, inp: ReduceInput) -> StageAdvance:
+        """The orchestrator's reducer: stage state, then the next plan or the end."""
+        state = self.reduced_state(inp)
         status = stage_status(state, self.settings)
         if status is None:
             plan = plan_stage(state, self.prior, self.settings)
-            return StageAdvance(state, plan, self.batches(plan.n_chains))
+            return StageAdvance(
+                reduced_stage(state), planned_stage(plan), self.batches(plan.n_chains)
+            )
         final = "completed" if status == "completed" else "stalled"
-        return StageAdvance(state, final_status=final)
+        return StageAdvance(reduced_stage(state), final_status=final)
 
 
 @pytest.fixture

@@ -9,8 +9,9 @@ from datetime import timedelta
 import numpy as np
 import pytest
 
-from scm_core.inference.tmcmc_stage import evaluate_points
-from services.store import BatchKey, NotFoundError, Store
+from scm_core.inference.tmcmc_stage import PointEvaluation, evaluate_points
+from services.store import BatchKey, BatchOutput, NotFoundError, Store
+from services.store.codec import decode
 
 
 def started_study(store: Store, toy, n_batches: int = 3) -> int:
@@ -25,7 +26,9 @@ def point_result(toy, study_id: int, store: Store, lease_or_key):
     key = getattr(lease_or_key, "key", lease_or_key)
     rec = store.batches.get(key)
     X = toy.initial_points(store.studies.get(study_id).seed)[rec.chain_start : rec.chain_stop]
-    return evaluate_points(X, toy.log_likelihood)
+    return toy.output(
+        evaluate_points(X, toy.log_likelihood), key, range(rec.chain_start, rec.chain_stop)
+    )
 
 
 def test_lease_order_heartbeat_and_expiry(store: Store, toy, clock) -> None:
@@ -126,8 +129,10 @@ def test_batch_result_is_stored_once(store: Store, toy, open_store) -> None:
     assert not first.stage_complete
 
     other = open_store()  # a second process delivering the same task again
-    altered = evaluate_points(
-        toy.initial_points(toy.seed)[16:32], toy.log_likelihood
+    altered = toy.output(
+        evaluate_points(toy.initial_points(toy.seed)[16:32], toy.log_likelihood),
+        lease.key,
+        lease.chains,
     )  # wrong content for batch 0 must not overwrite the first result
     again = other.batches.complete(lease.key, result, event={"worker": "w2", "model_s": 0.4})
     assert (again.status, again.done, again.total) == ("duplicate", 1, 3)
@@ -137,17 +142,23 @@ def test_batch_result_is_stored_once(store: Store, toy, open_store) -> None:
     assert [e.payload for e in done] == [{"stage": 0, "batch": 0, "worker": "w1", "model_s": 0.5}]
     stored = store.batches.results(sid, 0)
     assert len(stored) == 1
-    assert stored[0].log_likelihood.tobytes() == result.log_likelihood.tobytes()
+    assert stored[0] == result.blob
+    assert decode(stored[0], PointEvaluation).log_likelihood.tobytes() == (
+        decode(result.blob, PointEvaluation).log_likelihood.tobytes()
+    )
     assert store.batches.counts(sid, 0) == {"pending": 2, "leased": 0, "done": 1, "failed": 0}
     assert store.batches.count_done(sid, 0) == 1
     assert store.batches.claim(lease.key, "w2") is None  # done: not leasable any more
     assert not store.batches.heartbeat(lease)
 
     # a result for the wrong number of points is refused outright
-    with pytest.raises(ValueError, match="point evaluations"):
+    with pytest.raises(ValueError, match=r"result of chains 0\.\.3 for batch"):
         store.batches.complete(
-            BatchKey(sid, 0, 1), evaluate_points(np.zeros((3, 2)), toy.log_likelihood)
+            BatchKey(sid, 0, 1),
+            toy.output(evaluate_points(np.zeros((3, 2)), toy.log_likelihood), lease.key, range(3)),
         )
+    with pytest.raises(ValueError, match="result of stage 1"):
+        store.batches.complete(BatchKey(sid, 0, 1), BatchOutput(1, 16, 32, result.blob))
 
 
 def test_concurrent_duplicate_deliveries_store_once(store: Store, toy, open_store) -> None:

@@ -40,8 +40,8 @@ def _tables(url: str) -> set[str]:
 
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
-    assert (migrations_dir() / "versions" / "0003_dataset_uploads.py").is_file()
-    assert head_revision() == "0003"
+    assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
+    assert head_revision() == "0004"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -81,14 +81,14 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0003") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0004") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0003"
+    assert info.value.current == "ffff" and info.value.head == "0004"
 
     engine = make_engine(empty_url)
     try:
         with engine.begin() as conn:
-            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0003'"))
+            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0004'"))
     finally:
         engine.dispose()
     with Store.open(empty_url) as store:
@@ -103,13 +103,13 @@ def test_cli_db_commands(empty_url: str) -> None:
 
     res = runner.invoke(cli, ["db", "upgrade", "--url", empty_url])
     assert res.exit_code == 0, res.output
-    assert "base -> 0003" in res.output
+    assert "base -> 0004" in res.output
 
     res = runner.invoke(cli, ["db", "current", "--url", empty_url])
-    assert res.exit_code == 0 and "revision 0003" in res.output and "up to date" in res.output
+    assert res.exit_code == 0 and "revision 0004" in res.output and "up to date" in res.output
 
     res = runner.invoke(cli, ["db", "downgrade", "base", "--url", empty_url])
-    assert res.exit_code == 0 and "0003 -> base" in res.output
+    assert res.exit_code == 0 and "0004 -> base" in res.output
     assert current_revision(empty_url) is None
 
 
@@ -122,7 +122,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0003"
+        assert current_revision(url) == "0004"
     finally:
         get_settings.cache_clear()
 
@@ -173,5 +173,42 @@ def test_upgrade_0002_to_0003_moves_raw_bytes_into_chunks_and_back(empty_url: st
         downgrade(empty_url, "0002")
         with engine.connect() as conn:
             assert conn.execute(sa.text("SELECT raw FROM datasets")).scalar_one() == raw
+    finally:
+        engine.dispose()
+
+
+def test_0004_accepts_any_registered_kind_and_refuses_to_downgrade_over_new_ones(
+    empty_url: str,
+) -> None:
+    """From 0004 the kind is the registry's business (no CHECK): a study of a new kind can be
+    stored with its payload; going back to 0003 refuses while it exists, then works once it is
+    deleted, and 0003's CHECK is back."""
+    upgrade(empty_url)
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO studies (name, kind, status, case_spec, priors, sampler, simulator, seed, "
+        "n_samples, model_runs, failed_runs, created_at, updated_at, payload) VALUES "
+        "(:n, :k, 'queued', '{}', '{}', '{}', '{}', 3, 10, 0, 0, :t, :t, :p)"
+    )
+    row = {"t": "2025-01-01 00:00:00", "p": '{"update_of": 1}'}
+    try:
+        with engine.begin() as conn:
+            conn.execute(insert, {**row, "n": "old", "k": "tmcmc"})
+            conn.execute(insert, {**row, "n": "new", "k": "update"})
+        with pytest.raises(RuntimeError, match=r"1 studies are of kinds .* \(update\)"):
+            downgrade(empty_url, "0003")
+        assert current_revision(empty_url) == "0004"
+        with engine.begin() as conn:
+            conn.execute(sa.text("DELETE FROM studies WHERE kind = 'update'"))
+        downgrade(empty_url, "0003")
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT name FROM studies")).scalars().all() == ["old"]
+        old_insert = sa.text(
+            "INSERT INTO studies (name, kind, status, case_spec, priors, sampler, simulator, "
+            "seed, n_samples, model_runs, failed_runs, created_at, updated_at) VALUES "
+            "('x', 'update', 'queued', '{}', '{}', '{}', '{}', 3, 10, 0, 0, :t, :t)"
+        )
+        with pytest.raises(sa.exc.IntegrityError), engine.begin() as conn:
+            conn.execute(old_insert, {"t": row["t"]})
     finally:
         engine.dispose()

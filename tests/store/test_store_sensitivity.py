@@ -13,15 +13,12 @@ import pytest
 
 from scm_core.calibration import CaseDefinition, run_sensitivity
 from scm_core.signals import load_log
+from services.config import Settings
 from services.store import Store
-from worker.morris_study import SensitivityInputError, sensitivity_spec
-from worker.orchestrator import (
-    ContextCache,
-    execute_batch,
-    load_datasets,
-    start_study,
-    work_batches,
-)
+from services.studies import StudyRequestError, start_study, work_batches
+from services.studies.datasets import load_datasets
+from services.studies.kinds.screening import sensitivity_spec
+from worker.orchestrator import ContextCache, execute_batch
 
 ROOT = Path(__file__).resolve().parents[2]
 LOG = ROOT / "examples" / "wf34_s020.csv"
@@ -53,7 +50,9 @@ def dataset_id(store: Store) -> int:
 
 
 def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> None:
-    spec = sensitivity_spec(store, CASE, dataset_id, r=3, levels=4, seed=9, batch_size=4)
+    spec = sensitivity_spec(
+        store, Settings(), CASE, dataset_id, r=3, levels=4, seed=9, batch_size=4
+    )
     assert spec.kind == "morris" and spec.n_samples == 3 * 7
     # phi is calibrated in the case: its prior bounds are the factor's; the rest are defaults
     assert spec.sampler["bounds"]["phi"] == [20.0, 35.0]
@@ -107,8 +106,8 @@ def test_bad_sensitivity_requests_name_the_field(
     store: Store, dataset_id: int, kwargs: dict, message: str
 ) -> None:
     args = {"dataset_id": dataset_id, **kwargs}
-    with pytest.raises(SensitivityInputError) as info:
-        sensitivity_spec(store, CASE, args.pop("dataset_id"), **args)
+    with pytest.raises(StudyRequestError) as info:
+        sensitivity_spec(store, Settings(), CASE, args.pop("dataset_id"), **args)
     assert message in str(info.value)
     assert store.studies.list().total == 0
 
@@ -116,8 +115,6 @@ def test_bad_sensitivity_requests_name_the_field(
 def test_unbuildable_configuration_is_refused(store: Store, dataset_id: int) -> None:
     """A factor box whose centre the simulator refuses (phi = 100 deg) is refused, naming the
     factor, before anything is stored."""
-    with pytest.raises(
-        SensitivityInputError, match=r"bounds.phi: invalid simulator .* less than 90"
-    ):
-        sensitivity_spec(store, CASE, dataset_id, r=2, bounds={"phi": (80.0, 120.0)})
+    with pytest.raises(StudyRequestError, match=r"bounds.phi: invalid simulator .* less than 90"):
+        sensitivity_spec(store, Settings(), CASE, dataset_id, r=2, bounds={"phi": (80.0, 120.0)})
     assert store.studies.list().total == 0

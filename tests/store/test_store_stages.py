@@ -12,6 +12,7 @@ import pytest
 
 from scm_core.inference.tmcmc_stage import evaluate_points
 from services.store import BatchKey, InvalidStateError, ReduceInput, StageAdvance, Store
+from services.studies.kinds.calibration import reduced_stage
 
 
 def study_with_stage0_done(store: Store, toy) -> int:
@@ -24,7 +25,9 @@ def study_with_stage0_done(store: Store, toy) -> int:
         lease = store.batches.lease("w", study_id=study.id)
         assert lease.key == BatchKey(study.id, 0, i)
         result = evaluate_points(X[r.start : r.stop], toy.log_likelihood)
-        assert store.batches.complete(lease.key, result).status == "stored"
+        assert store.batches.complete(lease.key, toy.output(result, lease.key, r)).status == (
+            "stored"
+        )
     return study.id
 
 
@@ -86,10 +89,10 @@ def test_advance_not_ready_and_reducer_errors_roll_back(store: Store, toy) -> No
     assert store.stages.get(sid, 0).status == "running"  # rolled back, not stuck 'reducing'
     assert store.samples.count(sid, 0) == 0
     with pytest.raises(InvalidStateError):
-        store.stages.state(sid, 0)
+        toy.state(store, sid, 0)
 
     def no_next(inp: ReduceInput) -> StageAdvance:
-        return StageAdvance(toy.reduce(inp).state)  # neither a next plan nor a final status
+        return StageAdvance(toy.reduce(inp).reduced)  # neither a next plan nor a final status
 
     with pytest.raises(ValueError, match="final_status"):
         store.stages.advance(sid, 0, no_next)
@@ -104,7 +107,7 @@ def test_repeated_advance_after_the_study_ended_is_already(store: Store, toy) ->
     sid = study_with_stage0_done(store, toy)
 
     def finish(inp: ReduceInput) -> StageAdvance:
-        return StageAdvance(toy.reduce(inp).state, final_status="completed")
+        return StageAdvance(toy.reduce(inp).reduced, final_status="completed")
 
     assert store.stages.advance(sid, 0, finish).status == "advanced"
     again = store.stages.advance(sid, 0, finish)
@@ -115,7 +118,7 @@ def test_study_ends_with_final_status(store: Store, toy) -> None:
     sid = study_with_stage0_done(store, toy)
 
     def stall(inp: ReduceInput) -> StageAdvance:
-        state = toy.reduce(inp).state
+        state = toy.reduce(inp).reduced
         return StageAdvance(state, final_status="stalled", error="no progress")
 
     out = store.stages.advance(sid, 0, stall)
@@ -147,8 +150,8 @@ def test_samples_round_trip_bit_exactly(store: Store, toy) -> None:
     kept = {}
 
     def reduce_special(inp: ReduceInput) -> StageAdvance:
-        kept["state"] = state = special_state(toy, toy.reduce(inp).state)
-        return StageAdvance(state, final_status="completed")
+        kept["state"] = state = special_state(toy, toy.reduced_state(inp))
+        return StageAdvance(reduced_stage(state), final_status="completed")
 
     assert store.stages.advance(sid, 0, reduce_special).status == "advanced"
     exp = kept["state"]
@@ -161,7 +164,7 @@ def test_samples_round_trip_bit_exactly(store: Store, toy) -> None:
     assert np.array_equal(got.log_prior, exp.log_prior, equal_nan=True)
     assert got.log_likelihood[0] == -np.inf and got.log_likelihood[1] == np.inf
     assert np.isnan(got.log_likelihood[2]) and got.log_prior[5] == -np.inf
-    state = store.stages.state(sid, 0)
+    state = toy.state(store, sid, 0)
     assert state.equals(exp)
     stage = store.stages.get(sid, 0)
     assert stage.acceptance is None  # NaN at stage 0 is stored as "undefined"
@@ -187,6 +190,6 @@ def test_samples_pagination(store: Store, toy) -> None:
     beyond = store.samples.page(sid, 0, start=100, limit=20)
     assert len(beyond.arrays) == 0 and beyond.next_start is None
     assert len(store.samples.arrays(sid, 1)) == 0  # stage 1 planned, no population yet
-    plan = store.stages.plan(sid, 1)
+    plan = toy.plan(store, sid, 1)
     assert plan is not None and plan.stage == 1 and plan.n_chains == toy.n_samples
     assert store.stages.plan(sid, 0) is None

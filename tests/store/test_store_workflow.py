@@ -45,10 +45,10 @@ def work_one(store: Store, toy, worker: str) -> bool:
         X = toy.initial_points(study.seed)[lease.chain_start : lease.chain_stop]
         result = evaluate_points(X, toy.log_likelihood)
     else:
-        plan = store.stages.plan(key.study_id, key.stage_index)
+        plan = toy.plan(store, key.study_id, key.stage_index)
         result = run_chains(plan, lease.chains, toy.log_likelihood)
     assert store.batches.heartbeat(lease)
-    outcome = store.batches.complete(key, result)
+    outcome = store.batches.complete(key, toy.output(result, key, lease.chains))
     assert outcome.status == "stored"
     if outcome.stage_complete:
         adv = store.stages.advance(key.study_id, key.stage_index, toy.reduce)
@@ -72,7 +72,7 @@ def test_study_through_store_is_bit_identical_to_in_memory(store: Store, toy) ->
     assert [s.stage_index for s in stages] == list(range(len(expected)))
     assert all(s.status == "done" for s in stages)
     for rec, exp in zip(stages, expected, strict=True):
-        got = store.stages.state(study.id, rec.stage_index)
+        got = toy.state(store, study.id, rec.stage_index)
         assert got.equals(exp), f"stage {rec.stage_index} differs"
         assert rec.exponent == exp.exponent
         arrays = store.samples.arrays(study.id, rec.stage_index)

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from worker.orchestrator import work_batches
+from services.studies import work_batches
 
 
 @given(n=st.integers(1, 5000), size=st.integers(1, 400), workers=st.integers(1, 64))

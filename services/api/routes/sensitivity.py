@@ -1,8 +1,8 @@
 """Sensitivity studies: Morris screening of the SCM soil parameters (paper section 4.4).
 
-A sensitivity study is a study of kind "morris" (see :mod:`worker.morris_study`): its design
-points run as work batches like TMCMC chains (locally or on Celery workers) and the Morris
-analysis is stored when the last batch is in. Cancel it with ``POST /studies/{id}/cancel``;
+A sensitivity study is a study of kind "morris" (see :mod:`services.studies.kinds.screening`):
+its design points run as work batches like TMCMC chains (locally or on Celery workers) and the
+Morris analysis is stored when the last batch is in. Cancel it with ``POST /studies/{id}/cancel``;
 its design points and steady F, T, z are the samples of its stage 0
 (``GET /studies/{id}/stages/0/samples.csv``).
 """
@@ -15,7 +15,7 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Response
 
 from services.limits import INT64_MAX
 from services.store import Store, StudyRecord
-from services.studies import base_case, create_and_start, sensitivity_request
+from services.studies import base_case, create_and_start, sensitivity_spec
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
 from ..params import StudyId, parse_statuses, status_query
@@ -57,7 +57,7 @@ def create_sensitivity(
     ``dataset_id``, with the case's nominal values and simulator settings. Bounds: ``bounds``,
     else the case's prior for a calibrated factor, else the defaults (Table 2 for n, phi, J).
     Any problem answers 422 naming the field, and nothing is stored."""
-    spec = sensitivity_request(
+    spec = sensitivity_spec(
         store,
         settings,
         base_case(body.preset, body.case),

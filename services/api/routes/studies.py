@@ -12,17 +12,26 @@ import io
 import logging
 import math
 from collections.abc import Iterator
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Depends, HTTPException, Query, Response
 from fastapi.responses import StreamingResponse
 
 from scm_core.calibration import CaseDefinition
+from services.config import Settings
 from services.limits import (
     INT64_MAX,
 )
-from services.store import Store
-from services.studies import base_case, calibration_spec, create_and_start, with_overrides
+from services.store import Store, StudySpec
+from services.studies import (
+    StudyRequestError,
+    base_case,
+    calibration_spec,
+    create_and_start,
+    with_overrides,
+)
+from services.studies.kinds import KINDS
+from services.studies.kinds.update import update_spec
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
 from ..params import StageIndex, StudyId, parse_statuses, status_query
@@ -72,6 +81,26 @@ def build_case(body: StudyCreate) -> CaseDefinition:
     return with_overrides(base_case(body.preset, body.case), top, sampler)
 
 
+def update_request(store: Store, settings: Settings, body: StudyCreate) -> StudySpec:
+    """The spec of a posterior update; the case's fields cannot be given with it."""
+    fixed = ("preset", "case", "likelihood", *_SAMPLER_OVERRIDES)
+    given = [k for k in fixed if getattr(body, k) is not None]
+    if given:
+        raise StudyRequestError(
+            f"{given[0]}: an update keeps the case of study {body.update_of}; give only "
+            "update_of, dataset_ids, seed, name and batch_size"
+        )
+    return update_spec(
+        store,
+        settings,
+        body.update_of or 0,
+        body.dataset_ids,
+        seed=body.seed,
+        batch_size=body.batch_size,
+        name=body.name,
+    )
+
+
 @router.post(
     "",
     response_model=StudyOut,
@@ -90,8 +119,15 @@ def create_study(
     """Create a study from a preset of the paper or a full case document on stored datasets,
     with optional overrides (``seed``, ``n_samples``, ``moves``, ``n_steps``, ``max_stages``,
     ``likelihood``, ``name``, ``batch_size``), and start it. Any problem answers 422 naming
-    the field, and nothing is stored."""
-    spec = calibration_spec(store, settings, build_case(body), body.dataset_ids, body.batch_size)
+    the field, and nothing is stored. With ``update_of``: a posterior update of that completed
+    calibration with the new ``dataset_ids`` (``seed``, ``name`` and ``batch_size`` may be
+    given; the case is the earlier study's)."""
+    if body.update_of is not None:
+        spec = update_request(store, settings, body)
+    else:
+        spec = calibration_spec(
+            store, settings, build_case(body), body.dataset_ids, body.batch_size
+        )
     study_id = create_and_start(store, spec, dispatcher)
     response.headers["Location"] = f"/studies/{study_id}"
     return study_out(store, store.studies.get(study_id))
@@ -105,14 +141,19 @@ def list_studies(
     store: StoreDep,
     status: Annotated[str | None, status_query("studies")] = None,
     kind: Annotated[
-        Literal["tmcmc", "morris"] | None,
-        Query(description="Filter: calibrations (tmcmc) or sensitivity studies (morris)."),
+        str | None,
+        Query(
+            max_length=16,
+            description="Filter by kind: calibrations (tmcmc), sensitivity studies (morris) ...",
+        ),
     ] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
     offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> StudyPage:
-    """Studies of both kinds, newest first."""
+    """Studies of all kinds, newest first."""
     statuses = parse_statuses(status)
+    if kind is not None and kind not in KINDS:
+        raise StudyRequestError(f"query.kind: unknown study kind {kind!r}; one of {sorted(KINDS)}")
     page = store.studies.list(statuses, kind=kind, limit=limit, offset=offset)
     return page_out(StudyPage, page, study_brief)
 

@@ -22,16 +22,19 @@ from collections.abc import Iterable, Mapping
 from datetime import datetime
 from typing import Any, Literal
 
-import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from scm_core.inference.tmcmc_stage import ChainBatchResult, PointEvaluation
-
-from .. import codec
 from ..errors import NotFoundError
 from ..models import BATCH_STATUSES, Stage, Study, WorkBatch
-from ..records import BatchKey, BatchLease, BatchRecord, CompleteOutcome, ReapReport
+from ..records import (
+    BatchKey,
+    BatchLease,
+    BatchOutput,
+    BatchRecord,
+    CompleteOutcome,
+    ReapReport,
+)
 from .base import Database
 from .events import append_event
 from .stages import ready_stages
@@ -103,20 +106,16 @@ def _record(b: WorkBatch) -> BatchRecord:
     )
 
 
-def _check_result(result: Any, key: BatchKey, start: int, stop: int) -> None:
-    if isinstance(result, ChainBatchResult):
-        if result.stage != key.stage_index:
-            raise ValueError(f"result of stage {result.stage} for batch {key}")
-        if not np.array_equal(result.chain_indices, np.arange(start, stop)):
-            raise ValueError(f"result chains do not match batch {key} (chains {start}..{stop})")
-    elif isinstance(result, PointEvaluation):
-        if result.log_likelihood.shape[0] != stop - start:
-            raise ValueError(
-                f"{result.log_likelihood.shape[0]} point evaluations for batch {key} "
-                f"of {stop - start} points"
-            )
-    else:
-        raise TypeError(f"batch result must be ChainBatchResult or PointEvaluation, got {result!r}")
+def _check_result(result: BatchOutput, key: BatchKey, start: int, stop: int) -> None:
+    if not isinstance(result, BatchOutput):
+        raise TypeError(f"batch result must be a BatchOutput, got {type(result).__name__}")
+    if result.stage != key.stage_index:
+        raise ValueError(f"result of stage {result.stage} for batch {key}")
+    if (result.start, result.stop) != (start, stop):
+        raise ValueError(
+            f"result of chains {result.start}..{result.stop} for batch {key} "
+            f"(chains {start}..{stop})"
+        )
 
 
 class BatchRepository:
@@ -172,8 +171,8 @@ class BatchRepository:
             )
         return int(n or 0)
 
-    def results(self, study_id: int, stage_index: int) -> list[Any]:
-        """Decoded results of the stage's done batches, in batch order."""
+    def results(self, study_id: int, stage_index: int) -> list[bytes]:
+        """Result blobs of the stage's done batches, in batch order."""
         with self.db.read() as s:
             blobs = s.scalars(
                 sa.select(WorkBatch.result)
@@ -184,7 +183,7 @@ class BatchRepository:
                 )
                 .order_by(WorkBatch.batch_index)
             ).all()
-        return [codec.decode(b) for b in blobs]
+        return [bytes(b) for b in blobs]
 
     # ---- leases --------------------------------------------------------------------------
 
@@ -346,7 +345,7 @@ class BatchRepository:
     def complete(
         self,
         key: BatchKey,
-        result: ChainBatchResult | PointEvaluation,
+        result: BatchOutput,
         event: Mapping[str, Any] | None = None,
     ) -> CompleteOutcome:
         """Store a batch result idempotently: the first delivery is "stored", any later one
@@ -354,7 +353,6 @@ class BatchRepository:
         not running. ``event``: payload of a "batch_done" event appended in the same
         transaction when the result is stored (stage and batch added). Returns the stage's
         done/total batch counts after the call."""
-        blob = codec.encode(result)
         now = self.db.now()
         with self.db.write() as s:
             row = s.execute(
@@ -373,7 +371,11 @@ class BatchRepository:
                     _study_running(),
                 )
                 .values(
-                    status="done", result=blob, finished_at=now, lease_expires_at=None, error=None
+                    status="done",
+                    result=result.blob,
+                    finished_at=now,
+                    lease_expires_at=None,
+                    error=None,
                 )
                 .execution_options(synchronize_session=False)
             )

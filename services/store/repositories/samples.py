@@ -14,8 +14,6 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from scm_core.inference.tmcmc_stage import StageState
-
 from ..codec import f64_bytes, f64_matrix
 from ..errors import NotFoundError
 from ..models import Sample, Stage
@@ -27,8 +25,8 @@ __all__ = ["SampleRepository", "fetch_arrays", "insert_samples"]
 INSERT_CHUNK = 5000
 
 
-def insert_samples(session: Session, stage_id: int, state: StageState) -> int:
-    """Bulk-insert the population of ``state`` under stage ``stage_id`` (caller's tx)."""
+def insert_samples(session: Session, stage_id: int, state: SampleArrays) -> int:
+    """Bulk-insert the population ``state`` under stage ``stage_id`` (caller's tx)."""
     X = np.asarray(state.samples, dtype=np.float64)
     ll = np.asarray(state.log_likelihood, dtype=np.float64)
     lp = np.asarray(state.log_prior, dtype=np.float64)

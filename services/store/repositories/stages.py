@@ -1,4 +1,4 @@
-"""TMCMC stages: open a stage with its plan and work batches, advance it exactly once.
+"""Stages of a study: open a stage with its plan and work batches, advance it exactly once.
 
 Stage status: planned (plan and batches stored, no batch leased yet) -> running (a batch was
 leased) -> reducing (only inside the advance transaction) -> done (population stored).
@@ -11,8 +11,8 @@ Exactly-once advance (:meth:`StageRepository.advance`), in ONE transaction:
    On PostgreSQL the UPDATE holds the stage's row lock until commit, so a concurrent caller
    blocks on it and then sees 'done'; on SQLite the transaction holds the database write lock
    (BEGIN IMMEDIATE).
-2. call the reducer (pure: ``reduce_stage`` + ``plan_stage``) with the plan and the batch
-   results;
+2. call the study kind's reducer (pure: e.g. TMCMC's ``reduce_stage`` + ``plan_stage``) with
+   the plan blob and the batch result blobs;
 3. store the population, mark the stage done, update the study, open the next stage or end the
    study, append events; commit.
 
@@ -30,13 +30,19 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from scm_core.inference.tmcmc_stage import StagePlan, StageState
-
-from .. import codec
 from ..engine import jsonable
 from ..errors import InvalidStateError, NotFoundError
 from ..models import Stage, Study, WorkBatch
-from ..records import AdvanceOutcome, ReduceInput, Reducer, StageAdvance, StageRecord
+from ..records import (
+    AdvanceOutcome,
+    PlannedStage,
+    ReducedStage,
+    ReduceInput,
+    Reducer,
+    SampleArrays,
+    StageAdvance,
+    StageRecord,
+)
 from .base import Database
 from .events import append_event
 from .samples import fetch_arrays, insert_samples
@@ -94,7 +100,7 @@ def create_stage(
     session: Session,
     study_id: int,
     stage_index: int,
-    plan: StagePlan | None,
+    plan: PlannedStage | None,
     batches: Sequence[range],
     now: datetime,
     *,
@@ -114,13 +120,13 @@ def create_stage(
     if plan is not None:
         if plan.stage != stage_index:
             raise ValueError(f"plan is for stage {plan.stage}, not {stage_index}")
-        stage.plan = codec.encode(plan)
-        stage.exponent = float(plan.exponent)
-        stage.prev_exponent = float(plan.prev_exponent)
-        stage.beta = float(plan.prev_beta)
-        stage.ess = float(plan.ess)
-        stage.log_evidence_increment = float(plan.log_evidence_increment)
-        stage.n_steps = int(plan.chain_length.max()) if plan.n_chains else 0
+        stage.plan = plan.blob
+        stage.exponent = _opt(plan.exponent)
+        stage.prev_exponent = _opt(plan.prev_exponent)
+        stage.beta = _opt(plan.beta)
+        stage.ess = _opt(plan.ess)
+        stage.log_evidence_increment = _opt(plan.log_evidence_increment)
+        stage.n_steps = plan.n_steps
     else:
         stage.exponent = exponent
     session.add(stage)
@@ -213,8 +219,8 @@ class StageRepository:
             )
             return [stage_record(r) for r in rows]
 
-    def plan(self, study_id: int, stage_index: int) -> StagePlan | None:
-        """The stage's plan (None for a stage stored without one, e.g. stage 0)."""
+    def plan(self, study_id: int, stage_index: int) -> bytes | None:
+        """The stage's plan blob (None for a stage stored without one, e.g. stage 0)."""
         with self.db.read() as s:
             row = s.execute(
                 sa.select(Stage.plan).where(
@@ -223,20 +229,17 @@ class StageRepository:
             ).first()
         if row is None:
             raise NotFoundError(f"stage {stage_index} of study {study_id} not found")
-        return None if row.plan is None else codec.decode(row.plan)
+        return None if row.plan is None else bytes(row.plan)
 
-    def state(self, study_id: int, stage_index: int) -> StageState:
-        """The population of a done stage as a StageState (bit-exact arrays)."""
+    def population(self, study_id: int, stage_index: int) -> tuple[dict[str, Any], SampleArrays]:
+        """(the kind's ``meta``, the population) of a done stage; arrays bit-exact."""
         with self.db.read() as s:
             st = _get(s, study_id, stage_index)
             if st.status != "done" or st.state_meta is None:
                 raise InvalidStateError(
                     f"stage {stage_index} of study {study_id} is {st.status}, not done"
                 )
-            a = fetch_arrays(s, st.id)
-            return codec.state_from_meta(
-                st.state_meta, a.samples, a.log_likelihood, a.log_prior, a.responses
-            )
+            return dict(st.state_meta), fetch_arrays(s, st.id)
 
     def ready(self) -> list[tuple[int, int]]:
         """Stages that can be advanced now (all batches done, study running)."""
@@ -297,35 +300,37 @@ class StageRepository:
         inp = ReduceInput(
             study=load_study(s, study_id),
             stage=stage_record(st),
-            plan=None if plan_blob is None else codec.decode(plan_blob),
-            results=[codec.decode(b) for b in blobs],
+            plan=None if plan_blob is None else bytes(plan_blob),
+            results=[bytes(b) for b in blobs],
         )
         adv = reducer(inp)
         if not isinstance(adv, StageAdvance):
             raise TypeError(f"reducer returned {type(adv).__name__}, expected StageAdvance")
-        state = adv.state
-        if state.stage != stage_index:
-            raise ValueError(f"reducer returned the state of stage {state.stage}")
+        red = adv.reduced
+        if not isinstance(red, ReducedStage):
+            raise TypeError(f"reducer returned {type(red).__name__}, expected ReducedStage")
+        if red.stage != stage_index:
+            raise ValueError(f"reducer returned the state of stage {red.stage}")
         if adv.next_plan is None and adv.final_status not in FINAL_STUDY:
             raise ValueError(
                 f"with no next plan, final_status must be one of {FINAL_STUDY}, "
                 f"got {adv.final_status!r}"
             )
 
-        insert_samples(s, st.id, state)
+        insert_samples(s, st.id, red.population)
         s.execute(
             sa.update(Stage)
             .where(Stage.id == st.id)
             .values(
                 status="done",
-                exponent=float(state.exponent),
-                acceptance=_opt(state.acceptance_rate),
-                ess=_opt(state.ess),
-                log_evidence=_opt(state.log_evidence),
-                model_runs=int(state.model_runs),
-                failed_runs=int(state.failed_runs),
-                n_steps=int(state.n_steps) if stage_index else None,
-                state_meta=codec.state_meta(state),
+                exponent=_opt(red.exponent),
+                acceptance=_opt(red.acceptance),
+                ess=_opt(red.ess),
+                log_evidence=_opt(red.log_evidence),
+                model_runs=int(red.model_runs),
+                failed_runs=int(red.failed_runs),
+                n_steps=red.n_steps,
+                state_meta=jsonable(dict(red.meta)),
                 updated_at=now,
                 finished_at=now,
             )
@@ -337,21 +342,21 @@ class StageRepository:
             "stage_done",
             {
                 "stage": stage_index,
-                "exponent": state.exponent,
-                "acceptance": state.acceptance_rate,
-                "ess": state.ess,
-                "log_evidence": state.log_evidence,
-                "model_runs": state.model_runs,
-                "failed_runs": state.failed_runs,
+                "exponent": red.exponent,
+                "acceptance": red.acceptance,
+                "ess": red.ess,
+                "log_evidence": red.log_evidence,
+                "model_runs": red.model_runs,
+                "failed_runs": red.failed_runs,
                 **dict(adv.payload or {}),
             },
             now,
         )
         counters = {
-            "log_evidence": _opt(state.log_evidence),
-            "log_evidence_var": _opt(state.log_evidence_var),
-            "model_runs": Study.model_runs + int(state.model_runs),
-            "failed_runs": Study.failed_runs + int(state.failed_runs),
+            "log_evidence": _opt(red.log_evidence),
+            "log_evidence_var": _opt(red.log_evidence_var),
+            "model_runs": Study.model_runs + int(red.model_runs),
+            "failed_runs": Study.failed_runs + int(red.failed_runs),
         }
         if adv.next_plan is not None:
             nxt = stage_index + 1
@@ -374,7 +379,7 @@ class StageRepository:
             s,
             study_id,
             f"study_{final}",
-            {"stage": stage_index, "log_evidence": state.log_evidence, "error": adv.error},
+            {"stage": stage_index, "log_evidence": red.log_evidence, "error": adv.error},
             now,
         )
         return AdvanceOutcome("advanced", final, None)

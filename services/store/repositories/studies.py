@@ -7,6 +7,7 @@ cancel racing with a stage advance or with the reaper has exactly one winner.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Sequence
 from datetime import datetime
 from typing import Any
@@ -14,12 +15,10 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from scm_core.inference.tmcmc_stage import StagePlan
-
 from ..engine import jsonable
 from ..errors import NotFoundError
-from ..models import STUDY_ACTIVE, STUDY_KINDS, STUDY_STATUSES, Dataset, Study, StudyDataset
-from ..records import Page, StageRecord, StudyRecord, StudySpec
+from ..models import STUDY_ACTIVE, STUDY_KIND_PATTERN, STUDY_STATUSES, Dataset, Study, StudyDataset
+from ..records import Page, PlannedStage, StageRecord, StudyRecord, StudySpec
 from .base import Database
 from .events import append_event
 
@@ -67,6 +66,7 @@ def _record(st: Study, dataset_ids: tuple[int, ...]) -> StudyRecord:
         started_at=st.started_at,
         finished_at=st.finished_at,
         result=None if st.result is None else dict(st.result),
+        payload=None if st.payload is None else dict(st.payload),
     )
 
 
@@ -112,6 +112,12 @@ def fail_study(
     return True
 
 
+def _check_kind(kind: str) -> None:
+    """A kind's name is an identifier (which kinds exist is the study service's registry)."""
+    if not isinstance(kind, str) or not re.match(STUDY_KIND_PATTERN, kind):
+        raise ValueError(f"study kind must match {STUDY_KIND_PATTERN}, got {kind!r}")
+
+
 class StudyRepository:
     def __init__(self, db: Database) -> None:
         self.db = db
@@ -120,8 +126,7 @@ class StudyRepository:
         """Insert a queued study with its datasets (in order) and a "study_created" event."""
         if not 0 <= int(spec.seed) < _SEED_LIMIT:
             raise ValueError(f"seed must satisfy 0 <= seed < 2**63, got {spec.seed}")
-        if spec.kind not in STUDY_KINDS:
-            raise ValueError(f"unknown study kind {spec.kind!r}; one of {STUDY_KINDS}")
+        _check_kind(spec.kind)
         if int(spec.n_samples) < 1:
             raise ValueError(f"n_samples must be >= 1, got {spec.n_samples}")
         if spec.batch_size is not None and int(spec.batch_size) < 1:
@@ -144,6 +149,7 @@ class StudyRepository:
                 priors=jsonable(dict(spec.priors)),
                 sampler=jsonable(dict(spec.sampler)),
                 simulator=jsonable(dict(spec.simulator)),
+                payload=None if spec.payload is None else jsonable(dict(spec.payload)),
                 seed=int(spec.seed),
                 n_samples=int(spec.n_samples),
                 batch_size=None if spec.batch_size is None else int(spec.batch_size),
@@ -183,8 +189,7 @@ class StudyRepository:
         """Studies, newest first, optionally only those with the given status(es) or kind."""
         where = []
         if kind is not None:
-            if kind not in STUDY_KINDS:
-                raise ValueError(f"unknown study kind {kind!r}; one of {STUDY_KINDS}")
+            _check_kind(kind)
             where.append(Study.kind == kind)
         if status is not None:
             statuses = [status] if isinstance(status, str) else list(status)
@@ -226,7 +231,7 @@ class StudyRepository:
         study_id: int,
         batches: Sequence[range],
         *,
-        plan: StagePlan | None = None,
+        plan: PlannedStage | None = None,
         exponent: float = 0.0,
     ) -> StageRecord | None:
         """queued -> running and open stage 0 (status planned) with pending ``batches``, in

@@ -1,9 +1,9 @@
-"""Morris sensitivity studies in the service (paper section 4.4): the design points are the
-work batches' "chains", the Morris analysis is the reducer of the study's only stage.
+"""Kind "morris": a Morris sensitivity screening of the soil parameters (paper section 4.4).
 
-A sensitivity study is a study of kind "morris" on one dataset (whose test conditions are
-simulated; its measurements are not used). Stored: ``sampler`` = the design settings with every
-factor's bounds resolved (so the design can be rebuilt exactly, whatever later defaults become),
+The design points are the work batches' "chains"; the Morris analysis is the reducer of the
+study's only stage. A screening runs on one dataset (whose test conditions are simulated; its
+measurements are not used). Stored: ``sampler`` = the design settings with every factor's
+bounds resolved (so the design can be rebuilt exactly, whatever later defaults become),
 ``priors`` = the factor box (names, bounds, scale, units: the columns of the stage's samples),
 ``n_samples`` = the number of design points r (d + 1), ``seed`` = the design seed. The stage's
 samples are the design points with their steady F, T, z; the study's ``result`` is
@@ -13,8 +13,7 @@ the result is bit-identical to ``run_sensitivity`` however the points were batch
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,38 +25,46 @@ from scm_core.calibration import (
     CaseDefinition,
     MorrisModel,
     SensitivityDesign,
+    StudyModel,
     analyze_sensitivity,
     build_configs,
     sensitivity_design,
 )
-from scm_core.inference.tmcmc_stage import PointEvaluation, StageState
+from scm_core.inference.tmcmc_stage import PointEvaluation
 from scm_core.signals import SWTDataset
 from scm_core.validation_text import first_error, one_line
-from services.store import Store
-from services.store.errors import NotFoundError
-from services.store.records import (
+from services.config import Settings
+from services.limits import LimitError, check_simulator_settings, check_study_size
+from services.store import (
     BatchLease,
+    BatchOutput,
+    ReducedStage,
     ReduceInput,
     Reducer,
+    SampleArrays,
     StageAdvance,
+    Store,
     StudyRecord,
     StudySpec,
 )
+from services.store.codec import decode
+
+from ..batching import batch_size_of
+from ..datasets import check_dataset_ids, load_datasets
+from ..errors import StudyRequestError
+from .base import batch_output, one_run_per_item
+from .checks import check_runs, prior_medians
 
 __all__ = [
     "DEFAULT_POINTS_PER_BATCH",
-    "MorrisContext",
-    "SensitivityInputError",
+    "KIND",
+    "MorrisRun",
     "design_of",
     "sensitivity_spec",
 ]
 
 #: design points per work batch: ~1 min of simulator time at the default numerics
 DEFAULT_POINTS_PER_BATCH = 14
-
-
-class SensitivityInputError(ValueError):
-    """A sensitivity study cannot be made from the request; the message names the field."""
 
 
 def _settings(design: SensitivityDesign, joint_k: bool) -> dict[str, Any]:
@@ -90,6 +97,7 @@ def _factor_box(design: SensitivityDesign) -> dict[str, Any]:
 
 def sensitivity_spec(
     store: Store,
+    settings: Settings,
     case: CaseDefinition,
     dataset_id: int,
     *,
@@ -101,16 +109,18 @@ def sensitivity_spec(
     batch_size: int | None = None,
     name: str | None = None,
 ) -> StudySpec:
-    """A validated :class:`StudySpec` of kind "morris"; SensitivityInputError names the field
-    (``dataset_id``, ``bounds.<factor>``, ``r``, ``levels``)."""
+    """A Morris screening on one stored dataset, checked against the limits; nothing is
+    stored. StudyRequestError names the field (``dataset_id``, ``bounds.<factor>``, ``r``,
+    ``levels``)."""
     try:
-        store.datasets.get(int(dataset_id))
-    except NotFoundError:
-        raise SensitivityInputError(f"dataset_id: no dataset with id {dataset_id}") from None
+        check_simulator_settings(settings, dict(case.simulator))
+    except LimitError as exc:
+        raise StudyRequestError(str(exc)) from None
+    check_dataset_ids(store, [int(dataset_id)], "dataset_id")
     if r < 2:
-        raise SensitivityInputError(f"r: need at least 2 trajectories, got {r}")
+        raise StudyRequestError(f"r: need at least 2 trajectories, got {r}")
     if levels < 2 or levels % 2:
-        raise SensitivityInputError(f"levels: must be an even integer >= 2, got {levels}")
+        raise StudyRequestError(f"levels: must be an even integer >= 2, got {levels}")
     try:
         design = sensitivity_design(case, r, levels, seed, joint_k, bounds)
     except ValueError as exc:
@@ -120,8 +130,24 @@ def sensitivity_spec(
             text = f"bounds.{factor}: {rest}"
         elif text.startswith("bounds given for"):
             text = f"bounds: {text.removeprefix('bounds given for ')}"
-        raise SensitivityInputError(text) from None
-    _check_configuration(store, case, int(dataset_id), design)
+        raise StudyRequestError(text) from None
+    size = batch_size_of(batch_size, None, DEFAULT_POINTS_PER_BATCH)
+    try:
+        check_study_size(
+            settings,
+            n_samples=design.n_points,
+            max_stages=0,
+            steps_per_chain=0,
+            dataset_ids=[int(dataset_id)],
+            batch_size=size,
+            samples_field="r",
+        )
+    except LimitError as exc:
+        raise StudyRequestError(str(exc)) from None
+    dataset = store.datasets.load(int(dataset_id))
+    _check_configuration(case, int(dataset_id), dataset, design)
+    model = StudyModel(case, [dataset])
+    check_runs(settings, model, prior_medians(case), 0, int(dataset_id))
     return StudySpec(
         name=name or f"{case.name} sensitivity",
         case=case.to_dict(),
@@ -131,17 +157,17 @@ def sensitivity_spec(
         n_samples=design.n_points,
         sampler=_settings(design, joint_k),
         simulator=dict(case.simulator),
-        batch_size=batch_size or DEFAULT_POINTS_PER_BATCH,
-        kind="morris",
+        batch_size=size,
+        kind=KIND.name,
     )
 
 
 def _check_configuration(
-    store: Store, case: CaseDefinition, dataset_id: int, design: SensitivityDesign
+    case: CaseDefinition, dataset_id: int, dataset: SWTDataset, design: SensitivityDesign
 ) -> None:
     """Refuse a screening whose simulator configuration cannot be built at the centre of the
     factor box on the dataset's test conditions (every run would fail)."""
-    model = MorrisModel(design.names, case, store.datasets.load(dataset_id))
+    model = MorrisModel(design.names, case, dataset)
     lo, hi = design.bounds[:, 0], design.bounds[:, 1]
     log = design.log_scale
     centre = np.where(log, np.sqrt(np.abs(lo * hi)), 0.5 * (lo + hi))
@@ -161,7 +187,7 @@ def _check_configuration(
             )
             if factor in design.names:
                 field = f"bounds.{factor}"
-        raise SensitivityInputError(
+        raise StudyRequestError(
             f"{field}: invalid simulator configuration at the centre of the factor box: {text}"
         ) from None
 
@@ -176,60 +202,58 @@ def design_of(study: StudyRecord, case: CaseDefinition) -> SensitivityDesign:
 
 
 @dataclass
-class MorrisContext:
+class MorrisRun:
     """A sensitivity study's computation (see the module doc); cached per process."""
 
     design: SensitivityDesign
     model: MorrisModel
     seed: int
 
-    @classmethod
-    def from_study(
-        cls, study: StudyRecord, case: CaseDefinition, dataset: SWTDataset
-    ) -> MorrisContext:
-        design = design_of(study, case)
-        return cls(design, MorrisModel(design.names, case, dataset), study.seed)
-
     @property
     def model_function(self):
         """Points (m, d) -> steady means (m, 3) [N, N m, m]; NaN rows for failed runs."""
         return self.model
 
-    def compute(self, store: Store, lease: BatchLease, model_function) -> PointEvaluation:
+    def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
         X = self.design.points[lease.chain_start : lease.chain_stop]
         Y = np.asarray(model_function(X), dtype=float)
         failed = int(np.count_nonzero(~np.all(np.isfinite(Y), axis=1)))
-        return PointEvaluation(np.full(X.shape[0], np.nan), Y, failed)
+        return batch_output(lease, PointEvaluation(np.full(X.shape[0], np.nan), Y, failed))
 
-    def reducer(self, workers: int = 1) -> Reducer:
+    def reducer(self, workers: int) -> Reducer:
         """The Morris analysis of the study's only stage (``workers`` is not needed)."""
 
         def reduce(inp: ReduceInput) -> StageAdvance:
-            Y = np.concatenate([np.asarray(r.responses) for r in inp.results], axis=0)
+            points = [decode(b, PointEvaluation) for b in inp.results]
+            Y = np.concatenate([np.asarray(p.responses) for p in points], axis=0)
             result = analyze_sensitivity(self.design, Y, self.model.dataset.name)
             n = self.design.n_points
-            state = StageState(
+            nan = np.full(n, np.nan)
+            reduced = ReducedStage(
                 stage=0,
-                exponent=math.nan,
-                samples=self.design.points,
-                log_likelihood=np.full(n, np.nan),
-                log_prior=np.full(n, np.nan),
-                responses=Y,
-                beta=math.nan,
-                acceptance_rate=math.nan,
-                log_evidence=math.nan,
-                log_evidence_var=math.nan,
+                population=SampleArrays(self.design.points, nan, nan, Y),
                 model_runs=n,
                 failed_runs=result.n_failed,
-                proposals=0,
-                accepted=0,
-                out_of_support=0,
-                n_chains=0,
-                n_steps=0,
-                ess=math.nan,
-                stall_count=0,
-                seed=self.seed,
+                meta={"seed": self.seed},
             )
-            return StageAdvance(state, final_status="completed", result=result.to_dict())
+            return StageAdvance(reduced, final_status="completed", result=result.to_dict())
 
         return reduce
+
+
+class ScreeningKind:
+    """The plug-in of kind "morris" (see :mod:`.base`)."""
+
+    name = "morris"
+
+    def build(self, store: Store, study: StudyRecord) -> MorrisRun:
+        case = CaseDefinition.from_dict(study.case)
+        (dataset,) = load_datasets(store, case, study.dataset_ids)
+        design = design_of(study, case)
+        return MorrisRun(design, MorrisModel(design.names, case, dataset), study.seed)
+
+    def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
+        return one_run_per_item(batches)
+
+
+KIND = ScreeningKind()

@@ -1,0 +1,306 @@
+"""Kind "tmcmc": a Bayesian calibration by Transitional MCMC (paper section 3).
+
+Stage 0 evaluates the likelihood at ``n_samples`` prior draws (rows of
+``initial_samples(prior, n_samples, seed)``, one work batch per row range); every later stage
+runs the chains of its plan (``scm_core.inference.tmcmc_stage``). The reducer is
+``initial_state``/``reduce_stage`` followed by ``plan_stage`` or the end of the study. Plans
+and batch results are stored as :mod:`services.store.codec` blobs; a stage's population as
+sample rows with the scalar fields of its ``StageState`` as ``meta``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from scm_core.calibration import CaseDefinition, StudyModel
+from scm_core.inference.tmcmc_stage import (
+    ChainBatchResult,
+    PointEvaluation,
+    StagePlan,
+    StageState,
+    TMCMCSettings,
+    evaluate_points,
+    initial_samples,
+    initial_state,
+    plan_stage,
+    reduce_stage,
+    run_chains,
+    stage_status,
+)
+from services.config import Settings
+from services.limits import LimitError, check_simulator_settings, check_study_size
+from services.store import (
+    BatchKey,
+    BatchLease,
+    BatchOutput,
+    PlannedStage,
+    ReducedStage,
+    ReduceInput,
+    Reducer,
+    SampleArrays,
+    StageAdvance,
+    Store,
+    StudyRecord,
+    StudySpec,
+)
+from services.store.codec import decode, encode, split
+
+from ..batching import DEFAULT_BATCH_SIZE, batch_size_of, work_batches
+from ..datasets import check_dataset_ids, load_datasets
+from ..errors import StudyRequestError
+from .base import batch_output, one_run_per_item
+from .checks import check_runs, prior_medians
+
+__all__ = [
+    "KIND",
+    "CalibrationRun",
+    "calibration_spec",
+    "planned_stage",
+    "reduced_stage",
+    "stage_state",
+]
+
+_ARRAYS = ("samples", "log_likelihood", "log_prior", "responses")
+
+
+# ---------------------------------------------------------------------------- stored forms
+
+
+def planned_stage(plan: StagePlan) -> PlannedStage:
+    """A TMCMC stage plan as the store keeps it (blob and diagnostics)."""
+    return PlannedStage(
+        stage=plan.stage,
+        n_chains=plan.n_chains,
+        blob=encode(plan),
+        exponent=float(plan.exponent),
+        prev_exponent=float(plan.prev_exponent),
+        beta=float(plan.prev_beta),
+        ess=float(plan.ess),
+        log_evidence_increment=float(plan.log_evidence_increment),
+        n_steps=int(plan.chain_length.max()) if plan.n_chains else 0,
+    )
+
+
+def reduced_stage(state: StageState) -> ReducedStage:
+    """A TMCMC stage's population as the store keeps it (``meta``: the state's scalars)."""
+    meta, _ = split(state)
+    return ReducedStage(
+        stage=state.stage,
+        population=SampleArrays(
+            state.samples, state.log_likelihood, state.log_prior, state.responses
+        ),
+        model_runs=int(state.model_runs),
+        failed_runs=int(state.failed_runs),
+        exponent=float(state.exponent),
+        acceptance=float(state.acceptance_rate),
+        ess=float(state.ess),
+        log_evidence=float(state.log_evidence),
+        log_evidence_var=float(state.log_evidence_var),
+        n_steps=int(state.n_steps) if state.stage else None,
+        meta={k: v for k, v in meta.items() if k not in _ARRAYS},
+    )
+
+
+def stage_state(meta: dict[str, Any], population: SampleArrays) -> StageState:
+    """The StageState of a done stage from the store's ``population(...)`` (bit-exact)."""
+    base = StageState.from_dict(dict(meta, **dict.fromkeys(_ARRAYS)))
+    return dataclasses.replace(
+        base,
+        samples=population.samples,
+        log_likelihood=population.log_likelihood,
+        log_prior=population.log_prior,
+        responses=population.responses,
+    )
+
+
+def load_stage_state(store: Store, study_id: int, stage_index: int) -> StageState:
+    """The StageState of done stage ``stage_index`` of a stored calibration."""
+    return stage_state(*store.stages.population(study_id, stage_index))
+
+
+# ---------------------------------------------------------------------------- requests
+
+
+def check_limits(
+    settings: Settings, case: CaseDefinition, dataset_ids: Sequence[int], batch_size: int
+) -> None:
+    """The study's size (samples, stages, datasets, batches, model runs) and its simulator
+    table against the service's limits, before any dataset is read."""
+    sampler = case.tmcmc_settings()
+    try:
+        check_simulator_settings(settings, dict(case.simulator))
+        check_study_size(
+            settings,
+            n_samples=case.sampler.n_samples,
+            max_stages=case.sampler.max_stages,
+            steps_per_chain=sampler.n_steps or sampler.max_steps,
+            dataset_ids=list(dataset_ids),
+            batch_size=batch_size,
+        )
+    except LimitError as exc:
+        raise StudyRequestError(str(exc)) from None
+
+
+def precheck(
+    store: Store, settings: Settings, case: CaseDefinition, dataset_ids: Sequence[int]
+) -> None:
+    """Refuse a case whose simulator configuration cannot be built at the prior medians on
+    the datasets' test conditions (the study would fail on its first batch), or whose runs
+    are over the service's limits."""
+    try:
+        model = StudyModel(case, [store.datasets.load(d) for d in dataset_ids])
+    except ValueError as exc:
+        raise StudyRequestError(f"dataset_ids: {exc}") from None
+    theta = prior_medians(case)
+    problem = model.config_problem(theta)
+    if problem is not None:
+        k, why = problem
+        raise StudyRequestError(
+            f"dataset_ids: dataset {dataset_ids[k]} ({model.datasets[k].name}): {why}"
+        )
+    for k in range(model.n_datasets):
+        check_runs(settings, model, theta, k, dataset_ids[k])
+
+
+def calibration_spec(
+    store: Store,
+    settings: Settings,
+    case: CaseDefinition,
+    dataset_ids: Sequence[int],
+    batch_size: int | None = None,
+) -> StudySpec:
+    """A TMCMC calibration of ``case`` on stored datasets, checked against the limits and at
+    the prior medians; nothing is stored. StudyRequestError names the field."""
+    size = batch_size_of(batch_size, case.sampler.batch_size, DEFAULT_BATCH_SIZE)
+    ids = [int(d) for d in dataset_ids]
+    check_limits(settings, case, ids, size)
+    check_dataset_ids(store, ids)
+    precheck(store, settings, case, ids)
+    return StudySpec(
+        name=case.name,
+        case=case.to_dict(),
+        priors=case.prior().to_dict(),
+        dataset_ids=ids,
+        seed=case.seed,
+        n_samples=case.sampler.n_samples,
+        sampler=case.tmcmc_settings().to_dict(),
+        simulator=dict(case.simulator),
+        batch_size=size,
+        kind=KIND.name,
+    )
+
+
+# ---------------------------------------------------------------------------- computation
+
+
+@dataclass
+class CalibrationRun:
+    """What running a calibration's batches needs; rebuilt from the database, cached per
+    process."""
+
+    case: CaseDefinition
+    model: StudyModel
+    settings: TMCMCSettings
+    n_samples: int
+    seed: int
+    _plans: dict[int, StagePlan] = field(default_factory=dict, repr=False)
+
+    @cached_property
+    def prior(self):
+        return self.case.prior()
+
+    @cached_property
+    def initial_points(self):
+        """Stage-0 prior draws (all chains), drawn once per process."""
+        return initial_samples(self.prior, self.n_samples, self.seed)
+
+    @property
+    def model_function(self):
+        """Points (m, d) -> log-likelihoods (and responses): the simulator's time."""
+        return self.model.log_likelihood_batch
+
+    def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
+        """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""
+        if lease.key.stage_index == 0:
+            X = self.initial_points[lease.chain_start : lease.chain_stop]
+            return batch_output(lease, evaluate_points(X, model_function))
+        result = run_chains(self.plan(store, lease.key), lease.chains, model_function)
+        return batch_output(lease, result)
+
+    def result(self, final: StageState) -> dict[str, Any] | None:
+        """What the study stores when it completes (a calibration: nothing beyond its
+        stages)."""
+        return None
+
+    def plan(self, store: Store, key: BatchKey) -> StagePlan:
+        """The plan of the batch's stage, read once per process (plans never change once
+        stored; the previous stage's is dropped)."""
+        plan = self._plans.get(key.stage_index)
+        if plan is None:
+            blob = store.stages.plan(key.study_id, key.stage_index)
+            if blob is None:
+                raise ValueError(f"stage {key.stage_index} of study {key.study_id} has no plan")
+            plan = decode(blob, StagePlan)
+            self._plans = {key.stage_index: plan}
+        return plan
+
+    def reducer(self, workers: int) -> Reducer:
+        """The stage's population, then the next plan (batches cut for ``workers`` workers,
+        see :func:`~services.studies.batching.work_batches`) or the end of the study."""
+
+        def reduce(inp: ReduceInput) -> StageAdvance:
+            study = inp.study
+            if inp.stage.stage_index == 0:
+                points = [decode(b, PointEvaluation) for b in inp.results]
+                state = initial_state(
+                    self.prior, self.initial_points, points, study.seed, self.settings
+                )
+            else:
+                chains = [decode(b, ChainBatchResult) for b in inp.results]
+                state = reduce_stage(decode(inp.plan or b"", StagePlan), chains)
+            status = stage_status(state, self.settings)
+            if status is None:
+                plan = plan_stage(state, self.prior, self.settings)
+                batches = work_batches(plan.n_chains, study.batch_size, workers)
+                return StageAdvance(reduced_stage(state), planned_stage(plan), batches)
+            if status == "completed":
+                return StageAdvance(
+                    reduced_stage(state), final_status="completed", result=self.result(state)
+                )
+            return StageAdvance(
+                reduced_stage(state), final_status="stalled", error=f"TMCMC stopped: {status}"
+            )
+
+        return reduce
+
+
+class CalibrationKind:
+    """The plug-in of kind "tmcmc" (see :mod:`.base`)."""
+
+    name = "tmcmc"
+
+    def build(self, store: Store, study: StudyRecord) -> CalibrationRun:
+        case = CaseDefinition.from_dict(study.case)
+        return CalibrationRun(
+            case=case,
+            model=StudyModel(case, load_datasets(store, case, study.dataset_ids)),
+            settings=case.tmcmc_settings(),
+            n_samples=study.n_samples,
+            seed=study.seed,
+        )
+
+    def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
+        """Stage 0: one run per point; later stages: the chains' lengths."""
+        if plan is None:
+            return one_run_per_item(batches)
+        lengths = np.asarray(decode(plan, StagePlan).chain_length, dtype=np.int64)
+        return [int(lengths[r.start : r.stop].sum()) for r in batches]
+
+
+KIND = CalibrationKind()

@@ -1,0 +1,165 @@
+"""Kind "update": a posterior update with new tests (paper section 5.3).
+
+Stage 0 is the final population of an earlier completed calibration (or update), the parent;
+the stages temper the new datasets' likelihood only, with the old datasets' likelihood in the
+base density (:class:`scm_core.calibration.UpdateLikelihood`), so the result targets
+prior x L(old) x L(new). The case, priors and sampler settings are the parent's. The study's
+log evidence is the incremental one, log Z(new | old); the total, log Z(old) + log Z(new | old),
+is in its ``result`` with the parent's. Payload: ``{"update_of": parent id}``; ``dataset_ids``
+are the new datasets only (the old ones are the parent's, recursively). Seed: the request's,
+else the parent's + 1, so its chains never reuse the parent's random numbers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scm_core.calibration import CaseDefinition, StudyModel, UpdateLikelihood
+from scm_core.inference.tmcmc_stage import StageState
+from services.config import Settings
+from services.limits import INT64_MAX
+from services.store import NotFoundError, Store, StudyRecord, StudySpec
+
+from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
+from ..datasets import check_dataset_ids, load_datasets
+from ..errors import StudyRequestError
+from .calibration import CalibrationKind, CalibrationRun, check_limits, precheck
+
+__all__ = ["KIND", "UpdateRun", "old_dataset_ids", "update_spec"]
+
+#: kinds whose final population an update can start from
+UPDATABLE = ("tmcmc", "update")
+
+
+def old_dataset_ids(store: Store, parent: StudyRecord) -> list[int]:
+    """The datasets behind ``parent``'s posterior, in likelihood order (its ancestors' first)."""
+    chain: list[StudyRecord] = [parent]
+    while chain[-1].kind == "update":
+        chain.append(store.studies.get(int((chain[-1].payload or {})["update_of"])))
+    return [int(d) for study in reversed(chain) for d in study.dataset_ids]
+
+
+def update_spec(
+    store: Store,
+    settings: Settings,
+    update_of: int,
+    dataset_ids: Sequence[int],
+    *,
+    seed: int | None = None,
+    batch_size: int | None = None,
+    name: str | None = None,
+) -> StudySpec:
+    """An update of the completed study ``update_of`` with the stored ``dataset_ids``, checked
+    like a calibration (limits, configuration at the prior medians); nothing is stored.
+    StudyRequestError names the field (``update_of``, ``dataset_ids``, ``seed``)."""
+    try:
+        parent = store.studies.get(int(update_of))
+    except NotFoundError:
+        raise StudyRequestError(f"update_of: no study with id {update_of}") from None
+    if parent.kind not in UPDATABLE:
+        raise StudyRequestError(
+            f"update_of: study {parent.id} is a {parent.kind} study, not a calibration"
+        )
+    if parent.status != "completed":
+        raise StudyRequestError(
+            f"update_of: study {parent.id} is {parent.status}; only a completed calibration "
+            "can be updated"
+        )
+    ids = [int(d) for d in dataset_ids]
+    check_dataset_ids(store, ids)
+    old = old_dataset_ids(store, parent)
+    again = [d for d in ids if d in old]
+    if again:
+        raise StudyRequestError(
+            f"dataset_ids: dataset {again[0]} is already in the posterior of study {parent.id}"
+        )
+    case = CaseDefinition.from_dict(parent.case)
+    if seed is None:
+        seed = (parent.seed + 1) % (INT64_MAX + 1)
+    if not 0 <= int(seed) <= INT64_MAX:
+        raise StudyRequestError(f"seed: must be 0 <= seed < 2**63 (got {seed})")
+    size = batch_size_of(batch_size, parent.batch_size, DEFAULT_BATCH_SIZE)
+    check_limits(settings, case, old + ids, size)
+    precheck(store, settings, case, ids)
+    return StudySpec(
+        name=name or f"{parent.name} + update",
+        case=parent.case,
+        priors=parent.priors,
+        dataset_ids=ids,
+        seed=int(seed),
+        n_samples=parent.n_samples,
+        sampler=parent.sampler,
+        simulator=parent.simulator,
+        batch_size=size,
+        kind=KIND.name,
+        payload={"update_of": parent.id},
+    )
+
+
+@dataclass
+class UpdateRun(CalibrationRun):
+    """A calibration run whose stage 0 is the parent's population and whose likelihood puts
+    the old datasets in the base density."""
+
+    parent_samples: NDArray[np.float64] | None = None
+    likelihood: UpdateLikelihood | None = None
+    parent_id: int = 0
+    parent_log_evidence: float = 0.0
+
+    @cached_property
+    def initial_points(self) -> NDArray[np.float64]:
+        return np.asarray(self.parent_samples, dtype=float)
+
+    @property
+    def model_function(self):
+        """Points (m, d) -> (log L(new), responses, log L(old))."""
+        return self.likelihood
+
+    def result(self, final: StageState) -> dict[str, Any]:
+        increment = float(final.log_evidence)
+        return {
+            "update_of": self.parent_id,
+            "log_evidence_increment": increment,
+            "parent_log_evidence": self.parent_log_evidence,
+            "log_evidence_total": self.parent_log_evidence + increment,
+        }
+
+
+class UpdateKind(CalibrationKind):
+    """The plug-in of kind "update" (see :mod:`.base`); batches and reducer as a calibration."""
+
+    name = "update"
+
+    def build(self, store: Store, study: StudyRecord) -> UpdateRun:
+        parent = store.studies.get(int((study.payload or {})["update_of"]))
+        old = old_dataset_ids(store, parent)
+        case = CaseDefinition.from_dict(study.case)
+        model = StudyModel(case, load_datasets(store, case, old + list(study.dataset_ids)))
+        _, population = store.stages.population(parent.id, int(parent.current_stage or 0))
+        return UpdateRun(
+            case=case,
+            model=model,
+            settings=case.tmcmc_settings(),
+            n_samples=study.n_samples,
+            seed=study.seed,
+            parent_samples=population.samples,
+            likelihood=UpdateLikelihood(model, len(old)),
+            parent_id=parent.id,
+            parent_log_evidence=_total_log_evidence(store, parent),
+        )
+
+
+def _total_log_evidence(store: Store, study: StudyRecord) -> float:
+    """log Z of all the data behind ``study``'s posterior."""
+    if study.kind == "update" and study.result:
+        return float(study.result["log_evidence_total"])
+    return float(study.log_evidence if study.log_evidence is not None else np.nan)
+
+
+KIND = UpdateKind()

@@ -1,0 +1,133 @@
+"""The layer rules, read from the source (every ``import``, also inside functions):
+
+    scm_core  <-  services.store  <-  services.studies  <-  worker, services.api, services.cli
+
+plus ``services.config``/``services.limits`` (settings, usable from the store up) and
+``services.plots``/``services.client`` (figures and the HTTP client: numerics only). A module
+may import its own layer and the ones below it, never one above; the numerics know no
+database, queue or web, the store no HTTP or queue, the study service no HTTP, queue or worker.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("scm_core", "services", "worker")
+
+#: layer of a module (longest matching prefix) -> the layers it may import
+ALLOWED: dict[str, set[str]] = {
+    "scm_core": {"scm_core"},
+    "services.config": {"services.config"},
+    "services.limits": {"services.config", "scm_core"},
+    "services.plots": {"services.plots", "scm_core"},
+    "services.client": {"services.client", "services.config"},
+    "services.store": {"services.store", "services.config", "scm_core"},
+    "services.studies": {
+        "services.studies",
+        "services.store",
+        "services.config",
+        "services.limits",
+        "scm_core",
+    },
+    "worker": {"worker", "services.studies", "services.store", "services.config", "scm_core"},
+}
+ALLOWED["services.api"] = ALLOWED["worker"] | {"worker", "services.api", "services.limits"}
+ALLOWED["services.cli"] = ALLOWED["services.api"] | {
+    "services.cli",
+    "services.api",
+    "services.plots",
+    "services.client",
+}
+ALLOWED["services"] = {"services"}  # the package's own __init__
+
+#: third-party packages a layer must not import
+FORBIDDEN: dict[str, set[str]] = {
+    "scm_core": {"sqlalchemy", "alembic", "celery", "redis", "fastapi", "starlette", "httpx"},
+    "services.store": {"celery", "redis", "fastapi", "starlette", "httpx"},
+    "services.studies": {"celery", "redis", "fastapi", "starlette", "httpx", "sqlalchemy"},
+    "worker": {"fastapi", "starlette", "httpx"},
+}
+
+
+def _layer(module: str, layers) -> str | None:
+    best = None
+    for name in layers:
+        if (module == name or module.startswith(name + ".")) and (
+            best is None or len(name) > len(best)
+        ):
+            best = name
+    return best
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _imports(path: Path, module: str) -> list[tuple[int, str]]:
+    """(line, absolute module) of every import in the file of ``module``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            out.append((node.lineno, mod))
+    return out
+
+
+def _sources() -> list[tuple[str, Path]]:
+    paths = sorted(p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py"))
+    return [(_module_name(p), p) for p in paths]
+
+
+def violations(sources: list[tuple[str, Path]]) -> list[str]:
+    """Imports of the (module, path) ``sources`` that break the rules, one line each."""
+    found: list[str] = []
+    for module, path in sources:
+        layer = _layer(module, ALLOWED)
+        assert layer is not None, f"{module} is in no layer"
+        for line, target in _imports(path, module):
+            top = target.split(".")[0]
+            where = f"{path.name}:{line} ({module})"
+            if top in PACKAGES:
+                target_layer = _layer(target, ALLOWED) or target
+                if target_layer not in ALLOWED[layer]:
+                    found.append(f"{where}: {layer} imports {target} ({target_layer})")
+            elif top in FORBIDDEN.get(_layer(module, FORBIDDEN) or "", set()):
+                found.append(f"{where}: {layer} imports {top}")
+    return found
+
+
+def test_every_import_follows_the_layer_rules() -> None:
+    bad = violations(_sources())
+    assert not bad, "upward or forbidden imports:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize(
+    ("layer", "source", "expected"),
+    [
+        ("services.store", "from services.studies import kinds\n", "imports services.studies"),
+        ("services.studies", "import worker.orchestrator\n", "imports worker.orchestrator"),
+        ("scm_core", "def f():\n    import sqlalchemy\n", "imports sqlalchemy"),
+        ("services.studies", "from ...api import deps\n", "imports services.api"),
+    ],
+)
+def test_the_rule_catches_an_upward_import(tmp_path, layer, source, expected) -> None:
+    """The checker itself: an upward import planted in a module of ``layer`` is reported."""
+    planted = tmp_path / "planted.py"
+    planted.write_text(source, encoding="utf-8")
+    assert any(expected in v for v in violations([(f"{layer}.sub.planted", planted)]))
