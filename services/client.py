@@ -212,7 +212,8 @@ class SCMCalibClient:
         """Submit a study: ``preset`` ("1", "2a", "2b") or ``case`` (a case document dict, a
         :class:`~scm_core.calibration.CaseDefinition`, or the path of a TOML case file), the
         stored ``dataset_ids``, and overrides: seed, n_samples, moves, n_steps, max_stages,
-        likelihood, name, batch_size."""
+        likelihood, name, batch_size. An update of a completed study: no case, ``update_of``
+        its id and ``dataset_ids`` the new datasets."""
         body: dict[str, Any] = {"dataset_ids": [int(d) for d in dataset_ids]}
         if preset is not None:
             body["preset"] = str(preset)
@@ -258,6 +259,16 @@ class SCMCalibClient:
     def sensitivity(self, study_id: int) -> dict[str, Any]:
         """A sensitivity study: design, progress and (once completed) its Morris ``result``."""
         return self._json("GET", f"/sensitivity/{int(study_id)}")
+
+    def submit(self, collection: str, **body: Any) -> dict[str, Any]:
+        """Submit a study to the collection of its kind, e.g.
+        ``submit("predictions", study_id=3, dataset_ids=[4], draws=200)``; the body's fields
+        are the kind's (see the API's documentation). Wait for it with :meth:`wait`."""
+        return self._json("POST", f"/{collection.strip('/')}", json=body)
+
+    def read(self, collection: str, study_id: int) -> dict[str, Any]:
+        """A study of a kind's collection with its ``result`` once completed."""
+        return self._json("GET", f"/{collection.strip('/')}/{int(study_id)}")
 
     def get_study(self, study_id: int) -> dict[str, Any]:
         """The study with its ``progress`` block."""

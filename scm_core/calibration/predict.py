@@ -34,6 +34,8 @@ __all__ = [
     "ResponsePrediction",
     "choose_draws",
     "predict",
+    "prediction_draws",
+    "summarize_predictions",
     "sweep_targets",
 ]
 
@@ -179,38 +181,36 @@ def sweep_targets(template: DatasetTerms, values: Sequence[float]) -> list[Datas
     ]
 
 
-def predict(
-    case: CaseDefinition,
-    samples: ArrayLike,
-    targets: Sequence[SWTDataset | DatasetTerms],
-    draws: int = 200,
-    seed: int = 0,
-    map: MapFn = map,
-    batch_size: int = 50,
-    roles: Sequence[str] | None = None,
-) -> list[ConditionPrediction]:
-    """Simulate ``draws`` posterior samples (rows of ``samples``, in the case's parameter order)
-    under each target's test conditions; one :class:`ConditionPrediction` per target."""
+def prediction_draws(
+    case: CaseDefinition, samples: ArrayLike, draws: int, seed: int
+) -> NDArray[np.float64]:
+    """The ``draws`` posterior samples (rows of ``samples``, in the case's parameter order)
+    a prediction simulates (:func:`choose_draws`)."""
     X = np.atleast_2d(np.asarray(samples, dtype=float))
     if X.shape[1] != len(case.parameters):
         raise ValueError(
             f"samples have {X.shape[1]} columns, the case has {len(case.parameters)} parameters"
         )
-    terms = [dataset_terms(t) for t in targets]
-    if not terms:
-        return []
-    idx = choose_draws(X.shape[0], draws, seed)
-    Xd = X[idx]
-    model = StudyModel(case, terms)
-    chunks = [Xd[i : i + batch_size] for i in range(0, Xd.shape[0], batch_size)]
-    parts = list(map(model.simulate_means, chunks))
-    means = np.concatenate([p[0] for p in parts], axis=0)  # (draws, targets, 3)
-    ok = np.concatenate([p[1] for p in parts], axis=0)
-    sigma = _sigmas(case, Xd)  # response -> (draws,) or None
+    return X[choose_draws(X.shape[0], draws, seed)]
+
+
+def summarize_predictions(
+    case: CaseDefinition,
+    targets: Sequence[DatasetTerms],
+    draws: NDArray[np.float64],
+    means: NDArray[np.float64],
+    ok: NDArray[np.bool_],
+    seed: int,
+    roles: Sequence[str] | None = None,
+) -> list[ConditionPrediction]:
+    """Bands per target and response from the simulated steady ``means`` (draws, targets, 3)
+    of ``draws`` (whether each run succeeded: ``ok`` (draws, targets)); the prediction noise
+    is drawn from ``SeedSequence([seed, 1])``."""
+    sigma = _sigmas(case, draws)  # response -> (draws,) or None
     rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
-    noise = rng.standard_normal((Xd.shape[0], len(terms), 3))
+    noise = rng.standard_normal((draws.shape[0], len(targets), 3))
     out = []
-    for k, t in enumerate(terms):
+    for k, t in enumerate(targets):
         responses = {}
         for i, r in enumerate(RESPONSES):
             sim = means[:, k, i]
@@ -224,13 +224,38 @@ def predict(
                 name=t.name,
                 conditions=dict(t.conditions),
                 slip_symmetric=_slip_symmetric(t.conditions),
-                n_draws=int(Xd.shape[0]),
+                n_draws=int(draws.shape[0]),
                 n_failed=int((~ok[:, k]).sum()),
                 responses=responses,
                 role=roles[k] if roles is not None else "predicted",
             )
         )
     return out
+
+
+def predict(
+    case: CaseDefinition,
+    samples: ArrayLike,
+    targets: Sequence[SWTDataset | DatasetTerms],
+    draws: int = 200,
+    seed: int = 0,
+    map: MapFn = map,
+    batch_size: int = 50,
+    roles: Sequence[str] | None = None,
+) -> list[ConditionPrediction]:
+    """Simulate ``draws`` posterior samples (rows of ``samples``, in the case's parameter order)
+    under each target's test conditions; one :class:`ConditionPrediction` per target. The
+    same numbers for any ``map`` and ``batch_size``: each draw's runs depend on the draw only."""
+    terms = [dataset_terms(t) for t in targets]
+    if not terms:
+        return []
+    Xd = prediction_draws(case, samples, draws, seed)
+    model = StudyModel(case, terms)
+    chunks = [Xd[i : i + batch_size] for i in range(0, Xd.shape[0], batch_size)]
+    parts = list(map(model.simulate_means, chunks))
+    means = np.concatenate([p[0] for p in parts], axis=0)  # (draws, targets, 3)
+    ok = np.concatenate([p[1] for p in parts], axis=0)
+    return summarize_predictions(case, terms, Xd, means, ok, seed, roles)
 
 
 def _sigmas(case: CaseDefinition, X: NDArray[np.float64]) -> dict[str, NDArray | None]:

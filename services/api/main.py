@@ -37,6 +37,7 @@ from services.config import Settings, get_settings
 from services.limits import LimitError, check_json_depth
 from services.store import NotFoundError, SchemaVersionError, Store
 from services.studies import StudyRequestError
+from services.studies.kinds.registry import KINDS
 
 from .deps import check_token, route_needs_token
 from .params import NOT_FOUND_PARAMS
@@ -50,6 +51,7 @@ from .routes import (
     sensitivity,
     studies,
 )
+from .routes.kinds import kind_router
 from .schemas import ErrorOut
 
 log = logging.getLogger(__name__)
@@ -531,6 +533,7 @@ def create_app(
     app.add_middleware(TokenFirstMiddleware)  # outermost: runs first
     _install_error_handlers(app)
     routers = [m.router for m in (health, datasets, presets, studies, sensitivity, pooled)]
+    routers += [kind_router(k) for k in KINDS.values() if k.http is not None]
     for router in routers:
         app.include_router(router)
     app.state.api_routes = [

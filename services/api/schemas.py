@@ -9,7 +9,7 @@ Every error response is ``{"detail": "<one line naming the field>"}``.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -227,7 +227,31 @@ class StudyOut(StudyBrief):
     case: dict[str, Any]
     priors: dict[str, Any]
     sampler: dict[str, Any]
+    payload: dict[str, Any] = Field(
+        description='The kind\'s own settings, e.g. {"update_of": 12} for an update.'
+    )
+    result: dict[str, Any] | None = Field(
+        description="The kind's result once finished (an update: log_evidence_increment, "
+        "parent_log_evidence, log_evidence_total); null for a calibration."
+    )
     progress: ProgressOut
+
+
+#: the model of a kind's stored result (see services.studies.kinds.base.KindHttp)
+ResultT = TypeVar("ResultT")
+
+
+class KindStudyOut(StudyBrief, Generic[ResultT]):
+    """A study of a kind with its own collection (e.g. /predictions): the study, the kind's
+    settings (``payload``), progress, and its result once completed."""
+
+    payload: dict[str, Any]
+    progress: ProgressOut
+    result: ResultT | None
+
+
+class KindStudyPage(PageInfo, Generic[ResultT]):
+    items: list[KindStudyOut[ResultT]]
 
 
 class StudyPage(PageInfo):

@@ -127,6 +127,8 @@ def study_out(store: Store, study: StudyRecord) -> StudyOut:
         case=study.case,
         priors=study.priors,
         sampler=study.sampler,
+        payload=dict(study.payload or {}),
+        result=study.result,
         progress=study_progress(store, study),
     )
 

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["DEFAULT_BATCH_SIZE", "DEFAULT_WORKERS", "batch_size_of", "work_batches"]
+__all__ = [
+    "DEFAULT_BATCH_SIZE",
+    "DEFAULT_WORKERS",
+    "batch_size_of",
+    "local_batch_size",
+    "work_batches",
+]
 
 DEFAULT_BATCH_SIZE = 50  # chains per work batch: ~1-2 min of simulator time at the defaults
 #: workers assumed for a study's first stage (later stages count those of the previous one)
@@ -15,6 +21,14 @@ def batch_size_of(requested: int | None, configured: int | None, default: int) -
     """Chains (or points) per work batch: the request's, else the case's, else the kind's
     ``default`` (stages then cut it by guided self-scheduling, see :func:`work_batches`)."""
     return int(requested or configured or default)
+
+
+def local_batch_size(n: int, workers: int | None) -> int:
+    """Chains per batch of a study run on this machine (``scm-calib calibrate``): four batches
+    per process (``workers``; None: in-process on numba's threads), so that a slow batch
+    leaves the others little to wait for and progress is reported often."""
+    parts = 4 if workers is None else 4 * workers
+    return max(1, math.ceil(n / parts))
 
 
 def work_batches(

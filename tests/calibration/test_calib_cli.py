@@ -338,3 +338,94 @@ def test_bad_inputs_one_line_exit_2(work: Path, args: list[str], needle: str) ->
     (work / "garbage.csv").write_text("this is not, a log\n1,2\n")
     line = one_line_error(run_cli(*args, cwd=work))
     assert line.startswith("error: ") and needle in line, line
+
+
+@pytest.fixture(scope="module")
+def second_log(work: Path) -> Path:
+    """A second synthetic log of the same soil at slip 0.5 (the new test of an update)."""
+    proc = run_cli(
+        *("synth", "--set", "phi=27", "--set", "J=0.004", "--set", "slip=0.5"),
+        *("--set", "dx=0.015", "--set", "dt=0.05", "--duration", "8", "--ramp", "1"),
+        *("--seed", "5", "--out", "log50.csv"),
+        cwd=work,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return work / "log50.csv"
+
+
+def test_update_is_the_in_memory_update_bit_for_bit(
+    work: Path, reference: Path, second_log: Path
+) -> None:
+    """``--update-of ref --data log50.csv``: stage 0 is ref's final population, the slip 0.2
+    likelihood is the base density, the seed is ref's + 1; the samples are those of
+    ``run_tmcmc(UpdateLikelihood(...), stage0_samples=...)`` bit for bit, the evidence reported
+    is the increment with the total alongside, and a re-run resumes to the same files."""
+    import numpy as np
+
+    from scm_core.calibration import StudyModel, UpdateLikelihood, load_case, run_tmcmc
+    from scm_core.inference import StageState
+    from scm_core.signals import load_dataset
+
+    proc = run_cli("calibrate", "--update-of", "ref", "--data", "log50.csv", "--no-plots", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    out = work / "ref_update"
+    summary = json.loads((out / "summary.json").read_text())
+    parent = json.loads((reference / "summary.json").read_text())
+    assert summary["case"]["seed"] == parent["case"]["seed"] + 1
+    assert [d["path"] for d in summary["datasets"]] == [
+        str((work / "log.csv").resolve()),
+        str(second_log.resolve()),
+    ]
+    upd = summary["update"]
+    assert upd["parent_log_evidence"] == parent["log_evidence"]
+    assert upd["log_evidence_increment"] == summary["log_evidence"]
+    assert upd["log_evidence_total"] == pytest.approx(
+        parent["log_evidence"] + summary["log_evidence"], abs=1e-12
+    )
+
+    case = load_case(work / "tiny.toml").with_changes(seed=5)
+    data = [load_dataset(work / f, offset=case.data.offset) for f in ("log.csv", "log50.csv")]
+    last = sorted((reference / "checkpoints").glob("stage_*.json"))[-1]
+    parent_final = StageState.from_dict(json.loads(last.read_text())["state"])
+    expected = run_tmcmc(
+        UpdateLikelihood(StudyModel(case, data), 1),
+        case.prior(),
+        case.sampler.n_samples,
+        5,
+        case.tmcmc_settings(),
+        stage0_samples=parent_final.samples,
+    )
+    stages = sorted((out / "checkpoints").glob("stage_*.json"))
+    final = StageState.from_dict(json.loads(stages[-1].read_text())["state"])
+    assert final.samples.tobytes() == expected.samples.tobytes()
+    assert np.array_equal(
+        StageState.from_dict(json.loads(stages[0].read_text())["state"]).samples,
+        parent_final.samples,
+    )
+    before = stage_files(out)
+    again = run_cli(
+        "calibrate", "--update-of", "ref", "--data", "log50.csv", "--no-plots", cwd=work
+    )
+    assert again.returncode == 0, again.stderr
+    assert "resuming" in again.stderr and stage_files(out) == before
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["calibrate"], "missing CASE_FILE"),
+        (["calibrate", "tiny.toml", "--update-of", "ref", "--data", "log50.csv"], "no CASE_FILE"),
+        (["calibrate", "--update-of", "ref"], "needs the new datasets"),
+        (["calibrate", "--update-of", "ref", "--data", "log.csv"], "already in the posterior"),
+        (["calibrate", "--update-of", "nowhere", "--data", "log50.csv"], "no summary.json"),
+        (
+            ["calibrate", "--update-of", "ref", "--data", "log50.csv", "--samples", "20"],
+            "--moves and --samples",
+        ),
+    ],
+)
+def test_bad_update_inputs_one_line_exit_2(
+    work: Path, reference: Path, second_log: Path, args: list[str], needle: str
+) -> None:
+    line = one_line_error(run_cli(*args, cwd=work))
+    assert line.startswith("error: ") and needle in line, line

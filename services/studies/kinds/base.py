@@ -6,20 +6,28 @@ builds the computation of a stored study (:meth:`StudyKind.build`), computes a w
 (:meth:`StudyRun.reducer`) and says how many model runs each batch of a stage plans
 (:meth:`StudyKind.planned_runs`, for progress). The store sees only blobs and
 :class:`~services.store.ReducedStage` records; the worker sees only this protocol.
+
+A kind may bring its own collection of the HTTP API (:class:`KindHttp`: a path, a request
+model, its validation into a study and the model of its result); the API mounts
+``POST PATH``, ``GET PATH`` and ``GET PATH/{id}`` for every kind of the registry that has one,
+so a new kind needs its module and a line in the registry, nothing in the API.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import BaseModel
 
-from services.store import BatchLease, BatchOutput, Reducer, Store, StudyRecord
+from services.config import Settings
+from services.store import BatchLease, BatchOutput, Reducer, Store, StudyRecord, StudySpec
 from services.store.codec import encode
 
-__all__ = ["ModelFunction", "StudyKind", "StudyRun", "batch_output"]
+__all__ = ["KindHttp", "ModelFunction", "StudyKind", "StudyRun", "batch_output"]
 
 #: points (m, d) -> what the kind's batches need per point (log-likelihoods, responses ...)
 ModelFunction = Callable[[NDArray[np.float64]], Any]
@@ -42,10 +50,30 @@ class StudyRun(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class KindHttp:
+    """A kind's collection in the HTTP API (mounted by ``services.api``).
+
+    ``path``: the collection ("/predictions"); ``request``: the body of ``POST path`` (a
+    pydantic model; unknown fields should be refused); ``spec(store, settings, body)``: the
+    validated study (StudyRequestError naming the field, nothing stored); ``result``: the model
+    of the study's stored ``result`` (None: any JSON object); ``title``: what one study of the
+    kind is called ("prediction"); ``description``: the POST's documentation."""
+
+    path: str
+    request: type[BaseModel]
+    spec: Callable[[Store, Settings, Any], StudySpec]
+    result: type[BaseModel] | None
+    title: str
+    description: str
+
+
 class StudyKind(Protocol):
-    """A kind of study; ``name`` is what ``studies.kind`` holds."""
+    """A kind of study; ``name`` is what ``studies.kind`` holds; ``http`` its API collection,
+    if it has its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``)."""
 
     name: str
+    http: KindHttp | None
 
     def build(self, store: Store, study: StudyRecord) -> StudyRun:
         """The computation of ``study`` (its datasets read from the store)."""

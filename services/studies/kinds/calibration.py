@@ -284,6 +284,7 @@ class CalibrationKind:
     """The plug-in of kind "tmcmc" (see :mod:`.base`)."""
 
     name = "tmcmc"
+    http = None  # POST /studies
 
     def build(self, store: Store, study: StudyRecord) -> CalibrationRun:
         case = CaseDefinition.from_dict(study.case)

@@ -23,15 +23,17 @@ def prior_medians(case: CaseDefinition) -> NDArray[np.float64]:
     return case.prior().ppf(np.full(len(case.parameters), 0.5))
 
 
-def check_runs(settings: Settings, model: StudyModel, theta: Any, k: int, dataset_id: int) -> None:
+def check_runs(settings: Settings, model: StudyModel, theta: Any, k: int, where: int | str) -> None:
     """One run's size (time steps, grid cells, output rate) on dataset ``k`` of ``model`` at
     ``theta`` against the service's limits (the size depends on the wheel, the test
-    conditions and the simulator settings, not on the soil)."""
+    conditions and the simulator settings, not on the soil). ``where``: the stored dataset's
+    id, or the request field the conditions came from."""
     try:
         prm = pack(*model.configs(theta, k))
     except (ValidationError, ValueError):
         return  # not a valid configuration: the configuration check names the field
     try:
-        check_run_size(settings, prm, f"dataset {dataset_id} ({model.datasets[k].name})")
+        label = where if isinstance(where, str) else f"dataset {where}"
+        check_run_size(settings, prm, f"{label} ({model.datasets[k].name})")
     except LimitError as exc:
         raise StudyRequestError(str(exc)) from None

@@ -245,6 +245,7 @@ class ScreeningKind:
     """The plug-in of kind "morris" (see :mod:`.base`)."""
 
     name = "morris"
+    http = None  # POST /sensitivity (routes written before kinds had their own)
 
     def build(self, store: Store, study: StudyRecord) -> MorrisRun:
         case = CaseDefinition.from_dict(study.case)

@@ -135,6 +135,7 @@ class UpdateKind(CalibrationKind):
     """The plug-in of kind "update" (see :mod:`.base`); batches and reducer as a calibration."""
 
     name = "update"
+    http = None  # POST /studies with update_of
 
     def build(self, store: Store, study: StudyRecord) -> UpdateRun:
         parent = store.studies.get(int((study.payload or {})["update_of"]))

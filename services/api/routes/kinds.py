@@ -1,0 +1,105 @@
+"""The collections of the study kinds that bring their own (``KindHttp``, see
+:mod:`services.studies.kinds.base`): ``POST PATH`` submits one, ``GET PATH`` lists them and
+``GET PATH/{id}`` reads one with its result. A study of any kind is also a study: cancel it, read
+its stages, samples and events under ``/studies/{id}``.
+"""
+
+# no ``from __future__ import annotations``: the routes' annotations are the kind's request
+# and result models, which FastAPI must see as classes, not as names to resolve
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, HTTPException, Query, Response
+
+from services.limits import INT64_MAX
+from services.store import Store, StudyRecord
+from services.studies import create_and_start
+from services.studies.kinds.base import StudyKind
+
+from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
+from ..params import StudyId, parse_statuses, status_query
+from ..schemas import KindStudyOut, KindStudyPage
+from ..views import page_out, study_brief, study_progress
+from . import errors
+
+
+def kind_router(kind: StudyKind) -> APIRouter:
+    """The router of ``kind``'s collection (``kind.http`` must be set)."""
+    http = kind.http
+    if http is None:
+        raise ValueError(f"study kind {kind.name!r} has no collection of its own")
+    result_model = http.result if http.result is not None else dict[str, Any]
+    out_model = KindStudyOut[result_model]
+    page_model = KindStudyPage[result_model]
+    request_model = http.request
+    plural = f"{http.title}s"
+    router = APIRouter(
+        prefix=http.path, tags=[http.path.strip("/")], dependencies=[Depends(require_read)]
+    )
+
+    def out(store: Store, study: StudyRecord) -> Any:
+        return out_model(
+            **study_brief(study).model_dump(),
+            payload=dict(study.payload or {}),
+            progress=study_progress(store, study),
+            result=study.result,
+        )
+
+    def get(store: Store, study_id: int) -> StudyRecord:
+        study = store.studies.get(study_id)
+        if study.kind != kind.name:
+            raise HTTPException(
+                404, f"{http.title} {study_id} not found (study {study_id} is a {study.kind} study)"
+            )
+        return study
+
+    @router.post(
+        "",
+        response_model=out_model,
+        status_code=201,
+        summary=f"Submit a {http.title}",
+        description=http.description,
+        dependencies=[Depends(require_write)],
+        responses=errors(401, 404, 413, 422),
+    )
+    def create(
+        body: request_model,
+        response: Response,
+        store: StoreDep,
+        dispatcher: DispatcherDep,
+        settings: SettingsDep,
+    ) -> Any:
+        spec = http.spec(store, settings, body)
+        study_id = create_and_start(store, spec, dispatcher)
+        response.headers["Location"] = f"{http.path}/{study_id}"
+        return out(store, store.studies.get(study_id))
+
+    @router.get(
+        "",
+        response_model=page_model,
+        summary=f"List {plural}",
+        responses=errors(401, 422),
+    )
+    def list_all(
+        store: StoreDep,
+        status: Annotated[str | None, status_query(plural)] = None,
+        limit: Annotated[int, Query(ge=1, le=500)] = 50,
+        offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
+    ) -> Any:
+        """Newest first, with their results."""
+        page = store.studies.list(
+            parse_statuses(status), kind=kind.name, limit=limit, offset=offset
+        )
+        return page_out(page_model, page, lambda s: out(store, s))
+
+    @router.get(
+        "/{study_id}",
+        response_model=out_model,
+        summary=f"A {http.title}: progress and result",
+        responses=errors(401, 404),
+    )
+    def read(study_id: StudyId, store: StoreDep) -> Any:
+        """The study, the kind's settings (payload), progress and, once completed, its result."""
+        return out(store, get(store, study_id))
+
+    return router

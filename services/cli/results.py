@@ -1,0 +1,244 @@
+"""The files of a ``scm-calib calibrate`` results folder: checkpoints (for resuming) and outputs.
+
+Layout::
+
+    DIR/checkpoints/manifest.json      what the checkpoints belong to (case and data hashes)
+    DIR/checkpoints/stage_NNN.json     StageState.to_dict() of each finished stage + wall time
+    DIR/samples/stage_NN.csv           samples of every stage: parameters, log_likelihood,
+                                       log_prior, simulated responses F/T/z per dataset
+    DIR/posterior.csv                  the final stage's samples (same columns)
+    DIR/summary.json                   posterior summary, evidence, diagnostics, settings
+    DIR/figures/prior_posterior.png    Figure 5-like
+    DIR/figures/posterior_pairs.png    Figures 6-8-like
+    DIR/figures/fit_map.png            measured vs simulated at the MAP sample (Figure 3-like)
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from scm_core.calibration import CaseDefinition, StudyModel, study_summary
+from scm_core.calibration.report import finite_or_none
+from scm_core.inference import StageState, TMCMCResult
+from scm_core.signals import SWTDataset
+
+from .common import CLIError
+
+CHECKPOINT_FORMAT = "scm-calib-checkpoints"
+
+# ---------------------------------------------------------------------- checkpoints
+
+
+def _write_json(path: Path, doc: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, separators=(",", ":")), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+class Checkpoints:
+    """Stage states of one study under DIR/checkpoints (atomic writes)."""
+
+    def __init__(
+        self,
+        out: Path,
+        case: CaseDefinition,
+        datasets: Sequence[SWTDataset],
+        update_of: dict[str, Any] | None = None,
+    ):
+        self.dir = out / "checkpoints"
+        self.manifest = {
+            "format": CHECKPOINT_FORMAT,
+            "version": 1,
+            "case": case.name,
+            "case_hash": case.fingerprint(),
+            "data_hashes": [d.content_hash for d in datasets],
+            "parameters": list(case.parameter_names),
+            "n_samples": case.sampler.n_samples,
+            "seed": case.seed,
+        }
+        if update_of is not None:  # the earlier posterior an update starts from
+            self.manifest["update_of"] = update_of
+
+    def load(self) -> tuple[list[StageState], list[float]]:
+        """Saved stages (consecutive from 0) and their wall times; refuses a different study."""
+        path = self.dir / "manifest.json"
+        if not path.is_file():
+            return [], []
+        try:
+            saved = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise CLIError(f"{path}: unreadable checkpoint manifest ({exc})") from None
+        if saved.get("format") != CHECKPOINT_FORMAT:
+            raise CLIError(f"{path}: not a scm-calib checkpoint manifest")
+        what = []
+        if saved.get("case_hash") != self.manifest["case_hash"]:
+            what.append("the case (priors, nominal values, simulator or sampler settings)")
+        if saved.get("data_hashes") != self.manifest["data_hashes"]:
+            what.append("the datasets")
+        if saved.get("update_of") != self.manifest.get("update_of"):
+            what.append("the study updated (--update-of)")
+        if what:
+            raise CLIError(
+                f"{self.dir} holds checkpoints of another study: {' and '.join(what)} changed "
+                "since; use another --out directory or delete the checkpoints to start over"
+            )
+        stages: list[StageState] = []
+        walls: list[float] = []
+        while (p := self.dir / f"stage_{len(stages):03d}.json").is_file():
+            try:
+                doc = json.loads(p.read_text(encoding="utf-8"))
+                stages.append(StageState.from_dict(doc["state"]))
+            except (OSError, json.JSONDecodeError, KeyError, ValueError, TypeError) as exc:
+                raise CLIError(f"{p}: unreadable checkpoint ({exc})") from None
+            walls.append(float(doc.get("wall_time_s", 0.0)))
+        return stages, walls
+
+    def start(self, fresh: bool) -> None:
+        """Write the manifest; a fresh study first drops stage files left without one."""
+        self.dir.mkdir(parents=True, exist_ok=True)
+        if fresh:
+            for old in self.dir.glob("stage_*.json"):
+                old.unlink()
+        _write_json(self.dir / "manifest.json", self.manifest)
+
+    def save(self, state: StageState, wall_time_s: float) -> None:
+        doc = {"state": state.to_dict(), "wall_time_s": wall_time_s}
+        _write_json(self.dir / f"stage_{state.stage:03d}.json", doc)
+
+
+# ---------------------------------------------------------------------- outputs
+
+
+def _fmt(v: float) -> str:
+    return "nan" if not math.isfinite(v) else repr(float(v))
+
+
+def write_stage_csv(
+    path: Path, state: StageState, names: Sequence[str], response_names: Sequence[str]
+) -> None:
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        resp = state.responses
+        header = [*names, "log_likelihood", "log_prior"]
+        if resp is not None:
+            header += list(response_names)
+        w.writerow(header)
+        for i in range(state.n_samples):
+            row = [_fmt(v) for v in state.samples[i]]
+            row += [_fmt(state.log_likelihood[i]), _fmt(state.log_prior[i])]
+            if resp is not None:
+                row += [_fmt(v) for v in resp[i]]
+            w.writerow(row)
+
+
+def _mean_b_eff(sim) -> float | None:
+    if sim is None:
+        return None
+    b = sim.series["b_eff"]
+    t = sim.series["t"]
+    sel = b[(t >= t[-1] / 2) & (b > 0)]
+    return float(sel.mean()) if sel.size else None
+
+
+def write_outputs(
+    out: Path,
+    result: TMCMCResult,
+    case: CaseDefinition,
+    model: StudyModel,
+    datasets: Sequence[SWTDataset],
+    wall_times: Sequence[float],
+    extra_settings: dict[str, Any],
+    plots: bool = True,
+    paths: Sequence[Path] | None = None,
+    sections: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Stage CSVs, posterior.csv, summary.json and the figures; returns the summary.
+
+    ``paths``: the datasets' files, recorded (absolute) in the summary so that an update can
+    read them again; ``sections``: more top-level entries of the summary (e.g. ``update``)."""
+    samples_dir = out / "samples"
+    samples_dir.mkdir(parents=True, exist_ok=True)
+    for old in samples_dir.glob("stage_*.csv"):  # left by an earlier study in this directory
+        old.unlink()
+    names = result.names
+    for st in result.stages:
+        write_stage_csv(samples_dir / f"stage_{st.stage:02d}.csv", st, names, model.response_names)
+    write_stage_csv(out / "posterior.csv", result.final, names, model.response_names)
+
+    # the MAP sample's simulations, for the fit figure and the summary
+    lp = result.final.log_prior + result.final.log_likelihood
+    theta = result.final.samples[int(np.argmax(np.where(np.isnan(lp), -np.inf, lp)))]
+    sims, map_responses = [], {}
+    offsets = model.measurement_offsets(theta)
+    for k, ds in enumerate(datasets):
+        try:
+            sim = model.simulate_at(theta, k)
+        except (ValidationError, ValueError):
+            sim = None
+        sims.append(sim)
+        m = sim.means if sim is not None else None
+        map_responses[ds.name] = {
+            "status": None if sim is None else sim.status,
+            "simulated": {
+                r: finite_or_none(getattr(m, r) + offsets.get(r, 0.0)) if m else None for r in "FTz"
+            },
+            "measured": {r: float(ds.responses[r].mean) for r in "FTz" if r in ds.responses},
+        }
+    summary = study_summary(result, case, model, wall_times, extra_settings, map_responses)
+    for entry, path in zip(summary["datasets"], paths or (), strict=False):
+        entry["path"] = str(Path(path).resolve())
+    summary.update(sections or {})
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+
+    if plots:
+        from services.plots.fit import plot_fit
+        from services.plots.posterior import plot_pairs, plot_prior_posterior
+
+        fig_dir = out / "figures"
+        fig_dir.mkdir(exist_ok=True)
+        prior = case.prior()
+        units = dict(prior.units or {})
+        log_params = {n for n, d in prior.dists.items() if d.kind == "log_uniform"}
+        plot_prior_posterior(
+            names,
+            result.stages[0].samples,
+            result.samples,
+            fig_dir / "prior_posterior.png",
+            bounds=prior.bounds,
+            units=units,
+            map_sample=theta,
+            reference=case.reference,
+            title=f"{case.name}: {'earlier' if sections and 'update' in sections else 'prior'} "
+            f"and posterior ({result.status})",
+            log_params=log_params,
+        )
+        b_eff = _mean_b_eff(sims[0])
+        k_star = case.reference.get("k_star")
+        plot_pairs(
+            names,
+            result.samples,
+            fig_dir / "posterior_pairs.png",
+            units=units,
+            reference=case.reference,
+            k_star_line=(k_star, b_eff) if k_star and b_eff else None,
+            title=f"{case.name}: bivariate posterior densities",
+            log_params=log_params,
+        )
+        plot_fit(
+            datasets,
+            sims,
+            fig_dir / "fit_map.png",
+            title=f"{case.name}: measured vs simulated at the MAP sample",
+            responses=case.responses,
+            offsets=model.measurement_offsets(theta),
+        )
+    return summary
