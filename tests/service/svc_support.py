@@ -26,6 +26,8 @@ HERE = Path(__file__).parent
 ROOT = HERE.parent.parent
 CASE_FILE = HERE / "data" / "svc_case.toml"
 LOG_FILE = ROOT / "examples" / "wf34_s020.csv"
+LOG_FILE2 = ROOT / "examples" / "wf34_s050.csv"  # the new test of an update
+PREDICTION = {"draws": 24, "seed": 3}
 PG_ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"
 LEASE_SECONDS = 4.0
 
@@ -185,30 +187,56 @@ def add_example_dataset(store: Store, case) -> int:
     return rec.id
 
 
-@pytest.fixture(scope="session")
-def reference_samples(tmp_path_factory, svc_case):
-    """Final samples of the same study run by ``scm-calib calibrate`` (bit-exact checkpoint)."""
-    out = tmp_path_factory.mktemp("calibrate")
+def _cli(*args: str) -> None:
     proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "services.cli",
-            "calibrate",
-            str(CASE_FILE),
-            "--out",
-            str(out),
-            "--no-plots",
-            "--quiet",
-        ],
+        [sys.executable, "-m", "services.cli", *args],
         capture_output=True,
         text=True,
         cwd=ROOT,
         timeout=900,
     )
     assert proc.returncode == 0, proc.stderr
+
+
+def _final_state(out: Path):
     from scm_core.inference import StageState
 
     checkpoints = sorted((out / "checkpoints").glob("stage_*.json"))
-    final = StageState.from_dict(json.loads(checkpoints[-1].read_text())["state"])
-    return final
+    return StageState.from_dict(json.loads(checkpoints[-1].read_text())["state"])
+
+
+@pytest.fixture(scope="session")
+def reference_run(tmp_path_factory) -> Path:
+    """The results folder of ``scm-calib calibrate`` on the service tests' case."""
+    out = tmp_path_factory.mktemp("calibrate")
+    _cli("calibrate", str(CASE_FILE), "--out", str(out), "--no-plots", "--quiet")
+    return out
+
+
+@pytest.fixture(scope="session")
+def reference_samples(reference_run):
+    """Final stage of the same study run by ``scm-calib calibrate`` (bit-exact checkpoint)."""
+    return _final_state(reference_run)
+
+
+@pytest.fixture(scope="session")
+def reference_update(tmp_path_factory, reference_run):
+    """Final stage of ``scm-calib calibrate --update-of`` the reference with the slip 0.5 log."""
+    out = tmp_path_factory.mktemp("update")
+    _cli(
+        *("calibrate", "--update-of", str(reference_run), "--data", str(LOG_FILE2)),
+        *("--out", str(out), "--no-plots", "--quiet"),
+    )
+    return _final_state(out)
+
+
+@pytest.fixture(scope="session")
+def reference_prediction(tmp_path_factory, reference_run) -> dict:
+    """``scm-calib predict`` of the reference on the slip 0.5 log (predictions.json)."""
+    out = tmp_path_factory.mktemp("predict")
+    _cli(
+        *("predict", str(reference_run), "--data", str(LOG_FILE2)),
+        *("--draws", str(PREDICTION["draws"]), "--seed", str(PREDICTION["seed"])),
+        *("--out", str(out), "--no-plots"),
+    )
+    return json.loads((out / "predictions.json").read_text())

@@ -14,7 +14,16 @@ import time
 import httpx
 import numpy as np
 import pytest
-from svc_support import CASE_FILE, LEASE_SECONDS, LOG_FILE, ROOT, free_port, service_env
+from svc_support import (
+    CASE_FILE,
+    LEASE_SECONDS,
+    LOG_FILE,
+    LOG_FILE2,
+    PREDICTION,
+    ROOT,
+    free_port,
+    service_env,
+)
 
 from scm_core.calibration import load_case, run_sensitivity
 from scm_core.signals import load_log
@@ -46,7 +55,12 @@ def _final_samples(client: SCMCalibClient, study_id: int) -> np.ndarray:
     return np.ascontiguousarray(s.samples, dtype=np.float64)
 
 
-def test_api_and_two_celery_workers(pg_url, redis_server, processes, reference_samples):
+def test_api_and_two_celery_workers(
+    pg_url, redis_server, processes, reference_samples, reference_update, reference_prediction
+):
+    """A calibration, a sensitivity study, an update of the calibration with the slip 0.5 log
+    and a prediction from it, all through the API on two Celery workers: bit-identical to
+    ``calibrate``, ``run_sensitivity``, ``calibrate --update-of`` and ``predict``."""
     token, digest = new_token()
     env = service_env(pg_url, redis_server.url)
     env["SCM_CALIB_API_TOKENS"] = digest
@@ -70,7 +84,22 @@ def test_api_and_two_celery_workers(pg_url, redis_server, processes, reference_s
         result = client.sensitivity(sens["id"])["result"]
         events = client.events(sens["id"], limit=1000)
         workers = {e["payload"]["worker"] for e in events if e["kind"] == "batch_done"}
+
+        # the posterior updated with a new log, and predictions of that log's test
+        ds2 = client.upload_log(LOG_FILE2)
+        update = client.create_study(update_of=study["id"], dataset_ids=[ds2["id"]])
+        pred = client.submit(
+            "predictions", study_id=study["id"], dataset_ids=[ds2["id"]], batch_size=5, **PREDICTION
+        )
+        assert client.wait(update["id"], timeout=TIMEOUT, poll=0.5)["status"] == "completed"
+        updated = client.get_study(update["id"])
+        got_update = _final_samples(client, update["id"])
+        assert client.wait(pred["id"], timeout=TIMEOUT, poll=0.5)["status"] == "completed"
+        predicted = client.read("predictions", pred["id"])["result"]
     assert got.tobytes() == reference_samples.samples.tobytes()
+    assert got_update.tobytes() == reference_update.samples.tobytes()
+    assert updated["result"]["log_evidence_increment"] == updated["log_evidence"]
+    assert predicted["predictions"] == reference_prediction["datasets"]
     case = load_case(CASE_FILE)
     meta = json.loads(LOG_FILE.with_suffix(".json").read_text())
     dataset = load_log(LOG_FILE.read_bytes(), metadata=meta, offset=case.data.offset)
