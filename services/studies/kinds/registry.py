@@ -5,12 +5,13 @@ from __future__ import annotations
 
 from .base import StudyKind
 from .calibration import KIND as CALIBRATION
+from .prediction import KIND as PREDICTION
 from .screening import KIND as SCREENING
 from .update import KIND as UPDATE
 
 __all__ = ["KINDS", "kind_of"]
 
-KINDS: dict[str, StudyKind] = {k.name: k for k in (CALIBRATION, SCREENING, UPDATE)}
+KINDS: dict[str, StudyKind] = {k.name: k for k in (CALIBRATION, SCREENING, UPDATE, PREDICTION)}
 
 
 def kind_of(name: str) -> StudyKind:

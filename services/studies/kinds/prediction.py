@@ -1,0 +1,344 @@
+"""Kind "prediction": posterior predictions of a finished calibration under other test
+conditions (paper section 5.3; DESIGN section 4), as ``scm-calib predict`` makes them.
+
+``POST /predictions {"study_id", "dataset_ids" or "conditions", "draws", "seed"}``: ``draws``
+samples of the study's final population (:func:`scm_core.calibration.predict.choose_draws`) are
+the work batches' items; each batch simulates its draws under every target's test conditions
+(a stored dataset's, or a condition given as ``TestConditions`` fields with an optional
+``name``). The reducer gives per target and response the median and 95 % bands of the steady
+means without and with the prediction noise, and the measured value with whether it falls
+inside (:func:`scm_core.calibration.predict.summarize_predictions`). Each draw's runs depend on
+the draw only, so the result is the CLI's bit for bit however the draws were batched.
+
+Stored: ``case``/``priors``/``sampler``/``simulator`` the calibrated study's, ``n_samples`` the
+draws, ``seed`` the prediction seed, ``dataset_ids`` the target datasets, ``payload``
+``{"study_id", "conditions"}``; the stage's samples are the draws with their simulated F, T, z
+per target; ``result`` ``{"study_id", "draws", "seed", "level", "predictions": [...]}``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Annotated, Any
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field
+
+from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, dataset_terms
+from scm_core.calibration.predict import LEVEL, prediction_draws, summarize_predictions
+from scm_core.signals import LogFormatError
+from scm_core.signals.conditions import make_conditions
+from services.config import Settings
+from services.limits import INT32_MAX, INT64_MAX, LimitError, check_study_size
+from services.store import (
+    BatchLease,
+    BatchOutput,
+    NotFoundError,
+    ReducedStage,
+    ReduceInput,
+    Reducer,
+    SampleArrays,
+    StageAdvance,
+    Store,
+    StudyRecord,
+    StudySpec,
+)
+from services.store.codec import decode
+
+from ..batching import batch_size_of
+from ..datasets import check_dataset_ids, load_datasets
+from ..errors import StudyRequestError
+from .base import KindHttp, batch_output, one_run_per_item
+from .checks import check_runs
+from .update import UPDATABLE, old_dataset_ids
+
+__all__ = ["KIND", "PredictionRequest", "PredictionResult", "prediction_spec"]
+
+#: draws per work batch: ~1 min of simulator time for one target at the default numerics
+DEFAULT_DRAWS_PER_BATCH = 25
+MAX_CONDITIONS = 200
+
+
+class PredictionRequest(BaseModel):
+    """Posterior predictions of a completed calibration (or update) under the test conditions
+    of stored datasets or of conditions given here (exactly one of the two)."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "oneOf": [
+                {"required": ["dataset_ids"], "properties": {"dataset_ids": {"type": "array"}}},
+                {"required": ["conditions"], "properties": {"conditions": {"type": "array"}}},
+            ]
+        },
+    )
+
+    study_id: int = Field(ge=0, le=INT64_MAX, description="The completed calibration.")
+    dataset_ids: list[Annotated[int, Field(ge=0, le=INT64_MAX)]] | None = Field(
+        None,
+        min_length=1,
+        description="Stored datasets whose test conditions are predicted (and whose measured "
+        "means are compared with the bands).",
+    )
+    conditions: list[dict[str, Any]] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_CONDITIONS,
+        description="Test conditions to predict: W [N] and the kinematics as a dataset's "
+        "metadata gives them (slip with slip_convention, or carriage_speed with rim_speed or "
+        "omega), optionally R, b, n_grousers, grouser_height and a name.",
+    )
+    draws: int = Field(200, ge=1, le=INT32_MAX, description="Posterior samples to simulate.")
+    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the draws and the noise.")
+    batch_size: int | None = Field(
+        None, ge=1, le=INT32_MAX, description="Draws per work batch (does not change results)."
+    )
+    name: str | None = Field(None, min_length=1, max_length=200)
+
+
+class PredictionBandOut(BaseModel):
+    median: float | None
+    lo: float | None
+    hi: float | None
+
+
+class ResponsePredictionOut(BaseModel):
+    simulated: PredictionBandOut = Field(description="Band of the simulated steady means.")
+    predictive: PredictionBandOut | None = Field(
+        description="Band with the prediction-error noise (null without a sigma)."
+    )
+    measured: float | None
+    inside_predictive: bool | None
+    inside_simulated: bool | None
+
+
+class ConditionPredictionOut(BaseModel):
+    name: str
+    role: str = Field(description="calibration (the study used it) or predicted.")
+    conditions: dict[str, Any]
+    slip_symmetric: float | None
+    n_draws: int
+    n_failed: int
+    responses: dict[str, ResponsePredictionOut] = Field(
+        description="F [N], T [N m], z [m]: median and 95 % bands."
+    )
+
+
+class PredictionResult(BaseModel):
+    study_id: int
+    draws: int
+    seed: int
+    level: float
+    predictions: list[ConditionPredictionOut]
+
+
+def _conditions(items: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each item validated as test conditions, stored as the simulator's keys with a name."""
+    out = []
+    for i, item in enumerate(items):
+        values = dict(item)
+        name = values.pop("name", None) or f"condition {i}"
+        try:
+            cond = make_conditions(values, where=f"conditions.{i}")
+        except LogFormatError as exc:
+            raise StudyRequestError(str(exc).removeprefix("invalid ")) from None
+        out.append({"name": str(name), **cond.to_sim_config()})
+    return out
+
+
+def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -> StudySpec:
+    """A prediction from the completed study ``body.study_id``, checked against the limits and
+    at the study's posterior mean on every target; nothing is stored."""
+    try:
+        parent = store.studies.get(int(body.study_id))
+    except NotFoundError:
+        raise StudyRequestError(f"study_id: no study with id {body.study_id}") from None
+    if parent.kind not in UPDATABLE:
+        raise StudyRequestError(
+            f"study_id: study {parent.id} is a {parent.kind} study, not a calibration"
+        )
+    if parent.status != "completed":
+        raise StudyRequestError(
+            f"study_id: study {parent.id} is {parent.status}; only a completed calibration "
+            "has a posterior to predict from"
+        )
+    if (body.dataset_ids is None) == (body.conditions is None):
+        raise StudyRequestError("dataset_ids: give exactly one of dataset_ids and conditions")
+    ids = [int(d) for d in body.dataset_ids or ()]
+    size = batch_size_of(body.batch_size, None, DEFAULT_DRAWS_PER_BATCH)
+    try:
+        check_study_size(
+            settings,
+            n_samples=body.draws,
+            max_stages=0,
+            steps_per_chain=0,
+            dataset_ids=ids,
+            batch_size=size,
+            samples_field="draws",
+        )
+    except LimitError as exc:
+        raise StudyRequestError(str(exc)) from None
+    runs = body.draws * max(len(ids), len(body.conditions or ()))
+    if runs > settings.max_model_runs_per_study:
+        raise StudyRequestError(
+            f"draws: {body.draws} draws x {runs // body.draws} targets = {runs} simulator runs "
+            f"is over the limit of {settings.max_model_runs_per_study:.3g} (server setting "
+            "SCM_CALIB_MAX_MODEL_RUNS_PER_STUDY)"
+        )
+    if ids:
+        check_dataset_ids(store, ids)
+    conditions = _conditions(body.conditions) if body.conditions is not None else None
+    case = CaseDefinition.from_dict(parent.case)
+    targets = _targets(store, case, ids, conditions)
+    _, population = store.stages.population(parent.id, int(parent.current_stage or 0))
+    theta = np.mean(population.samples, axis=0)
+    model = StudyModel(case, targets)
+    problem = model.config_problem(theta)
+    where = "dataset_ids" if ids else "conditions"
+    if problem is not None:
+        k, why = problem
+        raise StudyRequestError(f"{where}.{k}: {targets[k].name}: {why}")
+    for k in range(len(targets)):
+        check_runs(settings, model, theta, k, ids[k] if ids else f"{where}.{k}")
+    return StudySpec(
+        name=body.name or f"{parent.name} prediction",
+        case=parent.case,
+        priors=parent.priors,
+        dataset_ids=ids,
+        seed=int(body.seed),
+        n_samples=int(body.draws),
+        sampler=parent.sampler,
+        simulator=parent.simulator,
+        batch_size=size,
+        kind=KIND.name,
+        payload={"study_id": parent.id, "conditions": conditions},
+    )
+
+
+def _targets(
+    store: Store,
+    case: CaseDefinition,
+    dataset_ids: Sequence[int],
+    conditions: Sequence[dict[str, Any]] | None,
+) -> list[DatasetTerms]:
+    if conditions is None:
+        return [dataset_terms(d) for d in load_datasets(store, case, dataset_ids)]
+    nan3 = (math.nan, math.nan, math.nan)
+    return [
+        DatasetTerms(str(c["name"]), {k: v for k, v in c.items() if k != "name"}, nan3)
+        for c in conditions
+    ]
+
+
+@dataclass
+class SimulatedDraws:
+    """A batch's result: steady means (draws, targets, 3) [N, N m, m] and whether each run
+    succeeded (draws, targets)."""
+
+    means: NDArray[np.float64] | None
+    ok: NDArray[np.bool_] | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {}
+
+    @classmethod
+    def from_dict(cls, _: dict[str, Any]) -> SimulatedDraws:
+        return cls(None, None)
+
+
+@dataclass
+class PredictionRun:
+    """A prediction's computation (see the module doc); cached per process."""
+
+    case: CaseDefinition
+    targets: list[DatasetTerms]
+    draws: NDArray[np.float64]
+    seed: int
+    roles: list[str]
+    study_id: int
+
+    @cached_property
+    def model_function(self):
+        """Draws (m, d) -> (means (m, targets, 3), ok (m, targets))."""
+        return StudyModel(self.case, self.targets).simulate_means
+
+    def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
+        means, ok = model_function(self.draws[lease.chain_start : lease.chain_stop])
+        return batch_output(lease, SimulatedDraws(np.asarray(means), np.asarray(ok)))
+
+    def reducer(self, workers: int) -> Reducer:
+        """The bands of the study's only stage (``workers`` is not needed)."""
+
+        def reduce(inp: ReduceInput) -> StageAdvance:
+            parts = [decode(b, SimulatedDraws) for b in inp.results]
+            means = np.concatenate([p.means for p in parts], axis=0)
+            ok = np.concatenate([p.ok for p in parts], axis=0)
+            preds = summarize_predictions(
+                self.case, self.targets, self.draws, means, ok, self.seed, self.roles
+            )
+            n = self.draws.shape[0]
+            nan = np.full(n, np.nan)
+            reduced = ReducedStage(
+                stage=0,
+                population=SampleArrays(self.draws, nan, nan, means.reshape(n, -1)),
+                model_runs=n,
+                failed_runs=int(np.count_nonzero(~ok.all(axis=1))),
+                meta={"seed": self.seed},
+            )
+            result = {
+                "study_id": self.study_id,
+                "draws": n,
+                "seed": self.seed,
+                "level": LEVEL,
+                "predictions": [p.to_dict() for p in preds],
+            }
+            return StageAdvance(reduced, final_status="completed", result=result)
+
+        return reduce
+
+
+class PredictionKind:
+    """The plug-in of kind "prediction" (see :mod:`.base`)."""
+
+    name = "prediction"
+    http = KindHttp(
+        path="/predictions",
+        request=PredictionRequest,
+        spec=prediction_spec,
+        result=PredictionResult,
+        title="prediction",
+        description="Simulate ``draws`` samples of a completed calibration's posterior under "
+        "the test conditions of stored datasets (``dataset_ids``) or of ``conditions``; the "
+        "result gives per target and response (F N, T N m, z m) the median and 95 % bands "
+        "without and with the prediction noise, and the measured mean with whether it falls "
+        "inside. Bit-identical to ``scm-calib predict`` for the same seed. Any problem "
+        "answers 422 naming the field, and nothing is stored.",
+    )
+
+    def build(self, store: Store, study: StudyRecord) -> PredictionRun:
+        payload = dict(study.payload or {})
+        parent = store.studies.get(int(payload["study_id"]))
+        case = CaseDefinition.from_dict(study.case)
+        ids = list(study.dataset_ids)
+        targets = _targets(store, case, ids, payload.get("conditions"))
+        _, population = store.stages.population(parent.id, int(parent.current_stage or 0))
+        used = set(old_dataset_ids(store, parent))
+        return PredictionRun(
+            case=case,
+            targets=targets,
+            draws=prediction_draws(case, population.samples, study.n_samples, study.seed),
+            seed=study.seed,
+            roles=["calibration" if d in used else "predicted" for d in ids]
+            or ["predicted"] * len(targets),
+            study_id=parent.id,
+        )
+
+    def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
+        return one_run_per_item(batches)
+
+
+KIND = PredictionKind()
