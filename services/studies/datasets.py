@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 from scm_core.calibration import CaseDefinition
 from scm_core.signals import SWTDataset, load_log, load_summary
+from scm_core.signals.processing import default_cutoff
 from services.store import NotFoundError, Store
 
 from .errors import StudyRequestError
@@ -29,11 +31,20 @@ def check_dataset_ids(store: Store, dataset_ids: Sequence[int], field: str = "da
 def load_datasets(
     store: Store, case: CaseDefinition, dataset_ids: Sequence[int]
 ) -> list[SWTDataset]:
-    """SWT datasets of a study, processed with the case's data settings (offset, cutoff)."""
+    """SWT datasets of a study, processed with the case's data settings (offset, cutoff).
+
+    The processing stored at upload is reused when it is the one the case asks for (a summary
+    always; a log when its averaging offset and low-pass cutoff are the case's): the steady
+    means and standard errors are then those of processing the raw bytes again, bit for bit
+    (tested), without reading or filtering them in every worker. Otherwise the raw log is
+    processed with the case's settings."""
     out: list[SWTDataset] = []
     for did in dataset_ids:
         rec = store.datasets.get(did)
-        if rec.source_kind == "timeseries":
+        stored = store.datasets.load(did)
+        if _processed_as_case_asks(stored, case):
+            out.append(replace(stored, name=rec.name, series=None))
+        elif rec.source_kind == "timeseries":
             out.append(
                 load_log(
                     store.datasets.raw(did),
@@ -47,3 +58,14 @@ def load_datasets(
         else:
             out.append(load_summary(store.datasets.raw(did), metadata=rec.meta or None))
     return out
+
+
+def _processed_as_case_asks(stored: SWTDataset, case: CaseDefinition) -> bool:
+    if stored.source_kind != "timeseries":
+        return True  # a summary's means do not depend on the case
+    if stored.offset is None or stored.rate_hz is None or stored.cutoff_hz is None:
+        return False
+    cutoff = (
+        case.data.cutoff_hz if case.data.cutoff_hz is not None else default_cutoff(stored.rate_hz)
+    )
+    return stored.offset == case.data.offset and stored.cutoff_hz == cutoff
