@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from scm_core.inference import JointPrior, TMCMCSettings, Uniform, tmcmc_batched
+from scm_core.inference import JointPrior, TMCMCSettings, Uniform, run_tmcmc
 from scm_core.inference.tmcmc_stage import plan_stage, reduce_stage, run_chains
 
 
@@ -88,13 +88,12 @@ def main(argv: list[str] | None = None) -> None:
     print("-" * len(header))
     for moves, batch in configs:
         settings = TMCMCSettings(moves=moves)
-        warm = tmcmc_batched(
+        warm = run_tmcmc(
             TimedGaussian(),
             prior,
             n_samples=args.n_samples,
             seed=0,
-            max_stages=3,
-            settings=settings,
+            settings=TMCMCSettings(moves=moves, max_stages=3),
         )
         reps = args.reps if batch != 1 else max(5, args.reps // 2)
         row = time_stage(warm.stages[-1], prior, settings, batch, reps)

@@ -3,6 +3,8 @@ datasets, a progress-reporting TMCMC driver, Morris screening of the soil parame
 lab logs and study summaries. Pure: no file I/O (the command line reads and writes files).
 """
 
+from scm_core.inference.tmcmc import StageStart, run_tmcmc
+
 from .case import (
     CALIBRATABLE,
     PRESETS,
@@ -16,7 +18,6 @@ from .case import (
     load_case,
     preset_case,
 )
-from .driver import StageStart, run_tmcmc
 from .model import DatasetTerms, StudyModel, build_configs, dataset_terms
 from .report import stage_table, study_summary
 from .sensitivity import (

@@ -2,7 +2,7 @@
 
 :class:`StudyModel` holds plain data only (dicts of numbers, numpy arrays), so it pickles to
 process pools and remote workers; ``StudyModel.log_likelihood_batch`` is what
-:func:`scm_core.inference.tmcmc_batched` (or :func:`scm_core.calibration.run_tmcmc`) calls.
+:func:`scm_core.inference.run_tmcmc` calls.
 
 For a batch X (m, d) and n datasets, the m * n simulator configurations are built (see
 :meth:`StudyModel.configs` for the precedence) and run in ONE

@@ -37,7 +37,7 @@ from scm_core.inference.priors import (
     distribution_from_dict,
     table2_prior,
 )
-from scm_core.inference.tmcmc import TMCMCResult, tmcmc, tmcmc_batched
+from scm_core.inference.tmcmc import TMCMCResult, rowwise, run_tmcmc
 from scm_core.inference.tmcmc_stage import (
     ChainBatchResult,
     StagePlan,
@@ -46,7 +46,6 @@ from scm_core.inference.tmcmc_stage import (
     chain_batches,
     evaluate_points,
     initial_samples,
-    initial_stage,
     initial_state,
     next_exponent,
     plan_stage,
@@ -76,7 +75,6 @@ __all__ = [
     "distribution_from_dict",
     "evaluate_points",
     "initial_samples",
-    "initial_stage",
     "initial_state",
     "kde_1d",
     "kde_2d",
@@ -90,12 +88,12 @@ __all__ = [
     "plan_stage",
     "pool_samples",
     "reduce_stage",
+    "rowwise",
     "run_chains",
+    "run_tmcmc",
     "stage_status",
     "standardized_residuals",
     "summarize",
     "summarize_result",
     "table2_prior",
-    "tmcmc",
-    "tmcmc_batched",
 ]

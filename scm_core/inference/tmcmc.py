@@ -33,7 +33,7 @@ from scm_core.inference.tmcmc_stage import (
     stage_status,
 )
 
-__all__ = ["StageStart", "TMCMCResult", "tmcmc", "tmcmc_batched"]
+__all__ = ["StageStart", "TMCMCResult", "rowwise", "run_tmcmc"]
 
 MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
 
@@ -137,14 +137,20 @@ class TMCMCResult:
         ]
 
 
-def _evaluate_rows(log_likelihood: Callable[[NDArray[np.float64]], Any], X: NDArray[np.float64]):
-    """Batch adapter for a one-vector likelihood returning a float or (float, responses)."""
-    outs = [log_likelihood(x) for x in X]
-    if outs and isinstance(outs[0], tuple):
-        ll = np.array([float(o[0]) for o in outs])
-        resp = np.array([np.asarray(o[1], dtype=float).reshape(-1) for o in outs])
-        return ll, resp
-    return np.array([float(o) for o in outs])
+class rowwise:  # noqa: N801 - used like a function
+    """A batch likelihood from ``log_likelihood(theta)`` of ONE parameter vector (d,) returning
+    a float (-inf allowed) or (float, responses (k,)). Picklable when the function is."""
+
+    def __init__(self, log_likelihood: Callable[[NDArray[np.float64]], Any]) -> None:
+        self.log_likelihood = log_likelihood
+
+    def __call__(self, X: NDArray[np.float64]):
+        outs = [self.log_likelihood(x) for x in X]
+        if outs and isinstance(outs[0], tuple):
+            ll = np.array([float(o[0]) for o in outs])
+            resp = np.array([np.asarray(o[1], dtype=float).reshape(-1) for o in outs])
+            return ll, resp
+        return np.array([float(o) for o in outs])
 
 
 def _check_resume(stages: Sequence[StageState], prior: JointPrior, n: int, seed: int) -> None:
@@ -163,51 +169,40 @@ def _check_resume(stages: Sequence[StageState], prior: JointPrior, n: int, seed:
         )
 
 
-def tmcmc_batched(
+def run_tmcmc(
     log_likelihood_batch: LogLikelihoodBatch,
     prior: JointPrior,
     n_samples: int = 2000,
     seed: int = 0,
+    settings: TMCMCSettings | None = None,
+    *,
     map: MapFn = map,
     batch_size: int | None = None,
-    moves: str | None = None,
-    n_steps: int | None = None,
-    target_cov: float | None = None,
-    max_stages: int | None = None,
-    callback: Callable[[StageState], Any] | None = None,
     resume_from: Sequence[StageState] | None = None,
-    settings: TMCMCSettings | None = None,
+    stage0_samples: NDArray[np.float64] | None = None,
     on_stage_start: Callable[[StageStart], Any] | None = None,
     on_batch: Callable[[int], Any] | None = None,
-    stage0_samples: NDArray[np.float64] | None = None,
+    on_stage: Callable[[StageState], Any] | None = None,
 ) -> TMCMCResult:
     """Sample the posterior prior(theta) L(theta) / Z with TMCMC and estimate log Z.
 
     ``log_likelihood_batch(X)`` takes X (m, d) in ``prior.names`` order and returns log L (m,)
-    (-inf/NaN allowed: counted as failed runs) or (log L (m,), responses (m, k)). Chains of a
-    stage are split into batches of ``batch_size`` (None: one batch) and run through
-    ``map(func, batches)``. Hooks for progress displays: ``on_stage_start(StageStart)`` before a
-    stage runs, ``on_batch(k)`` after each batch with its number of evaluations.
-    ``callback(state)`` runs after every finished stage, stage 0 included; passing the saved
-    stages back as ``resume_from`` (with the same seed, n_samples and settings; not called again
-    for those stages) continues the run bit-identically.
-    ``moves``, ``n_steps``, ``target_cov`` and ``max_stages`` override, when not None, the
-    fields of ``settings`` (see :class:`TMCMCSettings`; defaults "resample-move", adaptive
-    n_steps, 1.0, 50). ``stage0_samples`` (n_samples, d): stage 0's points instead of prior
-    draws; a posterior update passes the earlier posterior's population with a likelihood that
-    gives log b = log L(earlier data) (see :mod:`.tmcmc_stage`), and the log evidence is then
-    the incremental one.
+    (-inf/NaN allowed: counted as failed runs) or (log L (m,), responses (m, k)) (see
+    :class:`rowwise` for a likelihood of one vector). ``settings``: the sampler's tuning
+    (:class:`TMCMCSettings`; default resample-move with adaptive steps). Chains of a stage are
+    split into batches of ``batch_size`` (None: one batch) and run through ``map(func,
+    batches)``; results are bit-identical for any ``map`` and ``batch_size``.
+
+    Hooks: ``on_stage_start(StageStart)`` before a stage runs, ``on_batch(k)`` after each batch
+    with its number of evaluations, ``on_stage(state)`` after every finished stage, stage 0
+    included. Passing the saved stages back as ``resume_from`` (same seed, n_samples and
+    settings; ``on_stage`` is not called again for them) continues the run bit-identically; an
+    exception raised in a hook (or a KeyboardInterrupt) stops it. ``stage0_samples``
+    (n_samples, d): stage 0's points instead of prior draws; a posterior update passes the
+    earlier posterior's population with a likelihood that gives log b = log L(earlier data)
+    (see :mod:`.tmcmc_stage`), and the log evidence is then the incremental one.
     """
-    overrides = {
-        "moves": moves,
-        "n_steps": n_steps,
-        "target_cov": target_cov,
-        "max_stages": max_stages,
-    }
-    base = settings or TMCMCSettings()
-    settings = TMCMCSettings(
-        **{**base.to_dict(), **{k: v for k, v in overrides.items() if v is not None}}
-    )
+    settings = settings or TMCMCSettings()
     seed = int(seed)
     if seed < 0:
         raise ValueError(f"'seed' must be a non-negative integer, got {seed!r}")
@@ -234,8 +229,8 @@ def tmcmc_batched(
             if on_batch is not None:
                 on_batch(len(r))
         stages = [initial_state(prior, X, evals, seed, settings)]
-        if callback is not None:
-            callback(stages[0])
+        if on_stage is not None:
+            on_stage(stages[0])
 
     while (status := stage_status(stages[-1], settings)) is None:
         plan = plan_stage(stages[-1], prior, settings)
@@ -250,8 +245,8 @@ def tmcmc_batched(
             if on_batch is not None:
                 on_batch(int(np.sum(res.proposed)))
         stages.append(reduce_stage(plan, results))
-        if callback is not None:
-            callback(stages[-1])
+        if on_stage is not None:
+            on_stage(stages[-1])
 
     final = stages[-1]
     return TMCMCResult(
@@ -261,41 +256,4 @@ def tmcmc_batched(
         log_evidence_se=math.sqrt(final.log_evidence_var),
         stages=tuple(stages),
         status=status,
-    )
-
-
-def tmcmc(
-    log_likelihood: Callable[[NDArray[np.float64]], float],
-    prior: JointPrior,
-    n_samples: int = 2000,
-    seed: int = 0,
-    map: MapFn = map,
-    batch_size: int | None = None,
-    moves: str | None = None,
-    n_steps: int | None = None,
-    target_cov: float | None = None,
-    max_stages: int | None = None,
-    callback: Callable[[StageState], Any] | None = None,
-    resume_from: Sequence[StageState] | None = None,
-    settings: TMCMCSettings | None = None,
-) -> TMCMCResult:
-    """As :func:`tmcmc_batched`, for ``log_likelihood(theta)`` of ONE parameter vector (d,).
-
-    It returns a float (-inf allowed) or (float, responses (k,)). Must be picklable when
-    ``map`` is a process pool's.
-    """
-    return tmcmc_batched(
-        partial(_evaluate_rows, log_likelihood),
-        prior,
-        n_samples=n_samples,
-        seed=seed,
-        map=map,
-        batch_size=batch_size,
-        moves=moves,
-        n_steps=n_steps,
-        target_cov=target_cov,
-        max_stages=max_stages,
-        callback=callback,
-        resume_from=resume_from,
-        settings=settings,
     )

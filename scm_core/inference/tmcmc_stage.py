@@ -11,8 +11,10 @@ One stage j -> j+1 is three steps, each a pure function of its inputs:
 3. :func:`reduce_stage` (once): assemble the batch results in chain order into the next
    :class:`StageState`, adapt the proposal scale beta and accumulate the log evidence.
 
-Stage 0 (prior draws, ``spawn_key=(0,)``) is built by :func:`initial_stage`, or step by step by
-:func:`initial_samples`, :func:`evaluate_points` (per batch) and :func:`initial_state`.
+Stage 0 (prior draws, ``spawn_key=(0,)``) is built by :func:`initial_samples`,
+:func:`evaluate_points` (per batch) and :func:`initial_state`. The data (settings, states, plans,
+batch results) are in :mod:`scm_core.inference.tmcmc_types`, the move schemes in
+:mod:`scm_core.inference.tmcmc_moves`.
 :func:`stage_status` says when to stop.
 
 Model calls go through ``log_likelihood_batch(X)`` with X of shape (m, d) in the prior's parameter
@@ -40,17 +42,30 @@ Two move schemes (``TMCMCSettings.moves``):
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
-from functools import partial
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import logsumexp
 
-from scm_core.inference._serial import decode_array, decode_float, encode_array, encode_float
 from scm_core.inference.priors import JointPrior
+from scm_core.inference.tmcmc_moves import move_of, steps_for_acceptance
+from scm_core.inference.tmcmc_types import (
+    MOVES,
+    ChainBatchResult,
+    LogLikelihoodBatch,
+    PointEvaluation,
+    StagePlan,
+    StageState,
+    TMCMCSettings,
+)
+from scm_core.inference.tmcmc_weights import (
+    adapt_beta,
+    next_exponent,
+    plausibility_weights,
+    proposal_factor,
+    systematic_resample,
+    weighted_covariance,
+)
 
 __all__ = [
     "MOVES",
@@ -65,7 +80,6 @@ __all__ = [
     "chain_rng",
     "evaluate_points",
     "initial_samples",
-    "initial_stage",
     "initial_state",
     "next_exponent",
     "plan_stage",
@@ -77,370 +91,6 @@ __all__ = [
     "systematic_resample",
     "weighted_covariance",
 ]
-
-MOVES = ("resample-move", "leader")
-
-LogLikelihoodBatch = Callable[
-    [NDArray[np.float64]],
-    NDArray[np.float64]
-    | tuple[NDArray[np.float64], NDArray[np.float64]]
-    | tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
-]
-
-
-# --------------------------------------------------------------------------------------------
-# settings and state
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class TMCMCSettings:
-    """Tuning of the sampler; stored with a study so that every stage is reproducible.
-
-    moves: "resample-move" (default, accurate) or "leader" (paper's budget, one run per sample).
-    n_steps: Metropolis steps per chain for resample-move; None adapts it per stage with
-        :func:`steps_for_acceptance` (``initial_steps`` for stage 1, where no acceptance is known).
-    min_steps, max_steps: clip of the adapted n_steps.
-    move_probability: adapted n_steps makes P(chain moves at least once) reach this value.
-    target_cov: coefficient of variation of the plausibility weights (Ching & Chen: 1.0).
-    beta0: initial proposal scale (Ching & Chen: 0.2).
-    target_acceptance, beta_gain, beta_min, beta_max: scale adaptation, see :func:`adapt_beta`.
-    stall_tol, stall_stages: "stalled" after ``stall_stages`` consecutive exponent increments
-        below ``stall_tol``.
-    max_stages: largest stage index (tempering stages after stage 0) before "max_stages".
-    """
-
-    moves: str = "resample-move"
-    n_steps: int | None = None
-    min_steps: int = 10
-    max_steps: int = 50
-    initial_steps: int = 20
-    move_probability: float = 0.99
-    target_cov: float = 1.0
-    beta0: float = 0.2
-    target_acceptance: float = 0.234
-    beta_gain: float = 1.0
-    beta_min: float = 0.02
-    beta_max: float = 3.0
-    stall_tol: float = 1e-8
-    stall_stages: int = 3
-    max_stages: int = 50
-
-    def __post_init__(self) -> None:
-        if self.moves not in MOVES:
-            raise ValueError(f"'moves' must be one of {MOVES}, got {self.moves!r}")
-        if self.n_steps is not None and int(self.n_steps) < 1:
-            raise ValueError(f"'n_steps' must be >= 1 or None, got {self.n_steps!r}")
-        if not 1 <= self.min_steps <= self.max_steps:
-            raise ValueError(
-                f"'min_steps' ({self.min_steps}) and 'max_steps' ({self.max_steps}) "
-                "must satisfy 1 <= min_steps <= max_steps"
-            )
-        if self.initial_steps < 1:
-            raise ValueError(f"'initial_steps' must be >= 1, got {self.initial_steps!r}")
-        if not 0 < self.move_probability < 1:
-            raise ValueError(f"'move_probability' must be in (0, 1), got {self.move_probability}")
-        if not (math.isfinite(self.target_cov) and self.target_cov > 0):
-            raise ValueError(f"'target_cov' must be finite and > 0, got {self.target_cov!r}")
-        if not 0 < self.beta_min <= self.beta0 <= self.beta_max:
-            raise ValueError(
-                f"'beta0' ({self.beta0}) must lie in [beta_min, beta_max] "
-                f"= [{self.beta_min}, {self.beta_max}], with beta_min > 0"
-            )
-        if not 0 < self.target_acceptance < 1:
-            raise ValueError(
-                f"'target_acceptance' must be in (0, 1), got {self.target_acceptance!r}"
-            )
-        if self.max_stages < 1:
-            raise ValueError(f"'max_stages' must be >= 1, got {self.max_stages!r}")
-        if self.stall_stages < 1:
-            raise ValueError(f"'stall_stages' must be >= 1, got {self.stall_stages!r}")
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> TMCMCSettings:
-        return cls(**data)
-
-
-@dataclass(frozen=True, eq=False)
-class StageState:
-    """Population after stage ``stage`` (stage 0 = prior draws), targeting prior * L^exponent.
-
-    samples (n, d) in the prior's parameter order; log_likelihood and log_prior (n,);
-    responses (n, k) simulated responses returned with the likelihood, or None.
-    beta: proposal scale for the *next* stage (already adapted). acceptance_rate: of the moves
-    that produced this stage (NaN at stage 0). log_evidence, log_evidence_var: running sum of the
-    log-evidence increments and of their delta-method variances. model_runs, failed_runs,
-    proposals, accepted, out_of_support: counts for this stage only. n_chains, n_steps: chains
-    run and Metropolis steps per chain (longest chain for "leader"). ess: effective sample size of
-    the plausibility weights used to resample into this stage (n at stage 0). stall_count:
-    consecutive stages with an exponent increment below the stall tolerance. seed: study seed.
-    """
-
-    stage: int
-    exponent: float
-    samples: NDArray[np.float64]
-    log_likelihood: NDArray[np.float64]
-    log_prior: NDArray[np.float64]
-    responses: NDArray[np.float64] | None
-    beta: float
-    acceptance_rate: float
-    log_evidence: float
-    log_evidence_var: float
-    model_runs: int
-    failed_runs: int
-    proposals: int
-    accepted: int
-    out_of_support: int
-    n_chains: int
-    n_steps: int
-    ess: float
-    stall_count: int
-    seed: int
-
-    @property
-    def n_samples(self) -> int:
-        return int(self.samples.shape[0])
-
-    @property
-    def dim(self) -> int:
-        return int(self.samples.shape[1])
-
-    @property
-    def n_unique(self) -> int:
-        """Number of distinct sample rows."""
-        return int(np.unique(self.samples, axis=0).shape[0])
-
-    @property
-    def log_target(self) -> NDArray[np.float64]:
-        """Unnormalised log density of this stage's target at the samples."""
-        return _tempered(self.log_prior, self.log_likelihood, self.exponent)
-
-    _FLOATS = ("exponent", "beta", "acceptance_rate", "log_evidence", "log_evidence_var", "ess")
-    _INTS = (
-        "stage",
-        "model_runs",
-        "failed_runs",
-        "proposals",
-        "accepted",
-        "out_of_support",
-        "n_chains",
-        "n_steps",
-        "stall_count",
-        "seed",
-    )
-    _ARRAYS = ("samples", "log_likelihood", "log_prior", "responses")
-
-    def to_dict(self) -> dict[str, Any]:
-        """Strict-JSON dict (non-finite floats as strings); :meth:`from_dict` is exact."""
-        out: dict[str, Any] = {k: int(getattr(self, k)) for k in self._INTS}
-        out.update({k: encode_float(getattr(self, k)) for k in self._FLOATS})
-        out.update({k: encode_array(getattr(self, k)) for k in self._ARRAYS})
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> StageState:
-        kw: dict[str, Any] = {k: int(data[k]) for k in cls._INTS}
-        kw.update({k: decode_float(data[k]) for k in cls._FLOATS})
-        kw.update({k: decode_array(data.get(k)) for k in cls._ARRAYS})
-        return cls(**kw)
-
-    def to_arrays(self) -> dict[str, NDArray[Any]]:
-        """Dict of numpy arrays for ``np.savez``; :meth:`from_arrays` is exact."""
-        out = {k: np.asarray(getattr(self, k)) for k in self._ARRAYS if k != "responses"}
-        if self.responses is not None:
-            out["responses"] = self.responses
-        out.update({k: np.array(getattr(self, k), dtype=float) for k in self._FLOATS})
-        out.update({k: np.array(getattr(self, k), dtype=np.int64) for k in self._INTS})
-        return out
-
-    @classmethod
-    def from_arrays(cls, arrays: Any) -> StageState:
-        kw: dict[str, Any] = {k: int(arrays[k]) for k in cls._INTS}
-        kw.update({k: float(arrays[k]) for k in cls._FLOATS})
-        kw.update({k: np.array(arrays[k], dtype=float) for k in cls._ARRAYS if k != "responses"})
-        kw["responses"] = np.array(arrays["responses"]) if "responses" in arrays else None
-        return cls(**kw)
-
-    def equals(self, other: StageState) -> bool:
-        """Bit-identical comparison of every field (NaN equal to NaN)."""
-        for k in self._INTS:
-            if getattr(self, k) != getattr(other, k):
-                return False
-        for k in self._FLOATS:
-            a, b = getattr(self, k), getattr(other, k)
-            if not (a == b or (math.isnan(a) and math.isnan(b))):
-                return False
-        for k in self._ARRAYS:
-            a, b = getattr(self, k), getattr(other, k)
-            if (a is None) != (b is None):
-                return False
-            if a is not None and not np.array_equal(a, b, equal_nan=True):
-                return False
-        return True
-
-
-@dataclass(frozen=True, eq=False)
-class StagePlan:
-    """Everything needed to run the chains of stage ``stage`` and reduce them.
-
-    weights (n,): normalised plausibility weights of the previous samples. parent (n,): indices
-    picked by systematic resampling. chain_start (c,): index into the previous samples where each
-    chain starts; chain_length (c,): its number of Metropolis steps. start_* are the starting
-    states (copied so that the previous state is not needed by :func:`run_chains`).
-    proposal_cov (d, d) = beta^2 Cov_w (+ jitter) and its lower Cholesky factor proposal_chol.
-    """
-
-    stage: int
-    seed: int
-    prior: JointPrior
-    settings: TMCMCSettings
-    exponent: float
-    prev_exponent: float
-    weights: NDArray[np.float64]
-    log_evidence_increment: float
-    log_evidence_increment_var: float
-    ess: float
-    parent: NDArray[np.int64]
-    chain_start: NDArray[np.int64]
-    chain_length: NDArray[np.int64]
-    start_samples: NDArray[np.float64]
-    start_log_likelihood: NDArray[np.float64]
-    start_log_prior: NDArray[np.float64]
-    start_responses: NDArray[np.float64] | None
-    proposal_cov: NDArray[np.float64]
-    proposal_chol: NDArray[np.float64]
-    prev_beta: float
-    prev_log_evidence: float
-    prev_log_evidence_var: float
-    prev_stall_count: int
-    n_samples: int
-
-    @property
-    def n_chains(self) -> int:
-        return int(self.chain_start.shape[0])
-
-    _FLOATS = (
-        "exponent",
-        "prev_exponent",
-        "log_evidence_increment",
-        "log_evidence_increment_var",
-        "ess",
-        "prev_beta",
-        "prev_log_evidence",
-        "prev_log_evidence_var",
-    )
-    _INTS = ("stage", "seed", "prev_stall_count", "n_samples")
-    _ARRAYS = (
-        "weights",
-        "parent",
-        "chain_start",
-        "chain_length",
-        "start_samples",
-        "start_log_likelihood",
-        "start_log_prior",
-        "start_responses",
-        "proposal_cov",
-        "proposal_chol",
-    )
-
-    def to_dict(self) -> dict[str, Any]:
-        """Strict-JSON dict (e.g. to ship a plan to remote workers); :meth:`from_dict` is exact."""
-        out: dict[str, Any] = {k: int(getattr(self, k)) for k in self._INTS}
-        out.update({k: encode_float(getattr(self, k)) for k in self._FLOATS})
-        out.update({k: encode_array(getattr(self, k)) for k in self._ARRAYS})
-        out["prior"] = self.prior.to_dict()
-        out["settings"] = self.settings.to_dict()
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> StagePlan:
-        kw: dict[str, Any] = {k: int(data[k]) for k in cls._INTS}
-        kw.update({k: decode_float(data[k]) for k in cls._FLOATS})
-        kw.update({k: decode_array(data.get(k)) for k in cls._ARRAYS})
-        kw["prior"] = JointPrior.from_dict(data["prior"])
-        kw["settings"] = TMCMCSettings.from_dict(data["settings"])
-        return cls(**kw)
-
-
-@dataclass(frozen=True, eq=False)
-class ChainBatchResult:
-    """Output of :func:`run_chains` for one batch of chains of stage ``stage``.
-
-    For chain chain_indices[i], output_counts[i] consecutive rows of samples / log_likelihood /
-    log_prior / responses hold its output (1 final state for resample-move; every visited state,
-    one per step, for leader). accepted, proposed (c,): per-chain Metropolis counts (proposals
-    outside the prior support count as proposed and rejected). model_runs, failed_runs,
-    out_of_support: batch totals.
-    """
-
-    stage: int
-    chain_indices: NDArray[np.int64]
-    output_counts: NDArray[np.int64]
-    samples: NDArray[np.float64]
-    log_likelihood: NDArray[np.float64]
-    log_prior: NDArray[np.float64]
-    responses: NDArray[np.float64] | None
-    accepted: NDArray[np.int64]
-    proposed: NDArray[np.int64]
-    model_runs: int
-    failed_runs: int
-    out_of_support: int
-
-    _INTS = ("stage", "model_runs", "failed_runs", "out_of_support")
-    _ARRAYS = (
-        "chain_indices",
-        "output_counts",
-        "samples",
-        "log_likelihood",
-        "log_prior",
-        "responses",
-        "accepted",
-        "proposed",
-    )
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {k: int(getattr(self, k)) for k in self._INTS}
-        out.update({k: encode_array(getattr(self, k)) for k in self._ARRAYS})
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> ChainBatchResult:
-        kw: dict[str, Any] = {k: int(data[k]) for k in cls._INTS}
-        kw.update({k: decode_array(data.get(k)) for k in cls._ARRAYS})
-        return cls(**kw)
-
-
-@dataclass(frozen=True, eq=False)
-class PointEvaluation:
-    """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures,
-    and log b (m,) where the likelihood gives a base density (else None; see the module doc)."""
-
-    log_likelihood: NDArray[np.float64]
-    responses: NDArray[np.float64] | None
-    failed_runs: int
-    log_base: NDArray[np.float64] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        out = {
-            "log_likelihood": encode_array(self.log_likelihood),
-            "responses": encode_array(self.responses),
-            "failed_runs": int(self.failed_runs),
-        }
-        if self.log_base is not None:
-            out["log_base"] = encode_array(self.log_base)
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> PointEvaluation:
-        return cls(
-            log_likelihood=decode_array(data["log_likelihood"]),
-            responses=decode_array(data.get("responses")),
-            failed_runs=int(data["failed_runs"]),
-            log_base=decode_array(data.get("log_base")),
-        )
 
 
 # --------------------------------------------------------------------------------------------
@@ -500,144 +150,6 @@ def _call_batch(
         base = np.where(bad_base, -np.inf, base)
     ll, n_failed = _clean_log_likelihood(ll_raw, m)
     return ll, resp, n_failed, base
-
-
-def plausibility_weights(
-    log_likelihood: NDArray[np.float64], delta_p: float
-) -> tuple[NDArray[np.float64], float]:
-    """Normalised weights w_i ∝ L_i^delta_p and log mean of the unnormalised weights.
-
-    Computed in log space; samples with log L = -inf get weight 0 (for delta_p > 0). Returns
-    (weights (n,), log mean w) where log mean w is the evidence increment log(S_j) of Ching & Chen.
-    """
-    ll = np.asarray(log_likelihood, dtype=float)
-    finite = np.isfinite(ll)
-    if not finite.any():
-        raise ValueError("all log-likelihoods are -inf: no plausibility weights")
-    a = np.where(finite, delta_p * np.where(finite, ll, 0.0), -np.inf)
-    lse = logsumexp(a)
-    w = np.exp(a - lse)
-    return w, float(lse - math.log(ll.shape[0]))
-
-
-def _weights_cov(a_finite: NDArray[np.float64], n: int) -> float:
-    """Coefficient of variation of exp(a) over n samples, of which len(a_finite) are nonzero."""
-    w = np.exp(a_finite - a_finite.max())
-    mean = w.sum() / n
-    second = (w * w).sum() / n
-    var = max(second - mean * mean, 0.0)
-    return math.sqrt(var) / mean
-
-
-def next_exponent(log_likelihood: ArrayLike, p_prev: float, target_cov: float = 1.0) -> float:
-    """Next tempering exponent p in (p_prev, 1] (Ching & Chen 2007, eq. for p_{j+1}).
-
-    Bisection on delta = p - p_prev so that the coefficient of variation (population std / mean)
-    of the weights w_i = exp(delta * log L_i) equals ``target_cov``; capped at 1. Samples with
-    log L = -inf get weight 0 for any delta > 0. If those zeros alone already push the CoV to the
-    target (half or more of the samples failed, for target 1), the CoV is taken over the finite
-    samples only, so that the step still makes progress. Deterministic.
-    """
-    ll = np.asarray(log_likelihood, dtype=float)
-    finite = ll[np.isfinite(ll)]
-    if finite.size == 0:
-        raise ValueError("all log-likelihoods are -inf: cannot choose the next exponent")
-    n = ll.shape[0]
-    if math.sqrt(n / finite.size - 1.0) >= target_cov:
-        n = finite.size
-    hi = 1.0 - p_prev
-    if hi <= 0:
-        return 1.0
-    if _weights_cov(hi * finite, n) <= target_cov:
-        return 1.0
-    lo = 0.0
-    for _ in range(500):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        if _weights_cov(mid * finite, n) > target_cov:
-            hi = mid
-        else:
-            lo = mid
-        if hi - lo <= 1e-13 * hi:
-            break
-    return min(p_prev + hi, 1.0)
-
-
-def systematic_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
-    """Systematic resampling: n sorted indices, index i drawn ~ n * w_i times (±1)."""
-    w = np.asarray(weights, dtype=float)
-    cw = np.cumsum(w)
-    cw /= cw[-1]
-    cw[-1] = 1.0
-    positions = (rng.random() + np.arange(n)) / n
-    idx = np.searchsorted(cw, positions, side="right")
-    return np.minimum(idx, w.shape[0] - 1).astype(np.int64)
-
-
-def weighted_covariance(X: ArrayLike, weights: ArrayLike) -> NDArray[np.float64]:
-    """Sum_i w_i (x_i - m)(x_i - m)^T with m = sum_i w_i x_i (weights sum to 1)."""
-    X = np.asarray(X, dtype=float)
-    w = np.asarray(weights, dtype=float)
-    w = w / w.sum()
-    mean = w @ X
-    dx = X - mean
-    cov = (dx * w[:, None]).T @ dx
-    return 0.5 * (cov + cov.T)
-
-
-def _proposal_factor(
-    cov: NDArray[np.float64], bounds: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Add a tiny diagonal jitter (1e-10 relative + 1e-20 of the prior range squared) and factor.
-
-    The jitter keeps degenerate dimensions (all samples equal) movable; it is increased tenfold
-    until the Cholesky factorisation succeeds.
-    """
-    d = cov.shape[0]
-    span2 = (bounds[:, 1] - bounds[:, 0]) ** 2
-    diag = np.clip(np.diag(cov), 0.0, None)
-    jitter = 1e-10 * diag + 1e-20 * span2
-    for _ in range(30):
-        c = cov + np.diag(jitter)
-        try:
-            return c, np.linalg.cholesky(c)
-        except np.linalg.LinAlgError:
-            jitter = jitter * 10.0 + 1e-300
-    raise np.linalg.LinAlgError(f"proposal covariance not positive definite (d={d})")
-
-
-def steps_for_acceptance(
-    acceptance_rate: float, move_probability: float, min_steps: int, max_steps: int
-) -> int:
-    """Metropolis steps so that a chain moves at least once with ``move_probability``.
-
-    n = ceil(log(1 - move_probability) / log(1 - acceptance_rate)), clipped to
-    [min_steps, max_steps]; acceptance 0 gives max_steps, 1 gives min_steps.
-    """
-    acc = float(acceptance_rate)
-    if not math.isfinite(acc):
-        raise ValueError("acceptance_rate must be finite")
-    if acc <= 0.0:
-        return int(max_steps)
-    if acc >= 1.0:
-        return int(min_steps)
-    n = math.ceil(math.log(1.0 - move_probability) / math.log(1.0 - acc))
-    return int(min(max(n, min_steps), max_steps))
-
-
-def adapt_beta(beta: float, acceptance_rate: float, settings: TMCMCSettings) -> float:
-    """Proposal-scale update after a stage: beta * exp(gain * (acc - target)), clipped.
-
-    Stochastic-approximation form (log beta moves by gain * (acceptance - target)); with the
-    default target 0.234 (Roberts, Gelman & Gilks 1997, optimal random-walk acceptance for
-    moderate to high dimension) it replaces Ching & Chen's fixed beta = 0.2, as in later TMCMC
-    work (e.g. Betz et al. 2016), because the tempered targets shrink from stage to stage.
-    """
-    if not math.isfinite(acceptance_rate):
-        return float(beta)
-    b = beta * math.exp(settings.beta_gain * (acceptance_rate - settings.target_acceptance))
-    return float(min(max(b, settings.beta_min), settings.beta_max))
 
 
 # --------------------------------------------------------------------------------------------
@@ -718,23 +230,6 @@ def chain_batches(n: int, batch_size: int | None) -> list[range]:
     return [range(start, min(start + size, n)) for start in range(0, n, size)]
 
 
-def initial_stage(
-    prior: JointPrior,
-    n_samples: int,
-    seed: int,
-    log_likelihood_batch: LogLikelihoodBatch,
-    map: Callable[..., Any] = map,
-    batch_size: int | None = None,
-    settings: TMCMCSettings | None = None,
-) -> StageState:
-    """Stage 0: ``n_samples`` prior draws evaluated in batches through ``map``."""
-    settings = settings or TMCMCSettings()
-    X = initial_samples(prior, n_samples, seed)
-    func = partial(evaluate_points, log_likelihood_batch=log_likelihood_batch)
-    evals = list(map(func, [X[r.start : r.stop] for r in chain_batches(n_samples, batch_size)]))
-    return initial_state(prior, X, evals, seed, settings)
-
-
 def stage_status(state: StageState, settings: TMCMCSettings) -> str | None:
     """None while the run should continue, else "completed", "stalled" or "max_stages"."""
     if state.exponent >= 1.0:
@@ -777,24 +272,11 @@ def plan_stage(
 
     parent = systematic_resample(weights, n, _stage_rng(state.seed, stage))
     cov = state.beta**2 * weighted_covariance(state.samples, weights)
-    cov, chol = _proposal_factor(cov, prior.bounds)
+    cov, chol = proposal_factor(cov, prior.bounds)
 
-    if settings.moves == "leader":
-        chain_start, chain_length = np.unique(parent, return_counts=True)
-    else:
-        if settings.n_steps is not None:
-            n_steps = int(settings.n_steps)
-        elif not math.isfinite(state.acceptance_rate):
-            n_steps = int(settings.initial_steps)
-        else:
-            n_steps = steps_for_acceptance(
-                state.acceptance_rate,
-                settings.move_probability,
-                settings.min_steps,
-                settings.max_steps,
-            )
-        chain_start = parent
-        chain_length = np.full(n, n_steps)
+    chain_start, chain_length = move_of(settings.moves).chains(
+        parent, state.acceptance_rate, settings
+    )
     chain_start = chain_start.astype(np.int64)
     resp = state.responses
     return StagePlan(
@@ -877,7 +359,7 @@ def run_chains(
     proposed = np.zeros(idx.size, dtype=np.int64)
     model_runs = failed_runs = out_of_support = 0
 
-    leader = plan.settings.moves == "leader"
+    leader = move_of(plan.settings.moves).keeps_every_step
     if leader:
         out_x = np.empty((total, d))
         out_ll = np.empty(total)

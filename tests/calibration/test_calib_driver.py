@@ -1,4 +1,4 @@
-"""The progress-reporting TMCMC driver: same results as tmcmc_batched, exact resume."""
+"""The TMCMC driver's hooks and batches: same results as a plain run, exact resume."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, run_tmcmc
-from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, tmcmc_batched
+from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform
 
 PRIOR = JointPrior({"a": Uniform(-3.0, 3.0), "b": TruncatedNormal(0.5, 1.0, -2.0, 4.0)})
 
@@ -31,9 +31,9 @@ class StopError(Exception):
 
 @pytest.mark.parametrize("moves", ["leader", "resample-move"])
 @pytest.mark.parametrize("batch_size", [None, 37])
-def test_same_as_tmcmc_batched(moves: str, batch_size: int | None) -> None:
+def test_hooks_and_batches_do_not_change_results(moves: str, batch_size: int | None) -> None:
     settings = TMCMCSettings(moves=moves, n_steps=3)
-    ref = tmcmc_batched(gauss, PRIOR, n_samples=300, seed=5, settings=settings)
+    ref = run_tmcmc(gauss, PRIOR, n_samples=300, seed=5, settings=settings)
     starts, batches = [], []
     res = run_tmcmc(
         gauss,

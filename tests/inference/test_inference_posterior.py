@@ -14,9 +14,9 @@ from scm_core.inference import (
     kde_2d,
     map_sample,
     pool_samples,
+    run_tmcmc,
     summarize,
     summarize_result,
-    tmcmc_batched,
 )
 
 
@@ -98,7 +98,7 @@ def loglik_peak(X: np.ndarray) -> np.ndarray:
 
 def test_summarize_result_gives_map_near_mode() -> None:
     prior = JointPrior({"k": Uniform(0.0, 1.0)})
-    res = tmcmc_batched(loglik_peak, prior, n_samples=500, seed=0)
+    res = run_tmcmc(loglik_peak, prior, n_samples=500, seed=0)
     s = summarize_result(res)
     assert s.names == ("k",)
     assert s.map_sample is not None and s.map_sample[0] == pytest.approx(0.3, abs=0.01)

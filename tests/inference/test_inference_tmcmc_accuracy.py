@@ -17,10 +17,11 @@ from scipy import stats
 
 from scm_core.inference import (
     JointPrior,
+    TMCMCSettings,
     TruncatedNormal,
     Uniform,
-    tmcmc,
-    tmcmc_batched,
+    rowwise,
+    run_tmcmc,
 )
 
 
@@ -44,7 +45,7 @@ def loglik_1d(X: np.ndarray) -> np.ndarray:
 def test_conjugate_1d_gaussian() -> None:
     # prior N(0, 1) truncated at +-20 sd: the truncated mass (~1e-88) is far below any tolerance
     prior = JointPrior({"theta": TruncatedNormal(0.0, 1.0, -20.0, 20.0)})
-    res = tmcmc_batched(loglik_1d, prior, seed=0)
+    res = run_tmcmc(loglik_1d, prior, seed=0)
     post_var = 1.0 / (1.0 + 1.0 / S1**2)
     post_mean, post_sd = post_var * Y1 / S1**2, math.sqrt(post_var)
     log_z = stats.norm.logpdf(Y1, 0.0, math.sqrt(1.0 + S1**2))
@@ -87,7 +88,7 @@ def loglik_linear(X: np.ndarray) -> np.ndarray:
 def test_linear_gaussian_5d() -> None:
     # prior N(0, I) truncated at +-10 sd per axis (truncated mass ~1e-22, negligible)
     prior = JointPrior({f"t{j}": TruncatedNormal(0.0, 1.0, -10.0, 10.0) for j in range(5)})
-    res = tmcmc_batched(loglik_linear, prior, seed=0)
+    res = run_tmcmc(loglik_linear, prior, seed=0)
     cov = np.linalg.inv(np.eye(5) + A5.T @ A5 / S5**2)
     mean = cov @ A5.T @ Y5 / S5**2
     sd = np.sqrt(np.diag(cov))
@@ -125,7 +126,7 @@ def loglik_bimodal(X: np.ndarray) -> np.ndarray:
 
 def test_bimodal_4d_mode_masses_and_evidence() -> None:
     prior = JointPrior({f"x{j}": Uniform(-5.0, 5.0) for j in range(D_BI)})
-    res = tmcmc_batched(loglik_bimodal, prior, seed=0)
+    res = run_tmcmc(loglik_bimodal, prior, seed=0)
     # both modes lie > 6 sd inside the box, so Z = (0.1 + 0.9) / 10^4 to ~1e-9 relative
     log_z = -D_BI * math.log(10.0)
     frac_low = float(np.mean(res.samples.sum(axis=1) < 0.0))
@@ -153,7 +154,7 @@ def loglik_piled(theta: np.ndarray) -> float:
 
 def test_posterior_piled_against_bound_matches_truncated_normal() -> None:
     prior = JointPrior({"theta": Uniform(0.0, 1.0)})
-    res = tmcmc(loglik_piled, prior, seed=0)
+    res = run_tmcmc(rowwise(loglik_piled), prior, seed=0)
     a, b = (0.0 - MU_PILE) / SD_PILE, (1.0 - MU_PILE) / SD_PILE
     exact = stats.truncnorm(a, b, loc=MU_PILE, scale=SD_PILE)
     x = res.samples[:, 0]
@@ -185,7 +186,7 @@ def test_posterior_piled_against_bound_matches_truncated_normal() -> None:
 def test_leader_scheme_uses_one_model_run_per_sample_and_stage() -> None:
     # wide prior: no proposal ever leaves the support, so every sample costs exactly one run
     prior = JointPrior({"theta": TruncatedNormal(0.0, 1.0, -20.0, 20.0)})
-    res = tmcmc_batched(loglik_1d, prior, seed=0, moves="leader")
+    res = run_tmcmc(loglik_1d, prior, seed=0, settings=TMCMCSettings(moves="leader"))
     n = 2000
     assert res.status == "completed"
     assert res.stages[0].model_runs == n
@@ -199,7 +200,9 @@ def test_leader_scheme_uses_one_model_run_per_sample_and_stage() -> None:
 def test_leader_scheme_budget_with_box_prior() -> None:
     # with a box prior some proposals leave it and are rejected without a model run
     prior = JointPrior({f"x{j}": Uniform(-5.0, 5.0) for j in range(D_BI)})
-    res = tmcmc_batched(loglik_bimodal, prior, n_samples=1000, seed=1, moves="leader")
+    res = run_tmcmc(
+        loglik_bimodal, prior, n_samples=1000, seed=1, settings=TMCMCSettings(moves="leader")
+    )
     for s in res.stages[1:]:
         assert s.proposals == 1000
         assert s.model_runs + s.out_of_support == 1000
@@ -216,5 +219,7 @@ def test_model_run_count_is_reported(moves: str) -> None:
         return loglik_1d(X)
 
     prior = JointPrior({"theta": TruncatedNormal(0.0, 1.0, -20.0, 20.0)})
-    res = tmcmc_batched(counting, prior, n_samples=300, seed=2, moves=moves, n_steps=None)
+    res = run_tmcmc(
+        counting, prior, n_samples=300, seed=2, settings=TMCMCSettings(moves=moves, n_steps=None)
+    )
     assert res.n_model_runs == calls["points"]

@@ -15,8 +15,8 @@ from scm_core.inference import (
     StageState,
     TruncatedNormal,
     Uniform,
-    tmcmc,
-    tmcmc_batched,
+    rowwise,
+    run_tmcmc,
 )
 from scm_core.inference.tmcmc_stage import (
     ChainBatchResult,
@@ -69,24 +69,31 @@ def _same(r1, r2) -> bool:
 @pytest.fixture(scope="module")
 def reference():
     # n_steps fixed at 3 keeps the batch-size-1 run (one likelihood call per chain step) short
-    return tmcmc_batched(loglik, PRIOR, n_samples=2000, seed=11, n_steps=3)
+    return run_tmcmc(loglik, PRIOR, n_samples=2000, seed=11, settings=TMCMCSettings(n_steps=3))
 
 
 @pytest.mark.parametrize("batch_size", [1, 7, 2000])
 def test_batch_size_does_not_change_result(reference, batch_size: int) -> None:
-    res = tmcmc_batched(loglik, PRIOR, n_samples=2000, seed=11, n_steps=3, batch_size=batch_size)
+    res = run_tmcmc(
+        loglik,
+        PRIOR,
+        n_samples=2000,
+        seed=11,
+        settings=TMCMCSettings(n_steps=3),
+        batch_size=batch_size,
+    )
     assert _same(res, reference)
     assert res.responses is not None and res.responses.shape == (2000, 3)
 
 
 def test_process_pool_map_gives_identical_result(reference) -> None:
     with multiprocessing.get_context("fork").Pool(2) as pool:
-        res = tmcmc_batched(
+        res = run_tmcmc(
             partial(loglik, shift=0.0),
             PRIOR,
             n_samples=2000,
             seed=11,
-            n_steps=3,
+            settings=TMCMCSettings(n_steps=3),
             map=pool.map,
             batch_size=300,
         )
@@ -101,21 +108,25 @@ def test_responses_travel_with_samples(reference) -> None:
 
 
 def test_different_seed_gives_different_result(reference) -> None:
-    res = tmcmc_batched(loglik, PRIOR, n_samples=2000, seed=12, n_steps=3)
+    res = run_tmcmc(loglik, PRIOR, n_samples=2000, seed=12, settings=TMCMCSettings(n_steps=3))
     assert not np.array_equal(res.samples, reference.samples)
 
 
 def test_scalar_and_batched_interfaces_agree() -> None:
-    r1 = tmcmc(loglik_scalar, PRIOR, n_samples=300, seed=5, max_stages=3)
-    r2 = tmcmc_batched(lambda X: loglik(X)[0], PRIOR, n_samples=300, seed=5, max_stages=3)
+    r1 = run_tmcmc(
+        rowwise(loglik_scalar), PRIOR, n_samples=300, seed=5, settings=TMCMCSettings(max_stages=3)
+    )
+    r2 = run_tmcmc(
+        lambda X: loglik(X)[0], PRIOR, n_samples=300, seed=5, settings=TMCMCSettings(max_stages=3)
+    )
     assert np.array_equal(r1.samples, r2.samples)
     assert r1.log_evidence == r2.log_evidence
 
 
 def test_leader_scheme_is_batch_invariant() -> None:
-    kw = dict(n_samples=1000, seed=3, moves="leader")
-    r1 = tmcmc_batched(loglik, PRIOR, **kw)
-    r2 = tmcmc_batched(loglik, PRIOR, batch_size=7, **kw)
+    kw = dict(n_samples=1000, seed=3, settings=TMCMCSettings(moves="leader"))
+    r1 = run_tmcmc(loglik, PRIOR, **kw)
+    r2 = run_tmcmc(loglik, PRIOR, batch_size=7, **kw)
     assert r1.status == "completed"
     assert _same(r1, r2)
 
@@ -123,25 +134,16 @@ def test_leader_scheme_is_batch_invariant() -> None:
 @pytest.mark.parametrize("moves", ["resample-move", "leader"])
 def test_resume_from_saved_stages_is_bit_identical(tmp_path, moves: str) -> None:
     saved: list[dict] = []
-    kw = dict(n_samples=1000, seed=21, moves=moves)
-    full = tmcmc_batched(loglik, PRIOR, callback=lambda s: saved.append(s.to_dict()), **kw)
+    kw = dict(n_samples=1000, seed=21, settings=TMCMCSettings(moves=moves))
+    full = run_tmcmc(loglik, PRIOR, on_stage=lambda s: saved.append(s.to_dict()), **kw)
     assert len(saved) == len(full.stages) >= 4
 
     # JSON round trip (strict JSON: non-finite floats are encoded as strings)
     text = json.dumps(saved[:3], allow_nan=False)
     stages = [StageState.from_dict(d) for d in json.loads(text)]
     assert all(a.equals(b) for a, b in zip(stages, full.stages[:3], strict=False))
-    resumed = tmcmc_batched(loglik, PRIOR, resume_from=stages, **kw)
+    resumed = run_tmcmc(loglik, PRIOR, resume_from=stages, **kw)
     assert _same(resumed, full)
-
-    # NPZ round trip
-    path = tmp_path / "stage.npz"
-    np.savez(path, **full.stages[2].to_arrays())
-    with np.load(path) as f:
-        s2 = StageState.from_arrays(f)
-    assert s2.equals(full.stages[2])
-    resumed2 = tmcmc_batched(loglik, PRIOR, resume_from=[*full.stages[:2], s2], **kw)
-    assert _same(resumed2, full)
 
 
 def test_result_dict_roundtrip(reference) -> None:
@@ -154,9 +156,9 @@ def test_result_dict_roundtrip(reference) -> None:
 
 
 def test_resume_rejects_other_seed() -> None:
-    res = tmcmc_batched(loglik, PRIOR, n_samples=200, seed=1, max_stages=1)
+    res = run_tmcmc(loglik, PRIOR, n_samples=200, seed=1, settings=TMCMCSettings(max_stages=1))
     with pytest.raises(ValueError, match="seed"):
-        tmcmc_batched(loglik, PRIOR, n_samples=200, seed=2, resume_from=res.stages)
+        run_tmcmc(loglik, PRIOR, n_samples=200, seed=2, resume_from=res.stages)
 
 
 def test_stage_functions_roundtrip_through_json_as_an_orchestrator_would() -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from scm_core.inference import JointPrior, TMCMCSettings, Uniform, tmcmc_batched
+from scm_core.inference import JointPrior, TMCMCSettings, Uniform, run_tmcmc
 from scm_core.inference.tmcmc_stage import (
     adapt_beta,
     next_exponent,
@@ -114,7 +114,7 @@ def loglik_with_holes(X: np.ndarray) -> np.ndarray:
 
 def test_failed_runs_are_counted_never_raised() -> None:
     prior = JointPrior({"x0": Uniform(-1.0, 1.0), "x1": Uniform(-1.0, 1.0)})
-    res = tmcmc_batched(loglik_with_holes, prior, n_samples=2000, seed=0)
+    res = run_tmcmc(loglik_with_holes, prior, n_samples=2000, seed=0)
     s0 = res.stages[0]
     assert res.status == "completed"
     assert s0.failed_runs == int(np.sum(~np.isfinite(s0.log_likelihood))) > 0
@@ -136,7 +136,7 @@ def loglik_never(X: np.ndarray) -> np.ndarray:
 
 def test_all_failed_gives_stalled_status() -> None:
     prior = JointPrior({"x": Uniform(0.0, 1.0)})
-    res = tmcmc_batched(loglik_never, prior, n_samples=100, seed=0)
+    res = run_tmcmc(loglik_never, prior, n_samples=100, seed=0)
     assert res.status == "stalled"
     assert len(res.stages) == 1
     assert res.n_failed_runs == res.n_model_runs == 100
@@ -148,7 +148,7 @@ def test_max_stages_status() -> None:
     def sharp(X: np.ndarray) -> np.ndarray:
         return -0.5 * (X[:, 0] / 1e-4) ** 2
 
-    res = tmcmc_batched(sharp, prior, n_samples=200, seed=0, max_stages=2)
+    res = run_tmcmc(sharp, prior, n_samples=200, seed=0, settings=TMCMCSettings(max_stages=2))
     assert res.status == "max_stages"
     assert [s.stage for s in res.stages] == [0, 1, 2]
     assert res.stages[-1].exponent < 1.0
@@ -162,7 +162,7 @@ def test_out_of_support_proposals_are_not_evaluated() -> None:
         seen.append(X.copy())
         return -0.5 * ((X[:, 0] - 1.0) / 0.05) ** 2
 
-    res = tmcmc_batched(at_edge, prior, n_samples=500, seed=1)
+    res = run_tmcmc(at_edge, prior, n_samples=500, seed=1)
     pts = np.concatenate(seen)
     assert pts.min() >= 0.0 and pts.max() <= 1.0
     assert sum(s.out_of_support for s in res.stages) > 0
@@ -175,7 +175,7 @@ def test_stage_diagnostics_are_exposed() -> None:
     def gauss(X: np.ndarray) -> np.ndarray:
         return -0.5 * ((X[:, 0] - 0.2) ** 2 + (X[:, 1] + 0.1) ** 2) / 0.05**2
 
-    res = tmcmc_batched(gauss, prior, n_samples=500, seed=0)
+    res = run_tmcmc(gauss, prior, n_samples=500, seed=0)
     rows = res.diagnostics()
     assert [r["stage"] for r in rows] == list(range(len(res.stages)))
     assert np.all(np.diff(res.exponents) > 0) and res.exponents[-1] == 1.0

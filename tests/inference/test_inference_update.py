@@ -19,7 +19,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from scm_core.inference import JointPrior, TruncatedNormal, tmcmc_batched
+from scm_core.inference import JointPrior, TruncatedNormal, run_tmcmc
 
 N = 8000
 SIGMA = 0.3
@@ -60,9 +60,9 @@ def exact(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def test_update_matches_the_exact_joint_posterior_and_evidence() -> None:
-    old = tmcmc_batched(old_loglik, PRIOR, n_samples=N, seed=3)
+    old = run_tmcmc(old_loglik, PRIOR, n_samples=N, seed=3)
     assert old.status == "completed"
-    upd = tmcmc_batched(update_loglik, PRIOR, n_samples=N, seed=4, stage0_samples=old.samples)
+    upd = run_tmcmc(update_loglik, PRIOR, n_samples=N, seed=4, stage0_samples=old.samples)
     assert upd.status == "completed"
 
     mean, sd, log_z = exact(np.vstack([A1, A2]), np.concatenate([Y1, Y2]))
@@ -87,13 +87,13 @@ def test_update_matches_the_exact_joint_posterior_and_evidence() -> None:
 def test_an_update_with_no_information_changes_nothing() -> None:
     """A new dataset whose likelihood is flat (constant c) leaves the population's
     distribution as it was, in one stage, with log Z(new | old) = c exactly."""
-    old = tmcmc_batched(old_loglik, PRIOR, n_samples=2000, seed=3)
+    old = run_tmcmc(old_loglik, PRIOR, n_samples=2000, seed=3)
     c = -1.25
 
     def flat(X: np.ndarray):
         return np.full(X.shape[0], c), np.empty((X.shape[0], 0)), old_loglik(X)
 
-    upd = tmcmc_batched(flat, PRIOR, n_samples=2000, seed=4, stage0_samples=old.samples)
+    upd = run_tmcmc(flat, PRIOR, n_samples=2000, seed=4, stage0_samples=old.samples)
     assert upd.status == "completed" and len(upd.stages) == 2  # stage 0, then exponent 1
     assert upd.log_evidence == c
     _, sd, _ = exact(A1, Y1)

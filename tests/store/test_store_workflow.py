@@ -7,7 +7,8 @@ import numpy as np
 
 from scm_core.inference.tmcmc_stage import (
     evaluate_points,
-    initial_stage,
+    initial_samples,
+    initial_state,
     plan_stage,
     reduce_stage,
     run_chains,
@@ -17,14 +18,9 @@ from services.store import Store
 
 
 def in_memory_run(toy):
-    state = initial_stage(
-        toy.prior,
-        toy.n_samples,
-        toy.seed,
-        toy.log_likelihood,
-        batch_size=toy.batch_size,
-        settings=toy.settings,
-    )
+    X = initial_samples(toy.prior, toy.n_samples, toy.seed)
+    evals = [evaluate_points(X[r.start : r.stop], toy.log_likelihood) for r in toy.batches(len(X))]
+    state = initial_state(toy.prior, X, evals, toy.seed, toy.settings)
     states = [state]
     while stage_status(state, toy.settings) is None:
         plan = plan_stage(state, toy.prior, toy.settings)

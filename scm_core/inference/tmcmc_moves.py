@@ -1,0 +1,98 @@
+"""TMCMC's move schemes as small strategy objects (as emcee's moves): how a stage's resampled
+points become Metropolis chains (:func:`scm_core.inference.tmcmc_stage.plan_stage`) and which
+states of a chain are the next stage's samples (:func:`~scm_core.inference.tmcmc_stage.run_chains`).
+``TMCMCSettings.moves`` names one; :func:`move_of` gives it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scm_core.inference.tmcmc_types import MOVES, TMCMCSettings
+
+__all__ = ["LeaderMove", "Move", "ResampleMove", "move_of", "steps_for_acceptance"]
+
+
+class Move(Protocol):
+    """A move scheme. ``keeps_every_step``: every visited state of a chain is a sample (else
+    only its final state)."""
+
+    name: str
+    keeps_every_step: bool
+
+    def chains(
+        self, parent: NDArray[np.int64], acceptance_rate: float, settings: TMCMCSettings
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(start index into the previous population, Metropolis steps) of each chain, from
+        the resampled indices ``parent`` (n,) and the last stage's acceptance rate."""
+        ...
+
+
+def steps_for_acceptance(
+    acceptance_rate: float, move_probability: float, min_steps: int, max_steps: int
+) -> int:
+    """Metropolis steps so that a chain moves at least once with ``move_probability``.
+
+    n = ceil(log(1 - move_probability) / log(1 - acceptance_rate)), clipped to
+    [min_steps, max_steps]; acceptance 0 gives max_steps, 1 gives min_steps.
+    """
+    acc = float(acceptance_rate)
+    if not math.isfinite(acc):
+        raise ValueError("acceptance_rate must be finite")
+    if acc <= 0.0:
+        return int(max_steps)
+    if acc >= 1.0:
+        return int(min_steps)
+    n = math.ceil(math.log(1.0 - move_probability) / math.log(1.0 - acc))
+    return int(min(max(n, min_steps), max_steps))
+
+
+class ResampleMove:
+    """Resample-move (the default, accurate form): every resampled point starts a chain of
+    ``n_steps`` steps (fixed, or adapted with :func:`steps_for_acceptance`) whose final state is
+    the new sample."""
+
+    name = "resample-move"
+    keeps_every_step = False
+
+    def chains(
+        self, parent: NDArray[np.int64], acceptance_rate: float, settings: TMCMCSettings
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        if settings.n_steps is not None:
+            n_steps = int(settings.n_steps)
+        elif not math.isfinite(acceptance_rate):
+            n_steps = int(settings.initial_steps)
+        else:
+            n_steps = steps_for_acceptance(
+                acceptance_rate, settings.move_probability, settings.min_steps, settings.max_steps
+            )
+        return parent, np.full(parent.shape[0], n_steps)
+
+
+class LeaderMove:
+    """The paper's form (Ching & Chen 2007): each distinct resampled point leads one chain as
+    long as its multiplicity, every visited state a sample: at most one model run per sample
+    and stage, but biased on targets with exact answers."""
+
+    name = "leader"
+    keeps_every_step = True
+
+    def chains(
+        self, parent: NDArray[np.int64], acceptance_rate: float, settings: TMCMCSettings
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        return np.unique(parent, return_counts=True)
+
+
+_MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove())}
+
+
+def move_of(name: str) -> Move:
+    """The move scheme called ``name`` (one of :data:`MOVES`)."""
+    try:
+        return _MOVES[name]
+    except KeyError:
+        raise ValueError(f"'moves' must be one of {MOVES}, got {name!r}") from None

@@ -1,0 +1,248 @@
+"""The data of Transitional MCMC (:mod:`scm_core.inference.tmcmc_stage` has the functions):
+sampler settings, a stage's population, a stage's plan, a batch of chains' result and stage 0's
+point evaluations. Each is a frozen dataclass whose strict-JSON form (``to_dict``, exact with
+``from_dict``) and bit-identical comparison (``equals``) are derived from its fields
+(:mod:`scm_core.inference._serial`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scm_core.inference._serial import dataclass_equal, dataclass_from_dict, dataclass_to_dict
+from scm_core.inference.priors import JointPrior
+
+__all__ = [
+    "MOVES",
+    "ChainBatchResult",
+    "LogLikelihoodBatch",
+    "PointEvaluation",
+    "StagePlan",
+    "StageState",
+    "TMCMCSettings",
+]
+
+MOVES = ("resample-move", "leader")
+
+#: X (m, d) -> log L (m,), or (log L, responses (m, k)), or (log L, responses, log b (m,))
+LogLikelihoodBatch = Callable[
+    [NDArray[np.float64]],
+    NDArray[np.float64]
+    | tuple[NDArray[np.float64], NDArray[np.float64]]
+    | tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+]
+
+_T = TypeVar("_T", bound="_Fields")
+
+
+class _Fields:
+    """``to_dict``/``from_dict``/``equals`` derived from the dataclass's fields."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict-JSON dict (non-finite floats as strings); :meth:`from_dict` is exact."""
+        return dataclass_to_dict(self)
+
+    @classmethod
+    def from_dict(cls: type[_T], data: dict[str, Any]) -> _T:
+        return dataclass_from_dict(cls, data)
+
+    def equals(self, other: object) -> bool:
+        """Bit-identical comparison of every field (NaN equal to NaN)."""
+        return dataclass_equal(self, other)
+
+
+@dataclass(frozen=True)
+class TMCMCSettings(_Fields):
+    """Tuning of the sampler; stored with a study so that every stage is reproducible.
+
+    moves: "resample-move" (default, accurate) or "leader" (paper's budget, one run per sample).
+    n_steps: Metropolis steps per chain for resample-move; None adapts it per stage with
+        :func:`steps_for_acceptance` (``initial_steps`` for stage 1, where no acceptance is known).
+    min_steps, max_steps: clip of the adapted n_steps.
+    move_probability: adapted n_steps makes P(chain moves at least once) reach this value.
+    target_cov: coefficient of variation of the plausibility weights (Ching & Chen: 1.0).
+    beta0: initial proposal scale (Ching & Chen: 0.2).
+    target_acceptance, beta_gain, beta_min, beta_max: scale adaptation, see :func:`adapt_beta`.
+    stall_tol, stall_stages: "stalled" after ``stall_stages`` consecutive exponent increments
+        below ``stall_tol``.
+    max_stages: largest stage index (tempering stages after stage 0) before "max_stages".
+    """
+
+    moves: str = "resample-move"
+    n_steps: int | None = None
+    min_steps: int = 10
+    max_steps: int = 50
+    initial_steps: int = 20
+    move_probability: float = 0.99
+    target_cov: float = 1.0
+    beta0: float = 0.2
+    target_acceptance: float = 0.234
+    beta_gain: float = 1.0
+    beta_min: float = 0.02
+    beta_max: float = 3.0
+    stall_tol: float = 1e-8
+    stall_stages: int = 3
+    max_stages: int = 50
+
+    def __post_init__(self) -> None:
+        if self.moves not in MOVES:
+            raise ValueError(f"'moves' must be one of {MOVES}, got {self.moves!r}")
+        if self.n_steps is not None and int(self.n_steps) < 1:
+            raise ValueError(f"'n_steps' must be >= 1 or None, got {self.n_steps!r}")
+        if not 1 <= self.min_steps <= self.max_steps:
+            raise ValueError(
+                f"'min_steps' ({self.min_steps}) and 'max_steps' ({self.max_steps}) "
+                "must satisfy 1 <= min_steps <= max_steps"
+            )
+        if self.initial_steps < 1:
+            raise ValueError(f"'initial_steps' must be >= 1, got {self.initial_steps!r}")
+        if not 0 < self.move_probability < 1:
+            raise ValueError(f"'move_probability' must be in (0, 1), got {self.move_probability}")
+        if not (math.isfinite(self.target_cov) and self.target_cov > 0):
+            raise ValueError(f"'target_cov' must be finite and > 0, got {self.target_cov!r}")
+        if not 0 < self.beta_min <= self.beta0 <= self.beta_max:
+            raise ValueError(
+                f"'beta0' ({self.beta0}) must lie in [beta_min, beta_max] "
+                f"= [{self.beta_min}, {self.beta_max}], with beta_min > 0"
+            )
+        if not 0 < self.target_acceptance < 1:
+            raise ValueError(
+                f"'target_acceptance' must be in (0, 1), got {self.target_acceptance!r}"
+            )
+        if self.max_stages < 1:
+            raise ValueError(f"'max_stages' must be >= 1, got {self.max_stages!r}")
+        if self.stall_stages < 1:
+            raise ValueError(f"'stall_stages' must be >= 1, got {self.stall_stages!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class StageState(_Fields):
+    """Population after stage ``stage`` (stage 0 = prior draws), targeting prior * L^exponent.
+
+    samples (n, d) in the prior's parameter order; log_likelihood and log_prior (n,);
+    responses (n, k) simulated responses returned with the likelihood, or None.
+    beta: proposal scale for the *next* stage (already adapted). acceptance_rate: of the moves
+    that produced this stage (NaN at stage 0). log_evidence, log_evidence_var: running sum of the
+    log-evidence increments and of their delta-method variances. model_runs, failed_runs,
+    proposals, accepted, out_of_support: counts for this stage only. n_chains, n_steps: chains
+    run and Metropolis steps per chain (longest chain for "leader"). ess: effective sample size of
+    the plausibility weights used to resample into this stage (n at stage 0). stall_count:
+    consecutive stages with an exponent increment below the stall tolerance. seed: study seed.
+    """
+
+    stage: int
+    exponent: float
+    samples: NDArray[np.float64]
+    log_likelihood: NDArray[np.float64]
+    log_prior: NDArray[np.float64]
+    responses: NDArray[np.float64] | None
+    beta: float
+    acceptance_rate: float
+    log_evidence: float
+    log_evidence_var: float
+    model_runs: int
+    failed_runs: int
+    proposals: int
+    accepted: int
+    out_of_support: int
+    n_chains: int
+    n_steps: int
+    ess: float
+    stall_count: int
+    seed: int
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.samples.shape[0])
+
+    @property
+    def dim(self) -> int:
+        return int(self.samples.shape[1])
+
+    @property
+    def n_unique(self) -> int:
+        """Number of distinct sample rows."""
+        return int(np.unique(self.samples, axis=0).shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class StagePlan(_Fields):
+    """Everything needed to run the chains of stage ``stage`` and reduce them.
+
+    weights (n,): normalised plausibility weights of the previous samples. parent (n,): indices
+    picked by systematic resampling. chain_start (c,): index into the previous samples where each
+    chain starts; chain_length (c,): its number of Metropolis steps. start_* are the starting
+    states (copied so that the previous state is not needed by :func:`run_chains`).
+    proposal_cov (d, d) = beta^2 Cov_w (+ jitter) and its lower Cholesky factor proposal_chol.
+    """
+
+    stage: int
+    seed: int
+    prior: JointPrior
+    settings: TMCMCSettings
+    exponent: float
+    prev_exponent: float
+    weights: NDArray[np.float64]
+    log_evidence_increment: float
+    log_evidence_increment_var: float
+    ess: float
+    parent: NDArray[np.int64]
+    chain_start: NDArray[np.int64]
+    chain_length: NDArray[np.int64]
+    start_samples: NDArray[np.float64]
+    start_log_likelihood: NDArray[np.float64]
+    start_log_prior: NDArray[np.float64]
+    start_responses: NDArray[np.float64] | None
+    proposal_cov: NDArray[np.float64]
+    proposal_chol: NDArray[np.float64]
+    prev_beta: float
+    prev_log_evidence: float
+    prev_log_evidence_var: float
+    prev_stall_count: int
+    n_samples: int
+
+    @property
+    def n_chains(self) -> int:
+        return int(self.chain_start.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class ChainBatchResult(_Fields):
+    """Output of :func:`run_chains` for one batch of chains of stage ``stage``.
+
+    For chain chain_indices[i], output_counts[i] consecutive rows of samples / log_likelihood /
+    log_prior / responses hold its output (1 final state for resample-move; every visited state,
+    one per step, for leader). accepted, proposed (c,): per-chain Metropolis counts (proposals
+    outside the prior support count as proposed and rejected). model_runs, failed_runs,
+    out_of_support: batch totals.
+    """
+
+    stage: int
+    chain_indices: NDArray[np.int64]
+    output_counts: NDArray[np.int64]
+    samples: NDArray[np.float64]
+    log_likelihood: NDArray[np.float64]
+    log_prior: NDArray[np.float64]
+    responses: NDArray[np.float64] | None
+    accepted: NDArray[np.int64]
+    proposed: NDArray[np.int64]
+    model_runs: int
+    failed_runs: int
+    out_of_support: int
+
+
+@dataclass(frozen=True, eq=False)
+class PointEvaluation(_Fields):
+    """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures,
+    and log b (m,) where the likelihood gives a base density (else None; see the module doc)."""
+
+    log_likelihood: NDArray[np.float64]
+    responses: NDArray[np.float64] | None
+    failed_runs: int
+    log_base: NDArray[np.float64] | None = None

@@ -1,0 +1,142 @@
+"""The tempering arithmetic of a TMCMC stage (Ching & Chen 2007): plausibility weights and the
+next exponent from their coefficient of variation, systematic resampling, the weighted sample
+covariance and its Cholesky factor for the proposal, and the adaptation of the proposal scale.
+Pure functions of arrays."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.special import logsumexp
+
+from scm_core.inference.tmcmc_types import TMCMCSettings
+
+__all__ = [
+    "adapt_beta",
+    "next_exponent",
+    "plausibility_weights",
+    "proposal_factor",
+    "systematic_resample",
+    "weighted_covariance",
+]
+
+
+def plausibility_weights(
+    log_likelihood: NDArray[np.float64], delta_p: float
+) -> tuple[NDArray[np.float64], float]:
+    """Normalised weights w_i ∝ L_i^delta_p and log mean of the unnormalised weights.
+
+    Computed in log space; samples with log L = -inf get weight 0 (for delta_p > 0). Returns
+    (weights (n,), log mean w) where log mean w is the evidence increment log(S_j) of Ching & Chen.
+    """
+    ll = np.asarray(log_likelihood, dtype=float)
+    finite = np.isfinite(ll)
+    if not finite.any():
+        raise ValueError("all log-likelihoods are -inf: no plausibility weights")
+    a = np.where(finite, delta_p * np.where(finite, ll, 0.0), -np.inf)
+    lse = logsumexp(a)
+    w = np.exp(a - lse)
+    return w, float(lse - math.log(ll.shape[0]))
+
+
+def _weights_cov(a_finite: NDArray[np.float64], n: int) -> float:
+    """Coefficient of variation of exp(a) over n samples, of which len(a_finite) are nonzero."""
+    w = np.exp(a_finite - a_finite.max())
+    mean = w.sum() / n
+    second = (w * w).sum() / n
+    var = max(second - mean * mean, 0.0)
+    return math.sqrt(var) / mean
+
+
+def next_exponent(log_likelihood: ArrayLike, p_prev: float, target_cov: float = 1.0) -> float:
+    """Next tempering exponent p in (p_prev, 1] (Ching & Chen 2007, eq. for p_{j+1}).
+
+    Bisection on delta = p - p_prev so that the coefficient of variation (population std / mean)
+    of the weights w_i = exp(delta * log L_i) equals ``target_cov``; capped at 1. Samples with
+    log L = -inf get weight 0 for any delta > 0. If those zeros alone already push the CoV to the
+    target (half or more of the samples failed, for target 1), the CoV is taken over the finite
+    samples only, so that the step still makes progress. Deterministic.
+    """
+    ll = np.asarray(log_likelihood, dtype=float)
+    finite = ll[np.isfinite(ll)]
+    if finite.size == 0:
+        raise ValueError("all log-likelihoods are -inf: cannot choose the next exponent")
+    n = ll.shape[0]
+    if math.sqrt(n / finite.size - 1.0) >= target_cov:
+        n = finite.size
+    hi = 1.0 - p_prev
+    if hi <= 0:
+        return 1.0
+    if _weights_cov(hi * finite, n) <= target_cov:
+        return 1.0
+    lo = 0.0
+    for _ in range(500):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if _weights_cov(mid * finite, n) > target_cov:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 1e-13 * hi:
+            break
+    return min(p_prev + hi, 1.0)
+
+
+def systematic_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
+    """Systematic resampling: n sorted indices, index i drawn ~ n * w_i times (±1)."""
+    w = np.asarray(weights, dtype=float)
+    cw = np.cumsum(w)
+    cw /= cw[-1]
+    cw[-1] = 1.0
+    positions = (rng.random() + np.arange(n)) / n
+    idx = np.searchsorted(cw, positions, side="right")
+    return np.minimum(idx, w.shape[0] - 1).astype(np.int64)
+
+
+def weighted_covariance(X: ArrayLike, weights: ArrayLike) -> NDArray[np.float64]:
+    """Sum_i w_i (x_i - m)(x_i - m)^T with m = sum_i w_i x_i (weights sum to 1)."""
+    X = np.asarray(X, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    w = w / w.sum()
+    mean = w @ X
+    dx = X - mean
+    cov = (dx * w[:, None]).T @ dx
+    return 0.5 * (cov + cov.T)
+
+
+def proposal_factor(
+    cov: NDArray[np.float64], bounds: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Add a tiny diagonal jitter (1e-10 relative + 1e-20 of the prior range squared) and factor.
+
+    The jitter keeps degenerate dimensions (all samples equal) movable; it is increased tenfold
+    until the Cholesky factorisation succeeds.
+    """
+    d = cov.shape[0]
+    span2 = (bounds[:, 1] - bounds[:, 0]) ** 2
+    diag = np.clip(np.diag(cov), 0.0, None)
+    jitter = 1e-10 * diag + 1e-20 * span2
+    for _ in range(30):
+        c = cov + np.diag(jitter)
+        try:
+            return c, np.linalg.cholesky(c)
+        except np.linalg.LinAlgError:
+            jitter = jitter * 10.0 + 1e-300
+    raise np.linalg.LinAlgError(f"proposal covariance not positive definite (d={d})")
+
+
+def adapt_beta(beta: float, acceptance_rate: float, settings: TMCMCSettings) -> float:
+    """Proposal-scale update after a stage: beta * exp(gain * (acc - target)), clipped.
+
+    Stochastic-approximation form (log beta moves by gain * (acceptance - target)); with the
+    default target 0.234 (Roberts, Gelman & Gilks 1997, optimal random-walk acceptance for
+    moderate to high dimension) it replaces Ching & Chen's fixed beta = 0.2, as in later TMCMC
+    work (e.g. Betz et al. 2016), because the tempered targets shrink from stage to stage.
+    """
+    if not math.isfinite(acceptance_rate):
+        return float(beta)
+    b = beta * math.exp(settings.beta_gain * (acceptance_rate - settings.target_acceptance))
+    return float(min(max(b, settings.beta_min), settings.beta_max))
