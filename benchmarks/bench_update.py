@@ -6,7 +6,8 @@ moves) is calibrated three ways for each seed:
 * joint: both example logs (slips 0.2 and 0.5) from the prior;
 * base: the slip 0.2 log alone from the prior;
 * update: the base posterior updated with the slip 0.5 log (stage 0 = the base's final
-  population, the slip 0.2 likelihood in the base density; seed = base seed + 1, as the service).
+  population, the slip 0.2 likelihood in the base density, stage 1 tuned with the base's final
+  proposal scale and acceptance rate; seed = base seed + 1, as the CLI and the service).
 
 The moves default to the accurate resample-move form (``--moves leader`` for the paper's form,
 whose run-to-run scatter at 500 samples is itself 0.3-0.5 posterior sd in the means).
@@ -43,7 +44,7 @@ CASE = ROOT / "examples" / "quick.toml"
 LOGS = [ROOT / "examples" / "wf34_s020.csv", ROOT / "examples" / "wf34_s050.csv"]
 
 
-def _run(func, case, seed, mapper, batch_size, stage0=None):
+def _run(func, case, seed, mapper, batch_size, start=None):
     t0 = time.perf_counter()
     result = run_tmcmc(
         func,
@@ -53,7 +54,8 @@ def _run(func, case, seed, mapper, batch_size, stage0=None):
         case.tmcmc_settings(),
         map=mapper,
         batch_size=batch_size,
-        stage0_samples=stage0,
+        stage0_samples=None if start is None else start.samples,
+        stage0_tuning=None if start is None else (start.beta, start.acceptance_rate),
     )
     return result, time.perf_counter() - t0
 
@@ -97,7 +99,7 @@ def main() -> None:
                 seed + 1,
                 mapper,
                 batch,
-                stage0=base.final.samples,
+                start=base.final,
             )
             total = base.log_evidence + upd.log_evidence
             for label, r, t, nd, z in (

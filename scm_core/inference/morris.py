@@ -280,7 +280,7 @@ def morris(
     """Design, evaluate and analyse a Morris screening.
 
     ``func_batch(X)`` maps points (m, d) to outputs (m,) or (m, k); batches of ``batch_size``
-    points (None: one batch) are evaluated with ``map`` as in :func:`~scm_core.inference.tmcmc.run_tmcmc`.
+    points (None: one batch) are evaluated with ``map`` as in :func:`.tmcmc.run_tmcmc`.
     """
     points, design = morris_design(bounds, r, levels, seed, names, log_scale)
     n = points.shape[0]

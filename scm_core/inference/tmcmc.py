@@ -180,6 +180,7 @@ def run_tmcmc(
     batch_size: int | None = None,
     resume_from: Sequence[StageState] | None = None,
     stage0_samples: NDArray[np.float64] | None = None,
+    stage0_tuning: tuple[float, float] | None = None,
     on_stage_start: Callable[[StageStart], Any] | None = None,
     on_batch: Callable[[int], Any] | None = None,
     on_stage: Callable[[StageState], Any] | None = None,
@@ -200,7 +201,9 @@ def run_tmcmc(
     exception raised in a hook (or a KeyboardInterrupt) stops it. ``stage0_samples``
     (n_samples, d): stage 0's points instead of prior draws; a posterior update passes the
     earlier posterior's population with a likelihood that gives log b = log L(earlier data)
-    (see :mod:`.tmcmc_stage`), and the log evidence is then the incremental one.
+    (see :mod:`.tmcmc_stage`), and the log evidence is then the incremental one;
+    ``stage0_tuning`` (beta, acceptance rate of that population's last stage) starts stage 1
+    with the proposal scale and step count adapted to it (see :func:`initial_state`).
     """
     settings = settings or TMCMCSettings()
     seed = int(seed)
@@ -228,7 +231,7 @@ def run_tmcmc(
             evals.append(ev)
             if on_batch is not None:
                 on_batch(len(r))
-        stages = [initial_state(prior, X, evals, seed, settings)]
+        stages = [initial_state(prior, X, evals, seed, settings, stage0_tuning)]
         if on_stage is not None:
             on_stage(stages[0])
 

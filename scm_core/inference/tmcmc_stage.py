@@ -179,12 +179,17 @@ def initial_state(
     evaluations: Sequence[PointEvaluation],
     seed: int,
     settings: TMCMCSettings,
+    tuning: tuple[float, float] | None = None,
 ) -> StageState:
     """Stage-0 state from the samples and their evaluations (in order, concatenated).
 
     ``samples`` are prior draws, or, for a posterior update, the population of the earlier
     posterior prior x b evaluated by a likelihood giving log b (then ``log_prior`` = log prior +
     log b, exponent 0 targets prior x b and the evidence accumulated is Z(new | old)).
+    ``tuning`` (beta, acceptance rate): the proposal scale and last acceptance rate adapted on
+    the population's own target (an update: the earlier study's final stage), so stage 1 starts
+    with them instead of ``beta0`` and ``initial_steps``; the kernel of a stage is still fixed
+    before the stage runs, so every stage keeps its target exactly.
     """
     ll = np.concatenate([e.log_likelihood for e in evaluations])
     if ll.shape[0] != samples.shape[0]:
@@ -205,8 +210,8 @@ def initial_state(
         log_likelihood=ll,
         log_prior=log_prior,
         responses=responses,
-        beta=float(settings.beta0),
-        acceptance_rate=math.nan,
+        beta=_start_beta(tuning, settings),
+        acceptance_rate=math.nan if tuning is None else float(tuning[1]),
         log_evidence=0.0,
         log_evidence_var=0.0,
         model_runs=n,
@@ -220,6 +225,12 @@ def initial_state(
         stall_count=0,
         seed=int(seed),
     )
+
+
+def _start_beta(tuning: tuple[float, float] | None, settings: TMCMCSettings) -> float:
+    if tuning is None or not math.isfinite(tuning[0]):
+        return float(settings.beta0)
+    return float(min(max(tuning[0], settings.beta_min), settings.beta_max))
 
 
 def chain_batches(n: int, batch_size: int | None) -> list[range]:

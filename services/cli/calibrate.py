@@ -242,6 +242,7 @@ def calibrate(
                 on_batch=on_batch,
                 on_stage=on_stage,
                 stage0_samples=parent.final.samples if parent else None,
+                stage0_tuning=parent.tuning if parent else None,
             )
     except BaseException as exc:
         if not is_interrupt(exc):

@@ -359,7 +359,8 @@ def test_update_is_the_in_memory_update_bit_for_bit(
     """``--update-of ref --data log50.csv``: stage 0 is ref's final population, the slip 0.2
     likelihood is the base density, the seed is ref's + 1; the samples are those of
     ``run_tmcmc(UpdateLikelihood(...), stage0_samples=...)`` bit for bit, the evidence reported
-    is the increment with the total alongside, and a re-run resumes to the same files."""
+    is the increment with the total alongside, stage 1 starts with ref's final beta and
+    acceptance rate, and a re-run resumes to the same files."""
     import numpy as np
 
     from scm_core.calibration import StudyModel, UpdateLikelihood, load_case, run_tmcmc
@@ -394,6 +395,7 @@ def test_update_is_the_in_memory_update_bit_for_bit(
         5,
         case.tmcmc_settings(),
         stage0_samples=parent_final.samples,
+        stage0_tuning=(parent_final.beta, parent_final.acceptance_rate),
     )
     stages = sorted((out / "checkpoints").glob("stage_*.json"))
     final = StageState.from_dict(json.loads(stages[-1].read_text())["state"])

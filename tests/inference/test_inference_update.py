@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from scipy import stats
 
 from scm_core.inference import JointPrior, TruncatedNormal, run_tmcmc
@@ -59,10 +60,16 @@ def exact(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return mean, np.sqrt(np.diag(cov)), float(log_z.logpdf(y))
 
 
-def test_update_matches_the_exact_joint_posterior_and_evidence() -> None:
+@pytest.mark.parametrize("tuned", [False, True])
+def test_update_matches_the_exact_joint_posterior_and_evidence(tuned: bool) -> None:
+    """Exact whether stage 1 starts from the default tuning or, as the CLI and the service
+    do, from the earlier study's final beta and acceptance rate."""
     old = run_tmcmc(old_loglik, PRIOR, n_samples=N, seed=3)
     assert old.status == "completed"
-    upd = run_tmcmc(update_loglik, PRIOR, n_samples=N, seed=4, stage0_samples=old.samples)
+    tuning = (old.final.beta, old.final.acceptance_rate) if tuned else None
+    upd = run_tmcmc(
+        update_loglik, PRIOR, n_samples=N, seed=4, stage0_samples=old.samples, stage0_tuning=tuning
+    )
     assert upd.status == "completed"
 
     mean, sd, log_z = exact(np.vstack([A1, A2]), np.concatenate([Y1, Y2]))

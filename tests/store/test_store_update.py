@@ -97,6 +97,7 @@ def test_update_is_the_in_memory_update_bit_for_bit(store: Store, dataset_ids) -
         sampler,
         batch_size=7,  # the split does not matter
         stage0_samples=ref_parent.samples,
+        stage0_tuning=(ref_parent.final.beta, ref_parent.final.acceptance_rate),
     )
     got = store.samples.arrays(study_id, done.current_stage)
     assert got.samples.tobytes() == ref.samples.tobytes()

@@ -221,6 +221,11 @@ class CalibrationRun:
         return initial_samples(self.prior, self.n_samples, self.seed)
 
     @property
+    def initial_tuning(self) -> tuple[float, float] | None:
+        """(beta, acceptance rate) stage 1 starts from (None: the settings' beta0, steps)."""
+        return None
+
+    @property
     def model_function(self):
         """Points (m, d) -> log-likelihoods (and responses): the simulator's time."""
         return self.model.log_likelihood_batch
@@ -259,7 +264,12 @@ class CalibrationRun:
             if inp.stage.stage_index == 0:
                 points = [decode(b, PointEvaluation) for b in inp.results]
                 state = initial_state(
-                    self.prior, self.initial_points, points, study.seed, self.settings
+                    self.prior,
+                    self.initial_points,
+                    points,
+                    study.seed,
+                    self.settings,
+                    self.initial_tuning,
                 )
             else:
                 chains = [decode(b, ChainBatchResult) for b in inp.results]

@@ -29,7 +29,13 @@ from services.store import NotFoundError, Store, StudyRecord, StudySpec
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .calibration import CalibrationKind, CalibrationRun, check_limits, precheck
+from .calibration import (
+    CalibrationKind,
+    CalibrationRun,
+    check_limits,
+    load_stage_state,
+    precheck,
+)
 
 __all__ = ["KIND", "UpdateRun", "old_dataset_ids", "update_spec"]
 
@@ -108,6 +114,7 @@ class UpdateRun(CalibrationRun):
     the old datasets in the base density."""
 
     parent_samples: NDArray[np.float64] | None = None
+    parent_tuning: tuple[float, float] | None = None
     likelihood: UpdateLikelihood | None = None
     parent_id: int = 0
     parent_log_evidence: float = 0.0
@@ -115,6 +122,11 @@ class UpdateRun(CalibrationRun):
     @cached_property
     def initial_points(self) -> NDArray[np.float64]:
         return np.asarray(self.parent_samples, dtype=float)
+
+    @property
+    def initial_tuning(self) -> tuple[float, float] | None:
+        """The parent's final beta and acceptance rate (see ``initial_state``)."""
+        return self.parent_tuning
 
     @property
     def model_function(self):
@@ -142,14 +154,15 @@ class UpdateKind(CalibrationKind):
         old = old_dataset_ids(store, parent)
         case = CaseDefinition.from_dict(study.case)
         model = StudyModel(case, load_datasets(store, case, old + list(study.dataset_ids)))
-        _, population = store.stages.population(parent.id, int(parent.current_stage or 0))
+        final = load_stage_state(store, parent.id, int(parent.current_stage or 0))
         return UpdateRun(
             case=case,
             model=model,
             settings=case.tmcmc_settings(),
             n_samples=study.n_samples,
             seed=study.seed,
-            parent_samples=population.samples,
+            parent_samples=final.samples,
+            parent_tuning=(float(final.beta), float(final.acceptance_rate)),
             likelihood=UpdateLikelihood(model, len(old)),
             parent_id=parent.id,
             parent_log_evidence=_total_log_evidence(store, parent),
