@@ -6,7 +6,7 @@ hashes in ``SCM_CALIB_API_TOKENS`` (:meth:`services.config.Settings.token_is_val
 
 An endpoint declares its need with the dependency :func:`require_write` or :func:`require_read`
 (:func:`route_needs_token` reads it back); the application checks the token before it reads
-the request's body (``services.api.main.TokenFirstMiddleware``), so a request without a valid
+the request's body (``services.api.middleware.TokenFirstMiddleware``), so a request without a valid
 token is answered 401 whatever its body, and documents the need in its OpenAPI schema.
 """
 

@@ -18,28 +18,34 @@ for such an endpoint is answered 401 before its body is read (:class:`TokenFirst
 from __future__ import annotations
 
 import logging
-from collections.abc import AsyncIterator, Callable, Iterable
+from collections.abc import AsyncIterator, Iterable
 from contextlib import asynccontextmanager
 from importlib import metadata
 from typing import Any
 
 import sqlalchemy.exc
-from fastapi import FastAPI, HTTPException, Request
+from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.formparsers import MultiPartException
-from starlette.routing import Match
 
 from services.config import Settings, get_settings
-from services.limits import LimitError, check_json_depth
 from services.store import NotFoundError, SchemaVersionError, Store
 from services.studies import StudyRequestError
 from services.studies.kinds.registry import KINDS
 
-from .deps import check_token, route_needs_token
+from .deps import route_needs_token
+from .middleware import (
+    BodyLimitMiddleware,
+    JsonDepthMiddleware,
+    TokenFirstMiddleware,
+    allowed_methods,
+    api_routes,
+    error_response,
+)
 from .params import NOT_FOUND_PARAMS
 from .routes import (
     ERROR_DESCRIPTIONS,
@@ -149,36 +155,6 @@ def _id_out_of_range(errors: list[dict[str, Any]]) -> str | None:
     return f"{NOT_FOUND_PARAMS[loc[1]]} {value} not found"
 
 
-def _error(code: int, detail: str, headers: dict[str, str] | None = None) -> JSONResponse:
-    return JSONResponse({"detail": detail}, status_code=code, headers=headers)
-
-
-def _api_routes(app: Any) -> list[APIRoute]:
-    """The endpoints of the API (their routers' routes; ``app.router.routes`` holds included
-    routers rather than their routes in recent FastAPI versions)."""
-    return getattr(app.state, "api_routes", [])
-
-
-def _route_of(app: Any, scope: Any) -> APIRoute | None:
-    """The endpoint that will answer the request of ``scope`` (path and method), if any."""
-    for route in _api_routes(app):
-        match, _ = route.matches(scope)
-        if match is Match.FULL:
-            return route
-    return None
-
-
-def allowed_methods(app: Any, scope: Any) -> list[str]:
-    """The methods of every endpoint at the path of ``scope`` (Starlette's own 405 names only
-    those of the first endpoint it finds at the path)."""
-    methods: set[str] = set()
-    for route in _api_routes(app):
-        match, _ = route.matches(scope)
-        if match is not Match.NONE:
-            methods |= route.methods
-    return sorted(methods)
-
-
 def _unparsable_body(cause: BaseException) -> str:
     """The 422 message of a body the framework could not parse (FastAPI and Starlette answer
     400): JSON that is not text, a malformed multipart form or one over its limits."""
@@ -193,7 +169,7 @@ def _unparsable_body(cause: BaseException) -> str:
 def _install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(StudyRequestError)
     async def _study_request(request: Request, exc: StudyRequestError) -> JSONResponse:
-        return _error(422, str(exc))
+        return error_response(422, str(exc))
 
     @app.exception_handler(StarletteHTTPException)  # also FastAPI's HTTPException
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -203,7 +179,7 @@ def _install_error_handlers(app: FastAPI) -> None:
                 m.strip() for m in own.split(",") if m.strip()
             ]
             listed = ", ".join(allowed) or "none"
-            return _error(
+            return error_response(
                 405,
                 f"method {request.method} not allowed on {request.url.path} (allowed: {listed})",
                 {"Allow": ", ".join(allowed)},
@@ -213,32 +189,32 @@ def _install_error_handlers(app: FastAPI) -> None:
             # the framework's answer to a body it cannot parse (FastAPI: JSON that is not
             # text; Starlette: a malformed multipart form, too many fields or files): 422,
             # as for any other invalid body (this API raises no 400 of its own)
-            return _error(422, _unparsable_body(cause))
+            return error_response(422, _unparsable_body(cause))
         detail = exc.detail if isinstance(exc.detail, str) else str(jsonable_encoder(exc.detail))
-        return _error(exc.status_code, detail, getattr(exc, "headers", None))
+        return error_response(exc.status_code, detail, getattr(exc, "headers", None))
 
     @app.exception_handler(RequestValidationError)
     async def _validation(request: Request, exc: RequestValidationError) -> JSONResponse:
         errors = list(exc.errors())
         missing = _id_out_of_range(errors)
         if missing is not None:
-            return _error(404, missing)
-        return _error(422, format_validation_errors(errors))
+            return error_response(404, missing)
+        return error_response(422, format_validation_errors(errors))
 
     @app.exception_handler(NotFoundError)
     async def _not_found(request: Request, exc: NotFoundError) -> JSONResponse:
-        return _error(404, str(exc))
+        return error_response(404, str(exc))
 
     @app.exception_handler(SchemaVersionError)
     async def _schema(request: Request, exc: SchemaVersionError) -> JSONResponse:
-        return _error(503, str(exc))
+        return error_response(503, str(exc))
 
     async def _database(request: Request, exc: Exception) -> JSONResponse:
         log.exception("database error on %s %s", request.method, request.url.path)
         orig = getattr(exc, "orig", None) or exc
         lines = str(orig).strip().splitlines()
         reason = f"{type(orig).__name__}: {lines[0]}" if lines else type(orig).__name__
-        return _error(
+        return error_response(
             503,
             f"database unavailable or not at the code's schema revision ({reason}); "
             "see GET /health/ready",
@@ -254,133 +230,8 @@ def _install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(Exception)
     async def _internal(request: Request, exc: Exception) -> JSONResponse:
         log.exception("unhandled error on %s %s", request.method, request.url.path)
-        return _error(500, f"internal error ({type(exc).__name__}); see the server log")
+        return error_response(500, f"internal error ({type(exc).__name__}); see the server log")
 
-
-class _BodyTooLarge(HTTPException):
-    def __init__(self, detail: str) -> None:
-        super().__init__(413, detail)
-
-
-class BodyLimitMiddleware:
-    """Refuse request bodies over a per-path limit with 413, before they are read in full:
-    at once from ``Content-Length``, else while the body streams in. ``limit_for(path)``
-    gives (limit in bytes, the start of the error message, naming the field)."""
-
-    def __init__(self, app: Any, limit_for: Callable[[str], tuple[int, str]]) -> None:
-        self.app = app
-        self.limit_for = limit_for
-
-    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        if scope["type"] != "http" or scope.get("method") not in ("POST", "PUT", "PATCH"):
-            await self.app(scope, receive, send)
-            return
-        limit, what = self.limit_for(scope.get("path", ""))
-        length = None
-        for key, value in scope.get("headers", ()):
-            if key == b"content-length":
-                try:
-                    length = int(value)
-                except ValueError:
-                    length = None
-        if length is not None and length > limit:
-            response = _error(413, f"{what}; request body: {length} bytes", {"Connection": "close"})
-            await response(scope, receive, send)
-            return
-        seen = 0
-
-        async def limited() -> Any:
-            nonlocal seen
-            message = await receive()
-            if message["type"] == "http.request":
-                seen += len(message.get("body", b""))
-                if seen > limit:
-                    raise _BodyTooLarge(f"{what}; request body: more than {limit} bytes")
-            return message
-
-        await self.app(scope, limited, send)
-
-
-class TokenFirstMiddleware:
-    """Answer 401 (with ``WWW-Authenticate: Bearer``) to a request for an endpoint that needs
-    a token (:func:`services.api.deps.route_needs_token`) and carries no valid one, before
-    anything reads its body: the answer does not depend on the body (malformed JSON, a body
-    over the size limit, too deep a document). The endpoint's own dependency checks the token
-    again."""
-
-    def __init__(self, app: Any) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        api = scope.get("app") if scope["type"] == "http" else None
-        route = _route_of(api, scope) if api is not None else None
-        if route is not None:
-            settings = api.state.settings
-            if route_needs_token(route, settings):
-                try:
-                    check_token(Request(scope), settings)
-                except HTTPException as exc:
-                    await _error(exc.status_code, str(exc.detail), exc.headers)(
-                        scope, receive, send
-                    )
-                    return
-        await self.app(scope, receive, send)
-
-
-class JsonDepthMiddleware:
-    """Refuse a JSON request body nested deeper than ``max_depth`` with 422 before anything
-    parses it (a deep enough document makes ``json.loads`` or pydantic recurse past
-    Python's limit). The body is already bounded by :class:`BodyLimitMiddleware`."""
-
-    def __init__(self, app: Any, max_depth: int) -> None:
-        self.app = app
-        self.max_depth = max_depth
-
-    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        if scope["type"] != "http" or scope.get("method") not in ("POST", "PUT", "PATCH"):
-            await self.app(scope, receive, send)
-            return
-        ctype = b""
-        for key, value in scope.get("headers", ()):
-            if key == b"content-type":
-                ctype = value.split(b";")[0].strip().lower()
-        if not (ctype == b"application/json" or ctype.endswith(b"+json")):
-            await self.app(scope, receive, send)
-            return
-        chunks: list[bytes] = []
-        while True:
-            try:
-                message = await receive()
-            except HTTPException as exc:  # over the body limit (outside the exception handlers)
-                await _error(exc.status_code, str(exc.detail), {"Connection": "close"})(
-                    scope, receive, send
-                )
-                return
-            if message["type"] != "http.request":
-                await self.app(scope, receive, send)
-                return
-            chunks.append(message.get("body", b""))
-            if not message.get("more_body", False):
-                break
-        body = b"".join(chunks)
-        try:
-            check_json_depth(body, self.max_depth)
-        except LimitError as exc:
-            await _error(422, str(exc))(scope, receive, send)
-            return
-        sent = False
-
-        async def replay() -> Any:
-            nonlocal sent
-            if not sent:
-                sent = True
-                return {"type": "http.request", "body": body, "more_body": False}
-            return await receive()
-
-        await self.app(scope, replay, send)
-
-
-# ---------------------------------------------------------------------------- OpenAPI
 
 _ERROR_REF = "#/components/schemas/ErrorOut"
 #: FastAPI's default 422 body, which this API never sends
@@ -454,7 +305,7 @@ def _install_openapi(app: FastAPI, settings: Settings) -> None:
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
-            describe_answers(base(), _api_routes(app), settings)
+            describe_answers(base(), api_routes(app), settings)
         return app.openapi_schema  # type: ignore[return-value]
 
     app.openapi = openapi  # type: ignore[method-assign]

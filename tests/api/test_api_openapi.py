@@ -19,9 +19,12 @@ from services.api.params import STATUS_PATTERN, parse_statuses
 from services.api.routes import errors
 from services.api.routes.pooled import IDS_PATTERN
 from services.store.models import STUDY_STATUSES
+from services.studies.kinds.registry import KINDS
 
 WRITES = {("post", "/datasets"), ("post", "/studies"), ("post", "/studies/{study_id}/cancel")}
 WRITES |= {("post", "/sensitivity")}
+#: every kind with its own collection (services.studies.kinds.base.KindHttp) is written by POST
+WRITES |= {("post", k.http.path) for k in KINDS.values() if k.http is not None}
 
 
 @pytest.fixture(scope="module")
