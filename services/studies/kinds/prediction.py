@@ -37,7 +37,6 @@ from services.limits import INT32_MAX, INT64_MAX, LimitError, check_study_size
 from services.store import (
     BatchLease,
     BatchOutput,
-    NotFoundError,
     ReducedStage,
     ReduceInput,
     Reducer,
@@ -54,7 +53,7 @@ from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
 from .base import KindHttp, batch_output, one_run_per_item
 from .checks import check_runs
-from .update import UPDATABLE, old_dataset_ids
+from .update import completed_calibration, old_dataset_ids
 
 __all__ = ["KIND", "PredictionRequest", "PredictionResult", "prediction_spec"]
 
@@ -153,19 +152,9 @@ def _conditions(items: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -> StudySpec:
     """A prediction from the completed study ``body.study_id``, checked against the limits and
     at the study's posterior mean on every target; nothing is stored."""
-    try:
-        parent = store.studies.get(int(body.study_id))
-    except NotFoundError:
-        raise StudyRequestError(f"study_id: no study with id {body.study_id}") from None
-    if parent.kind not in UPDATABLE:
-        raise StudyRequestError(
-            f"study_id: study {parent.id} is a {parent.kind} study, not a calibration"
-        )
-    if parent.status != "completed":
-        raise StudyRequestError(
-            f"study_id: study {parent.id} is {parent.status}; only a completed calibration "
-            "has a posterior to predict from"
-        )
+    parent = completed_calibration(
+        store, body.study_id, "study_id", "has a posterior to predict from"
+    )
     if (body.dataset_ids is None) == (body.conditions is None):
         raise StudyRequestError("dataset_ids: give exactly one of dataset_ids and conditions")
     ids = [int(d) for d in body.dataset_ids or ()]

@@ -37,7 +37,7 @@ from .calibration import (
     precheck,
 )
 
-__all__ = ["KIND", "UpdateRun", "old_dataset_ids", "update_spec"]
+__all__ = ["KIND", "UpdateRun", "completed_calibration", "old_dataset_ids", "update_spec"]
 
 #: kinds whose final population an update can start from
 UPDATABLE = ("tmcmc", "update")
@@ -49,6 +49,25 @@ def old_dataset_ids(store: Store, parent: StudyRecord) -> list[int]:
     while chain[-1].kind == "update":
         chain.append(store.studies.get(int((chain[-1].payload or {})["update_of"])))
     return [int(d) for study in reversed(chain) for d in study.dataset_ids]
+
+
+def completed_calibration(store: Store, study_id: int, field: str, what: str) -> StudyRecord:
+    """The completed calibration (or update) ``study_id`` whose posterior a new study starts
+    from; StudyRequestError naming ``field`` otherwise (``what`` ends the message: "only a
+    completed calibration <what>")."""
+    try:
+        study = store.studies.get(int(study_id))
+    except NotFoundError:
+        raise StudyRequestError(f"{field}: no study with id {study_id}") from None
+    if study.kind not in UPDATABLE:
+        raise StudyRequestError(
+            f"{field}: study {study.id} is a {study.kind} study, not a calibration"
+        )
+    if study.status != "completed":
+        raise StudyRequestError(
+            f"{field}: study {study.id} is {study.status}; only a completed calibration {what}"
+        )
+    return study
 
 
 def update_spec(
@@ -64,19 +83,7 @@ def update_spec(
     """An update of the completed study ``update_of`` with the stored ``dataset_ids``, checked
     like a calibration (limits, configuration at the prior medians); nothing is stored.
     StudyRequestError names the field (``update_of``, ``dataset_ids``, ``seed``)."""
-    try:
-        parent = store.studies.get(int(update_of))
-    except NotFoundError:
-        raise StudyRequestError(f"update_of: no study with id {update_of}") from None
-    if parent.kind not in UPDATABLE:
-        raise StudyRequestError(
-            f"update_of: study {parent.id} is a {parent.kind} study, not a calibration"
-        )
-    if parent.status != "completed":
-        raise StudyRequestError(
-            f"update_of: study {parent.id} is {parent.status}; only a completed calibration "
-            "can be updated"
-        )
+    parent = completed_calibration(store, update_of, "update_of", "can be updated")
     ids = [int(d) for d in dataset_ids]
     check_dataset_ids(store, ids)
     old = old_dataset_ids(store, parent)
