@@ -14,13 +14,15 @@ wheel surface sliding over the soil):
   (outward from the footprint's centroid: side ridges, bow wave, rear lip) and a *parallel* flow
   (along the horizontal slip direction: backwards behind a driven wheel, forwards ahead of a
   skidding or locked one, which then bulldozes it);
-* the layer the sliding surface drags (grouser height + ``shear_band``; ``slip_flow`` is the
-  fraction of the slip speed it moves at) is a conveyor. Continuity in the wheel's frame fixes
-  its net effect: a driven wheel accelerates the layer backwards, which thins under the wheel
-  (the wheel digs itself in, by at most the layer's depth): it is scraped off the front of the
-  footprint and leaves behind the wheel. Under a skidding wheel the layer cannot thicken: the rim
-  drags it forwards from under the wheel's bottom (the wheel sinks: slip sinkage, the skid's
-  counterpart of digging in) and pushes it ahead into the bow wave. Each row at its mean slip.
+* the layer the sliding surface drags (grouser height + ``shear_band``) is a conveyor moving at
+  ``slip_flow`` times the mobilised shear of eq. (8) (1 - exp(-v_t/J)) times the slip speed.
+  Continuity in the wheel's frame fixes its net effect: a driven wheel accelerates the layer
+  backwards, which thins as it passes under the wheel (taken from every loaded node of the row,
+  so the rear of the contact unloads and the front carries the load: the wheel digs itself in,
+  by at most the layer's depth) and leaves behind the wheel. Under a skidding wheel the layer
+  cannot thicken: the rim drags it forwards from under the wheel's bottom (the wheel sinks: slip
+  sinkage, the skid's counterpart of digging in) and pushes it ahead into the bow wave. Each row
+  at its mean slip.
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -37,7 +39,17 @@ import math
 import numpy as np
 from numba import njit
 
-from .layout import P_COMPACTION, P_DT, P_FLOWDEPTH, P_K, P_OMEGA, P_SHEARDISP, P_SLIPFLOW, P_V
+from .layout import (
+    P_COMPACTION,
+    P_DT,
+    P_FLOWDEPTH,
+    P_J,
+    P_K,
+    P_OMEGA,
+    P_SHEARDISP,
+    P_SLIPFLOW,
+    P_V,
+)
 
 EROSION_TOL = 1e-6  # m: slopes may exceed the angle of repose by this height difference
 EROSION_MAX_MOVES_PER_NODE = 64
@@ -251,6 +263,7 @@ def flow_and_erode(
     h0: np.ndarray,
     sp: np.ndarray,
     hl: np.ndarray,
+    js: np.ndarray,
     cflag: np.ndarray,
     dsp: np.ndarray,
     work: np.ndarray,
@@ -271,9 +284,12 @@ def flow_and_erode(
     keep = 1.0 - prm[P_COMPACTION]
     depth = prm[P_FLOWDEPTH]
     fslip = prm[P_SLIPFLOW]
+    J = prm[P_J]
+    disp_form = prm[P_SHEARDISP] > 0.5
     clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
     vtx_col = work[1]  # horizontal slip velocity of the wheel surface over ground [m/s]
     share_col = work[2]  # parallel share |v_t| / (|v_t| + |v_n|)
+    vt_col = work[7]  # slip speed of the wheel surface over the ground [m/s]
     acc_f = work[3]  # per row: volume flowing forward (+x) out of the footprint [m * nodes]
     acc_b = work[4]  # per row: backward
     acc_p = work[5]  # per column: to +y
@@ -300,6 +316,7 @@ def flow_and_erode(
         vtz = vpz - vn * fz[k]
         vt = math.sqrt(vtx * vtx + vtz * vtz)
         vtx_col[k] = vtx
+        vt_col[k] = vt
         share_col[k] = vt / (vt + abs(vn)) if vt + abs(vn) > 0.0 else 0.0
         for j in range(jw0, jw0 + nyw):
             if cflag[k + 1, j] != 0:
@@ -367,16 +384,22 @@ def flow_and_erode(
             if gmax[j] < 0:
                 continue
             u = 0.0
+            mob = 0.0
             nu = 0
             for k in range(rmin[j], gmax[j] + 1):
                 if LOADED_ELASTIC <= cflag[k + 1, j] <= LOADED_YIELDING:
                     u += vtx_col[k]
+                    # mobilised shear, eq. (8): the surface drags the layer only as far as the
+                    # soil's shear strength is mobilised
+                    x = js[c0 + k, j] if disp_form else vt_col[k]
+                    mob += 1.0 - math.exp(-x / J)
                     nu += 1
             u /= nu
+            mob /= nu
             if u == 0.0:
                 continue
             sgn = 1 if u > 0.0 else -1
-            a = _conveyed(depth, fslip * abs(u), sgn, v) * dt / dx
+            a = _conveyed(depth, fslip * mob * abs(u), sgn, v) * dt / dx
             if sgn > 0:
                 # skid: the rim drags the ground's top layer forwards from under the wheel's
                 # bottom (slip sinkage) and pushes it ahead as the bow wave (loose soil)
@@ -389,8 +412,13 @@ def flow_and_erode(
                     _take(c0 + kb, j, a, h0, hl)
                     acc_f[j] += a
             else:
-                _take(c0 + gmax[j], j, a, h0, hl)  # scraped off the front of the footprint
-                acc_b[j] += a  # and carried under the wheel to behind it (drive)
+                # drive: the layer thins as it passes under the wheel (taken from every loaded
+                # ground node of the row alike) and leaves behind the wheel
+                share = a / nu
+                for k in range(rmin[j], gmax[j] + 1):
+                    if LOADED_ELASTIC <= cflag[k + 1, j] <= LOADED_YIELDING:
+                        _take(c0 + k, j, share, h0, hl)
+                acc_b[j] += a
     # ---- deposit outside the footprint, along the flow, below the wheel's swept circle
     grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
     spilled = 0.0

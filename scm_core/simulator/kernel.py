@@ -404,6 +404,7 @@ def run_swt(prm: np.ndarray):
                 h0,
                 sp,
                 hl,
+                js,
                 cflag,
                 dsp,
                 fwork,

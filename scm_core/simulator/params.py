@@ -70,7 +70,8 @@ class SoilParams(_Frozen):
         1.0,
         ge=0.0,
         le=1.0,
-        description="Fraction of the rim's slip velocity at which that layer is carried [-]",
+        description="Fraction of the rim's slip velocity at which that layer is carried once "
+        "the shear is fully mobilised [-] (scaled by 1 - exp(-v_t/J), eq. (8))",
     )
 
     bearing_inclination: float = Field(
@@ -148,7 +149,12 @@ class RigConfig(_Frozen):
         None, gt=0.0, description="Radius defining slip [m]; default the rim radius R"
     )
     mass: float | None = Field(None, gt=0.0, description="Vertical mass [kg]; default W/g")
-    duration: float | None = Field(None, gt=0.0, description="Simulated time [s]; default 4 r/v")
+    duration: float | None = Field(
+        None,
+        gt=0.0,
+        description="Simulated time [s]; default 4 r/v, in skid 4 r (1 + |s|)/v with s the "
+        "symmetric slip (a locked wheel travels 8 r)",
+    )
     dt: float | None = Field(
         None, gt=0.0, le=0.1, description="Time step [s] (implicit vertical step); derived"
     )
@@ -172,7 +178,17 @@ class RigConfig(_Frozen):
         None, ge=0.0, description="Averaging offset for torque [s]; default 0.4 duration"
     )
     offset_z: float | None = Field(
-        None, ge=0.0, description="Averaging offset for sinkage [s]; default 0.02 duration"
+        None,
+        ge=0.0,
+        description="Averaging offset for sinkage [s]; default offset_z_fraction * duration",
+    )
+    offset_z_fraction: float = Field(
+        0.02,
+        ge=0.0,
+        lt=1.0,
+        description="Default sinkage offset as a fraction of the duration: the paper's 1 s of "
+        "50 s suits a wheel whose sinkage settles at once; 0.4 (the window of F and T) for "
+        "one that digs in or skids",
     )
     border_taper: bool = Field(True, description="Pressure border taper gamma_i of eq. (7)")
     bulldozing: bool = Field(True, description="Plastic soil flow and erosion (section 3.2)")

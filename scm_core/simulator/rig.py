@@ -11,8 +11,10 @@ v = 1 cm/s: dx 5 mm, dt 20 ms, 50 s, offsets 20, 20 and 1 s), rounded to three s
 * dt: the carriage advances at most dx / 10 per step, and with grousers the rim at most dx / 20
   (a grouser must not jump across cells); a smooth rim's angle does not enter the contact, and
   its flows are fluxes per unit time, so only the carriage limits it;
-* duration = 4 r / v (the carriage travels two wheel diameters); offsets 0.4 duration for F and T,
-  0.02 duration for z (the paper's 20, 20 and 1 s of a 50 s run);
+* duration = 4 r / v (the carriage travels two wheel diameters); in skid 4 r (1 + |s|) / v with s
+  the symmetric slip, as the bow wave and the slip sinkage build over a longer travel the harder
+  the wheel skids (a locked wheel travels 8 r: docs/simulator.md); offsets 0.4 duration for F and
+  T, ``offset_z_fraction`` (default 0.02) of it for z (the paper's 20, 20 and 1 s of a 50 s run);
 * max_sinkage = min(0.1 m, outer radius): beyond the outer radius the axle would be below the
   undisturbed surface and soil would reach the wheel's upper half, which the z-buffer of the lower
   surface does not model.
@@ -33,7 +35,6 @@ CARRIAGE_CELL_FRACTION = 10.0  # steps per cell of carriage travel
 RIM_CELL_FRACTION = 20.0  # steps per cell of rim travel (grousered wheels)
 TRAVEL_RADII = 4.0  # duration: carriage travel in slip radii
 OFFSET_FT = 0.4  # averaging offsets as fractions of the duration
-OFFSET_Z = 0.02
 MAX_SINKAGE_CAP = 0.1  # m
 
 
@@ -88,7 +89,11 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
     except SlipError as exc:
         raise ValueError(f"slip, omega, carriage_speed: {exc}") from None
     dx = rig.dx if rig.dx is not None else _sig3(r / CELLS_PER_RADIUS)
-    duration = rig.duration if rig.duration is not None else _sig3(TRAVEL_RADII * r / v)
+    if rig.duration is not None:
+        duration = rig.duration
+    else:
+        skid = max(0.0, -drive_to_symmetric(s_drive))
+        duration = _sig3(TRAVEL_RADII * (1.0 + skid) * r / v)
     if rig.dt is not None:
         dt = rig.dt
     else:
@@ -98,7 +103,7 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         dt = _sig3(min(dt, 0.1, duration / 10.0))
     off_F = rig.offset_F if rig.offset_F is not None else _sig3(OFFSET_FT * duration)
     off_T = rig.offset_T if rig.offset_T is not None else _sig3(OFFSET_FT * duration)
-    off_z = rig.offset_z if rig.offset_z is not None else _sig3(OFFSET_Z * duration)
+    off_z = rig.offset_z if rig.offset_z is not None else _sig3(rig.offset_z_fraction * duration)
     longest = max(off_F, off_T, off_z)
     if duration <= longest:
         raise ValueError(

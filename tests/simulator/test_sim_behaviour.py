@@ -119,6 +119,23 @@ def test_defaults_are_the_papers_set_up():
     assert s.k_c / 0.04 + s.k_phi == pytest.approx(1e7)
 
 
+def test_skid_runs_longer_and_the_sinkage_window_can_follow_f():
+    """In skid the carriage travels 4 r (1 + |s|): the bow wave and the slip sinkage build
+    over a longer travel (a locked wheel 8 r); offset_z_fraction sets z's window."""
+    w = WheelGeometry()
+    drive = resolve_rig(w, RigConfig(slip=0.5, carriage_speed=0.01))
+    half = resolve_rig(w, RigConfig(slip=-0.5, slip_convention="symmetric", carriage_speed=0.01))
+    locked = resolve_rig(w, RigConfig(omega=0.0, carriage_speed=0.01))
+    assert drive.duration == 50.0 and half.duration == 75.0 and locked.duration == 100.0
+    assert (locked.offset_F, locked.offset_z) == (40.0, 2.0)
+    own = resolve_rig(w, RigConfig(omega=0.0, carriage_speed=0.01, offset_z_fraction=0.4))
+    assert own.offset_z == own.offset_F == 40.0
+    assert (
+        resolve_rig(w, RigConfig(slip=-1.0, slip_convention="symmetric", duration=30.0)).duration
+        == 30.0
+    )
+
+
 def test_same_inputs_same_outputs():
     a, b = simulate_swt(), simulate_swt()
     np.testing.assert_array_equal(a.series["F"], b.series["F"])
