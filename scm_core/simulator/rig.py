@@ -89,11 +89,11 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
     except SlipError as exc:
         raise ValueError(f"slip, omega, carriage_speed: {exc}") from None
     dx = rig.dx if rig.dx is not None else _sig3(r / CELLS_PER_RADIUS)
+    s_sym = drive_to_symmetric(s_drive)
     if rig.duration is not None:
         duration = rig.duration
     else:
-        skid = max(0.0, -drive_to_symmetric(s_drive))
-        duration = _sig3(TRAVEL_RADII * (1.0 + skid) * r / v)
+        duration = _sig3(TRAVEL_RADII * (1.0 + max(0.0, -s_sym)) * r / v)
     if rig.dt is not None:
         dt = rig.dt
     else:
@@ -123,7 +123,7 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         omega=v_rim / r,
         slip_radius=r,
         slip=s_drive,
-        slip_symmetric=drive_to_symmetric(s_drive),
+        slip_symmetric=s_sym,
         duration=duration,
         dt=dt,
         dx=dx,
