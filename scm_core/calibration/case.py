@@ -150,7 +150,11 @@ class SamplerSettings(_Strict):
 
     ``batch_size``: chains per batch handed to the ``map`` (None: chosen by the runner; does
     not change the results). ``max_stages``: stop (status "max_stages") after that many
-    tempering stages.
+    tempering stages. ``early_rejection``: stop simulating a proposal's datasets once they
+    cannot lift it over the acceptance threshold (exact, same samples; see
+    :mod:`scm_core.inference.early_rejection`). ``delayed_acceptance``: screen proposals with a
+    surrogate of the responses fitted on the stage's starting states before simulating them
+    (exact, other samples; :mod:`scm_core.inference.surrogate`).
     """
 
     n_samples: int = Field(2000, ge=10)
@@ -159,6 +163,8 @@ class SamplerSettings(_Strict):
     batch_size: int | None = Field(None, ge=1)
     max_stages: int = Field(50, ge=1)
     target_cov: float = Field(1.0, gt=0.0)
+    early_rejection: bool = True
+    delayed_acceptance: bool = False
 
     def tmcmc_settings(self) -> TMCMCSettings:
         return TMCMCSettings(
@@ -166,6 +172,8 @@ class SamplerSettings(_Strict):
             n_steps=self.n_steps,
             max_stages=self.max_stages,
             target_cov=self.target_cov,
+            early_rejection=self.early_rejection,
+            delayed_acceptance=self.delayed_acceptance,
         )
 
 
@@ -370,13 +378,14 @@ class CaseDefinition(_Strict):
         """sha256 of everything that changes the samples of a stage: not the data file names
         (the datasets are hashed by content), the batch size, ``max_stages`` (it only decides
         when to stop, so a stopped study can be continued with a larger value), the
-        description or the reference values."""
+        description, the reference values or ``early_rejection`` (exact: the same samples)."""
         doc = self.to_dict()
         doc["data"].pop("files", None)
         doc.pop("description", None)
         doc.pop("reference", None)
         doc["sampler"].pop("batch_size", None)
         doc["sampler"].pop("max_stages", None)
+        doc["sampler"].pop("early_rejection", None)
         text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(b"scm-calib-case/1\n" + text.encode()).hexdigest()
 

@@ -21,6 +21,7 @@ responses; TMCMC counts those as failed runs. Nothing is raised for a bad parame
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -29,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import ValidationError
 
-from scm_core.inference.likelihood import LIKELIHOODS
+from scm_core.inference.likelihood import LIKELIHOODS, LOG_SQRT_2PI
 from scm_core.signals import SWTDataset
 from scm_core.simulator import (
     RigConfig,
@@ -39,6 +40,7 @@ from scm_core.simulator import (
     simulate_packed,
     simulate_swt,
 )
+from scm_core.simulator.cost import run_size
 from scm_core.simulator.layout import N_PARAMS, pack
 from scm_core.validation_text import one_line
 
@@ -199,16 +201,21 @@ class StudyModel:
                 return k, f"invalid simulator configuration at {at}: {one_line(exc)}"
         return None
 
-    def pack_rows(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """Packed simulator rows (m * n_datasets, N_PARAMS), row i * n + k for point i and
-        dataset k, and a validity mask (invalid rows are zero and must not be run)."""
+    def pack_rows(
+        self, X: ArrayLike, datasets: Sequence[int] | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Packed simulator rows (m * n, N_PARAMS) of ``datasets`` (default all, n of them),
+        row i * n + k for point i and the k-th of them, and a validity mask (invalid rows are
+        zero and must not be run)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        m, n = X.shape[0], self.n_datasets
+        chosen = range(self.n_datasets) if datasets is None else datasets
+        m, n = X.shape[0], len(chosen)
         prms = np.zeros((m * n, N_PARAMS))
         valid = np.zeros(m * n, dtype=bool)
         for i in range(m):
             values = self.values(X[i])
-            for k, d in enumerate(self.datasets):
+            for k, ds in enumerate(chosen):
+                d = self.datasets[ds]
                 try:
                     cfg = build_configs(self.nominal, self.simulator, d.conditions, values)
                 except (ValidationError, ValueError):
@@ -227,25 +234,32 @@ class StudyModel:
             for i, col, fixed in self.offsets
         }
 
-    def simulate_means(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    def simulate_means(
+        self, X: ArrayLike, datasets: Sequence[int] | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """Steady means (m, n_datasets, 3) as the lab would measure them (simulated plus the
-        measurement offsets; NaN where a run failed or was invalid) and the per-row ok mask
-        (m, n_datasets)."""
+        measurement offsets; NaN where a run failed or was invalid, or for a dataset not in
+        ``datasets``, default all) and the per-row ok mask (m, n_datasets). A dataset's means
+        do not depend on which others are simulated with it."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        m, n = X.shape[0], self.n_datasets
-        prms, valid = self.pack_rows(X)
-        means = np.full((m * n, 3), np.nan)
-        ok = np.zeros(m * n, dtype=bool)
+        chosen = list(range(self.n_datasets)) if datasets is None else list(datasets)
+        m, n = X.shape[0], len(chosen)
+        prms, valid = self.pack_rows(X, chosen)
+        sim = np.full((m * n, 3), np.nan)
+        sim_ok = np.zeros(m * n, dtype=bool)
         rows = np.flatnonzero(valid)
         if rows.size:
             batch = simulate_packed(prms[rows])
-            means[rows] = batch.means
-            ok[rows] = batch.ok
-        means[~ok] = np.nan
-        means = means.reshape(m, n, 3)
+            sim[rows] = batch.means
+            sim_ok[rows] = batch.ok
+        sim[~sim_ok] = np.nan
+        means = np.full((m, self.n_datasets, 3), np.nan)
+        ok = np.zeros((m, self.n_datasets), dtype=bool)
+        means[:, chosen] = sim.reshape(m, n, 3)
+        ok[:, chosen] = sim_ok.reshape(m, n)
         for i, col, fixed in self.offsets:
             means[:, :, i] += (X[:, col] if col is not None else fixed)[:, None]
-        return means, ok.reshape(m, n)
+        return means, ok
 
     def sigmas(self, X: ArrayLike) -> NDArray[np.float64]:
         """Prediction-error sigmas (m, n_used) of the used responses."""
@@ -277,9 +291,79 @@ class StudyModel:
     def log_likelihood_batch(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(log L (m,), responses (m, 3 * n_datasets)) for parameter vectors X (m, d)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        means, _ = self.simulate_means(X)
+        return self._output(X, self.simulate_means(X)[0])
+
+    def _output(
+        self, X: NDArray[np.float64], means: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         ll = self.log_likelihood_from_means(means, self.sigmas(X))
         return ll, means.reshape(X.shape[0], -1)
+
+    # ------------------------------------------------------------ surrogate (delayed acceptance)
+    # see scm_core.inference.surrogate.ResponseLikelihood
+
+    @property
+    def response_inputs(self) -> tuple[int, ...]:
+        """Parameter columns the responses depend on: the simulator's and the offsets."""
+        offsets = {col for _, col, _ in self.offsets if col is not None}
+        return tuple(sorted({j for j, _ in self.physical} | offsets))
+
+    def from_responses(
+        self, X: NDArray[np.float64], R: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The output of :meth:`log_likelihood_batch` had the lab-side means been R
+        (m, 3 n_datasets)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return self._output(X, np.asarray(R, dtype=float).reshape(X.shape[0], self.n_datasets, 3))
+
+    # ------------------------------------------------------------ parts (early rejection)
+    # one part per dataset: see scm_core.inference.early_rejection.PartedLikelihood
+
+    @functools.cached_property
+    def part_order(self) -> tuple[int, ...]:
+        """Datasets by the size of their run at the case's nominal values (time steps x DEM
+        cells), cheapest first; ties and unbuildable configurations keep their order."""
+        cost = []
+        for d in self.datasets:
+            try:
+                cfg = build_configs(self.nominal, self.simulator, d.conditions, {})
+                size = run_size(pack(*cfg))
+                cost.append(float(size.steps) * float(size.grid_cells))
+            except (ValidationError, ValueError):
+                cost.append(np.inf)
+        return tuple(int(k) for k in np.argsort(cost, kind="stable"))
+
+    @property
+    def part_in_base(self) -> tuple[bool, ...]:
+        return (False,) * self.n_datasets
+
+    def run_part(
+        self, X: NDArray[np.float64], k: int
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(log-likelihood term of dataset k (m,), its lab-side means (m, 3))."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        means, _ = self.simulate_means(X, [k])
+        return self.log_likelihood_from_means(means, self.sigmas(X), [k]), means[:, k]
+
+    def part_bound(self, X: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+        """Largest log-likelihood term dataset k can have at X (zero residuals); ``inf`` where
+        a sigma is not valid (the run decides)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        sigma = self.sigmas(X)[:, list(self.likelihood_columns[k])]
+        per = np.full(sigma.shape, -LOG_SQRT_2PI)
+        if self.likelihood == "gaussian":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                per = per - np.log(sigma)
+        bound = per.sum(axis=1)
+        valid = np.all(np.isfinite(sigma) & (sigma > 0), axis=1)
+        return np.where(valid, bound, np.inf)
+
+    def assemble(
+        self, X: NDArray[np.float64], responses: Sequence[NDArray[np.float64]]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The output of :meth:`log_likelihood_batch` from each dataset's means (m, 3)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return self._output(X, np.stack([np.asarray(r, dtype=float) for r in responses], axis=1))
 
     __call__ = log_likelihood_batch
 

@@ -35,7 +35,8 @@ def stage_table(
     result: TMCMCResult, wall_times: Sequence[float] | None = None
 ) -> list[dict[str, Any]]:
     """One row per stage: stage, exponent, beta, acceptance, ESS, unique samples, model runs,
-    failed runs, proposals outside the support, log evidence so far, wall time [s]."""
+    failed runs, proposals outside the support, part runs (simulator runs), early rejections,
+    part runs saved, log evidence so far, wall time [s]."""
     rows = []
     for i, row in enumerate(result.diagnostics()):
         out = {k: (int(v) if isinstance(v, int) else finite_or_none(v)) for k, v in row.items()}
@@ -109,6 +110,8 @@ def study_summary(
         "stages": stage_table(result, wall_times),
         "n_stages": len(result.stages) - 1,
         "model_runs": int(result.n_model_runs),
+        "simulations": int(sum(s.part_runs for s in result.stages)),
+        "simulations_saved": int(sum(s.part_runs_saved for s in result.stages)),
         "failed_runs": int(result.n_failed_runs),
         "wall_time_s": finite_or_none(sum(wall_times)) if wall_times else None,
         "settings": settings,

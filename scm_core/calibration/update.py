@@ -9,6 +9,8 @@ Z(new | old) = Z(old and new) / Z(old).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -34,9 +36,47 @@ class UpdateLikelihood:
         self, X: ArrayLike
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        means, _ = self.model.simulate_means(X)
+        return self._output(X, self.model.simulate_means(X)[0])
+
+    def _output(
+        self, X: NDArray[np.float64], means: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         sigma = self.model.sigmas(X)
         n = self.model.n_datasets
         old = self.model.log_likelihood_from_means(means, sigma, range(self.n_old))
         new = self.model.log_likelihood_from_means(means, sigma, range(self.n_old, n))
         return new, means.reshape(X.shape[0], -1), old
+
+    # surrogate (delayed acceptance): the model's responses
+    @property
+    def response_inputs(self) -> tuple[int, ...]:
+        return self.model.response_inputs
+
+    def from_responses(
+        self, X: NDArray[np.float64], R: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return self._output(X, np.asarray(R, dtype=float).reshape(X.shape[0], -1, 3))
+
+    # parts (early rejection): the model's datasets; the old ones form the base density
+    @property
+    def part_order(self) -> tuple[int, ...]:
+        return self.model.part_order
+
+    @property
+    def part_in_base(self) -> tuple[bool, ...]:
+        return tuple(k < self.n_old for k in range(self.model.n_datasets))
+
+    def run_part(
+        self, X: NDArray[np.float64], k: int
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return self.model.run_part(X, k)
+
+    def part_bound(self, X: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+        return self.model.part_bound(X, k)
+
+    def assemble(
+        self, X: NDArray[np.float64], responses: Sequence[NDArray[np.float64]]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return self._output(X, np.stack([np.asarray(r, dtype=float) for r in responses], axis=1))

@@ -118,7 +118,10 @@ class TMCMCResult:
         )
 
     def diagnostics(self) -> list[dict[str, float | int]]:
-        """One row per stage: exponent, beta, acceptance, ESS, unique samples, runs, evidence."""
+        """One row per stage: exponent, beta, acceptance, ESS, unique samples, runs (model runs:
+        likelihood evaluations; part runs: their parts, a study's simulator runs, with those early
+        rejection saved; proposals the surrogate turned down, full evaluations it was checked
+        against and its mean |log L~ - log L| there), evidence."""
         return [
             {
                 "stage": s.stage,
@@ -131,6 +134,14 @@ class TMCMCResult:
                 "model_runs": s.model_runs,
                 "failed_runs": s.failed_runs,
                 "out_of_support": s.out_of_support,
+                "part_runs": s.part_runs,
+                "early_rejections": s.early_rejections,
+                "part_runs_saved": s.part_runs_saved,
+                "first_stage_rejections": s.first_stage_rejections,
+                "surrogate_checks": s.surrogate_checks,
+                "surrogate_error": (
+                    s.surrogate_error_sum / s.surrogate_checks if s.surrogate_checks else math.nan
+                ),
                 "log_evidence": s.log_evidence,
             }
             for s in self.stages

@@ -72,6 +72,12 @@ class TMCMCSettings(_Fields):
     stall_tol, stall_stages: "stalled" after ``stall_stages`` consecutive exponent increments
         below ``stall_tol``.
     max_stages: largest stage index (tempering stages after stage 0) before "max_stages".
+    early_rejection: run a proposal's likelihood parts (datasets) one by one and stop once they
+        cannot reach the acceptance threshold (exact: the same samples, fewer runs; only
+        likelihoods with several parts, see :mod:`scm_core.inference.early_rejection`).
+    delayed_acceptance: screen each proposal with a surrogate of the responses before running
+        the model (exact: see :mod:`scm_core.inference.surrogate`); surrogate_neighbors and
+        surrogate_smoothing: its local RBF interpolant's neighbours and smoothing (standardised).
     """
 
     moves: str = "resample-move"
@@ -89,6 +95,10 @@ class TMCMCSettings(_Fields):
     stall_tol: float = 1e-8
     stall_stages: int = 3
     max_stages: int = 50
+    early_rejection: bool = True
+    delayed_acceptance: bool = False
+    surrogate_neighbors: int = 50
+    surrogate_smoothing: float = 1e-3
 
     def __post_init__(self) -> None:
         if self.moves not in MOVES:
@@ -119,6 +129,14 @@ class TMCMCSettings(_Fields):
             raise ValueError(f"'max_stages' must be >= 1, got {self.max_stages!r}")
         if self.stall_stages < 1:
             raise ValueError(f"'stall_stages' must be >= 1, got {self.stall_stages!r}")
+        if self.surrogate_neighbors < 2:
+            raise ValueError(
+                f"'surrogate_neighbors' must be >= 2, got {self.surrogate_neighbors!r}"
+            )
+        if not (math.isfinite(self.surrogate_smoothing) and self.surrogate_smoothing >= 0):
+            raise ValueError(
+                f"'surrogate_smoothing' must be finite and >= 0, got {self.surrogate_smoothing!r}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,6 +152,12 @@ class StageState(_Fields):
     run and Metropolis steps per chain (longest chain for "leader"). ess: effective sample size of
     the plausibility weights used to resample into this stage (n at stage 0). stall_count:
     consecutive stages with an exponent increment below the stall tolerance. seed: study seed.
+    part_runs: likelihood parts run this stage (a study's parts are its datasets: simulator
+    runs); early_rejections: proposals rejected before their last part; part_runs_saved: parts
+    not run thanks to early rejection (0 when it is off or the likelihood has one part).
+    first_stage_rejections: proposals the surrogate turned down (delayed acceptance: no model
+    run); surrogate_checks, surrogate_error_sum: full evaluations where the surrogate's
+    log-likelihood was compared with the model's, and the sum of |difference| (untempered).
     """
 
     stage: int
@@ -156,6 +180,12 @@ class StageState(_Fields):
     ess: float
     stall_count: int
     seed: int
+    part_runs: int = 0
+    early_rejections: int = 0
+    part_runs_saved: int = 0
+    first_stage_rejections: int = 0
+    surrogate_checks: int = 0
+    surrogate_error_sum: float = 0.0
 
     @property
     def n_samples(self) -> int:
@@ -220,7 +250,9 @@ class ChainBatchResult(_Fields):
     log_prior / responses hold its output (1 final state for resample-move; every visited state,
     one per step, for leader). accepted, proposed (c,): per-chain Metropolis counts (proposals
     outside the prior support count as proposed and rejected). model_runs, failed_runs,
-    out_of_support: batch totals.
+    out_of_support, part_runs, early_rejections, part_runs_saved, first_stage_rejections,
+    surrogate_checks: batch totals (see :class:`StageState`); surrogate_error (c,): per chain,
+    the sum of |log L~ - log L| over its checked evaluations (None without a surrogate).
     """
 
     stage: int
@@ -235,14 +267,22 @@ class ChainBatchResult(_Fields):
     model_runs: int
     failed_runs: int
     out_of_support: int
+    part_runs: int = 0
+    early_rejections: int = 0
+    part_runs_saved: int = 0
+    first_stage_rejections: int = 0
+    surrogate_checks: int = 0
+    surrogate_error: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True, eq=False)
 class PointEvaluation(_Fields):
     """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures,
-    and log b (m,) where the likelihood gives a base density (else None; see the module doc)."""
+    log b (m,) where the likelihood gives a base density (else None; see the module doc), and
+    the likelihood parts run (m x parts)."""
 
     log_likelihood: NDArray[np.float64]
     responses: NDArray[np.float64] | None
     failed_runs: int
     log_base: NDArray[np.float64] | None = None
+    part_runs: int = 0

@@ -163,6 +163,16 @@ class StudyCreate(_In):
     max_stages: int | None = Field(
         None, le=COUNT_MAX, description="Stop after this many tempering stages."
     )
+    early_rejection: bool | None = Field(
+        None,
+        description="Stop simulating a proposal's datasets once they cannot lift it over the "
+        "acceptance threshold (default true; exact: the same samples, fewer runs).",
+    )
+    delayed_acceptance: bool | None = Field(
+        None,
+        description="Screen proposals with a surrogate of the responses before simulating "
+        "them (default false; exact: the chain still targets the posterior).",
+    )
     likelihood: Literal["normalized", "gaussian"] | None = None
     batch_size: int | None = Field(
         None,
@@ -344,6 +354,21 @@ class StageOut(BaseModel):
     batches: dict[str, int] = Field(description="Work batches by status.")
     model_runs: int | None
     failed_runs: int | None
+    part_runs: int | None = Field(
+        None, description="Likelihood parts run (a calibration's simulator runs, one per dataset)."
+    )
+    early_rejections: int | None = Field(
+        None, description="Proposals rejected before all their datasets were simulated."
+    )
+    part_runs_saved: int | None = Field(
+        None, description="Simulator runs early rejection saved (exact: the same samples)."
+    )
+    first_stage_rejections: int | None = Field(
+        None, description="Proposals the surrogate turned down (delayed acceptance: no run)."
+    )
+    surrogate_checks: int | None = Field(
+        None, description="Model runs the surrogate's likelihood was compared with."
+    )
     created_at: datetime
     finished_at: datetime | None
 

@@ -242,6 +242,11 @@ def stage_out(store: Store, stage: StageRecord) -> StageOut:
         batches=store.batches.counts(stage.study_id, stage.stage_index),
         model_runs=stage.model_runs,
         failed_runs=stage.failed_runs,
+        part_runs=stage.counts.get("part_runs"),
+        early_rejections=stage.counts.get("early_rejections"),
+        part_runs_saved=stage.counts.get("part_runs_saved"),
+        first_stage_rejections=stage.counts.get("first_stage_rejections"),
+        surrogate_checks=stage.counts.get("surrogate_checks"),
         created_at=stage.created_at,
         finished_at=stage.finished_at,
     )

@@ -222,7 +222,7 @@ def calibrate(
         stop.check()
         display.batch(k)
 
-    likelihood = UpdateLikelihood(model, n_old) if parent else model.log_likelihood_batch
+    likelihood = UpdateLikelihood(model, n_old) if parent else model
     # in-process, Ctrl-C is noticed before every simulator call (between Metropolis steps);
     # with workers, when a batch comes back
     func = likelihood if workers is not None else CheckedLikelihood(stop, likelihood)

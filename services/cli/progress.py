@@ -108,6 +108,11 @@ class StageDisplay:
                 f"ESS {state.ess:.0f}, unique {state.n_unique}, model runs {state.model_runs}, "
                 f"failed {state.failed_runs}, {wall:.1f} s"
             )
+            if state.part_runs_saved:
+                text += f", {state.part_runs_saved} simulations saved by early rejection"
+            if state.first_stage_rejections:
+                text += f", {state.first_stage_rejections} proposals screened out by the surrogate"
+
             if self.lines:
                 self._line(text)
             else:
@@ -149,7 +154,9 @@ class StopRequest:
 
 
 class CheckedLikelihood:
-    """A batch likelihood that refuses to start while a stop is requested."""
+    """A batch likelihood that refuses to start while a stop is requested; the likelihood's
+    other members (its datasets as parts for early rejection, its responses for a surrogate)
+    are passed through, with the stop checked before each dataset's run too."""
 
     def __init__(self, stop: StopRequest, likelihood: Callable[[Any], Any]):
         self.stop = stop
@@ -158,6 +165,15 @@ class CheckedLikelihood:
     def __call__(self, X):
         self.stop.check()
         return self.likelihood(X)
+
+    def run_part(self, X, k: int):
+        self.stop.check()
+        return self.likelihood.run_part(X, k)
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "likelihood":  # not set yet (e.g. while unpickling)
+            raise AttributeError(name)
+        return getattr(self.likelihood, name)
 
 
 def is_interrupt(exc: BaseException | None) -> bool:

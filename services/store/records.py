@@ -135,8 +135,8 @@ class StageRecord:
     """Stage ``stage_index`` of a study. Float diagnostics are None where undefined (NaN).
 
     exponent, prev_exponent, beta (proposal scale used), ess, log_evidence_increment and
-    n_steps come from the plan; acceptance, log_evidence (running sum), model_runs and
-    failed_runs are filled when the stage is done.
+    n_steps come from the plan; acceptance, log_evidence (running sum), model_runs,
+    failed_runs and counts are filled when the stage is done.
     """
 
     id: int
@@ -158,6 +158,10 @@ class StageRecord:
     created_at: datetime
     updated_at: datetime
     finished_at: datetime | None
+    #: a done stage's sampler counts beyond the columns (part runs, early rejections, part runs
+    #: saved, first-stage rejections, surrogate checks: :class:`~scm_core.inference.StageState`),
+    #: from its stored scalars; {} otherwise
+    counts: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, order=True)

@@ -77,6 +77,9 @@ def test_api_and_two_celery_workers(
         final = client.wait(study["id"], timeout=TIMEOUT, poll=0.5)
         assert final["status"] == "completed", (final, processes.logs())
         got = _final_samples(client, study["id"])
+        # the case screens proposals with a surrogate (delayed acceptance): it was really used
+        stages = client.stages(study["id"])
+        assert sum(st["first_stage_rejections"] or 0 for st in stages) > 0
 
         # a Morris sensitivity study on the same workers (its design points as work batches)
         sens = client.create_sensitivity(ds["id"], case=CASE_FILE, r=3, seed=4, batch_size=4)

@@ -67,7 +67,14 @@ router = APIRouter(prefix="/studies", tags=["studies"], dependencies=[Depends(re
 SAMPLE_PAGE_MAX = 5000
 CSV_CHUNK = 2000
 #: overrides that go to the case's [sampler] table
-_SAMPLER_OVERRIDES = ("n_samples", "moves", "n_steps", "max_stages")
+_SAMPLER_OVERRIDES = (
+    "n_samples",
+    "moves",
+    "n_steps",
+    "max_stages",
+    "early_rejection",
+    "delayed_acceptance",
+)
 _TOP_OVERRIDES = ("name", "seed", "likelihood")
 
 

@@ -58,6 +58,16 @@ def _opt(x: float | None) -> float | None:
     return None if x is None else float(x)
 
 
+#: scalars of a done stage's stored state that its record exposes as ``counts``
+STAGE_COUNTS = (
+    "part_runs",
+    "early_rejections",
+    "part_runs_saved",
+    "first_stage_rejections",
+    "surrogate_checks",
+)
+
+
 def stage_record(st: Stage) -> StageRecord:
     return StageRecord(
         id=st.id,
@@ -79,6 +89,7 @@ def stage_record(st: Stage) -> StageRecord:
         created_at=st.created_at,
         updated_at=st.updated_at,
         finished_at=st.finished_at,
+        counts={k: int(st.state_meta[k]) for k in STAGE_COUNTS if k in (st.state_meta or {})},
     )
 
 

@@ -227,8 +227,9 @@ class CalibrationRun:
 
     @property
     def model_function(self):
-        """Points (m, d) -> log-likelihoods (and responses): the simulator's time."""
-        return self.model.log_likelihood_batch
+        """Points (m, d) -> log-likelihoods (and responses): the simulator's time; the model
+        itself, so that early rejection can run its datasets one by one."""
+        return self.model
 
     def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
         """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""

@@ -1,0 +1,152 @@
+"""The accurate sampler at the paper's budget (issue 12): one table for paper case 1.
+
+Paper case 1 (``examples/case1.toml``: k_c, k_phi, n, phi, J and the three sigmas) on the example
+log at slip 0.2 (``examples/wf34_s020.csv``) with the default simulator, sampled three ways at each
+``--samples`` size:
+
+* leader: the paper's form (Ching & Chen 2007), one model run per sample and stage;
+* accurate: resample-move, 10-50 Metropolis steps per sample and stage (the default form);
+* accelerated: the accurate form with delayed acceptance (Christen & Fox 2005): a surrogate of the
+  responses, fitted on each stage's starting states, screens every proposal before the model runs
+  (``scm_core/inference/surrogate.py``; exact: the chains still target the posterior).
+
+A one-dataset study has nothing for early rejection to cut, so it is on (the default) and idle.
+Per form and size: stages, model runs, first-stage evaluations (proposals the surrogate screened),
+the screen's rejections, wall time on ``--workers`` processes, log evidence with its standard
+error, and per parameter the posterior mean and sd and, for the other forms, the distance to the
+accurate form of the same size (|difference of means| in the accurate sd, and the two-sample KS
+statistic).
+
+Usage (from the repository root):
+    PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
+        [--forms leader accurate accelerated] [--seed 1] [--json OUT.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+from scipy.stats import ks_2samp
+
+from scm_core.calibration import StudyModel, load_case, run_tmcmc
+from scm_core.signals import load_dataset
+from services.cli.pool import batch_map
+
+ROOT = Path(__file__).resolve().parents[1]
+CASE = ROOT / "examples" / "case1.toml"
+LOG = ROOT / "examples" / "wf34_s020.csv"
+FORMS = {
+    "leader": {"moves": "leader", "delayed_acceptance": False},
+    "accurate": {"moves": "resample-move", "delayed_acceptance": False},
+    "accelerated": {"moves": "resample-move", "delayed_acceptance": True},
+}
+
+
+def run_form(form: str, n_samples: int, seed: int, workers: int) -> dict:
+    case = load_case(CASE).with_changes(sampler={"n_samples": n_samples, **FORMS[form]})
+    data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
+    model = StudyModel(case, [data])
+    batch = max(1, n_samples // (4 * workers))
+    t0 = time.perf_counter()
+    with batch_map(workers) as mapper:
+        res = run_tmcmc(
+            model,
+            case.prior(),
+            n_samples,
+            seed,
+            case.tmcmc_settings(),
+            map=mapper,
+            batch_size=batch,
+        )
+    wall = time.perf_counter() - t0
+    screened = sum(s.first_stage_rejections for s in res.stages)
+    return {
+        "form": form,
+        "n_samples": n_samples,
+        "status": res.status,
+        "stages": len(res.stages) - 1,
+        "model_runs": int(res.n_model_runs),
+        "first_stage_evaluations": int(res.n_model_runs + screened if screened else 0),
+        "first_stage_rejections": int(screened),
+        "wall_s": wall,
+        "log_evidence": float(res.log_evidence),
+        "log_evidence_se": float(res.log_evidence_se),
+        "names": list(res.names),
+        "samples": res.samples,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--samples", type=int, nargs="+", default=[500, 2000])
+    ap.add_argument("--forms", nargs="+", choices=list(FORMS), default=list(FORMS))
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
+    args = ap.parse_args()
+
+    rows = []
+    for n in args.samples:
+        for form in args.forms:
+            rows.append(run_form(form, n, args.seed, args.workers))
+            r = rows[-1]
+            print(
+                f"{form} {n}: {r['model_runs']} runs, {r['wall_s']:.0f} s, "
+                f"log Z {r['log_evidence']:.3f}",
+                flush=True,
+            )
+    names = rows[0]["names"]
+    runs = Table(title=f"paper case 1 on wf34_s020, seed {args.seed}, {args.workers} workers")
+    for col in ("samples", "form", "stages", "model runs", "1st-stage evals", "screened out"):
+        runs.add_column(col, justify="right")
+    for col in ("wall s", "log Z"):
+        runs.add_column(col, justify="right")
+    post = Table(title="posterior mean (sd); vs accurate: |d mean| / sd_accurate, KS")
+    post.add_column("samples", justify="right")
+    post.add_column("form")
+    for name in names:
+        post.add_column(name, justify="right")
+    for r in rows:
+        runs.add_row(
+            str(r["n_samples"]),
+            r["form"],
+            str(r["stages"]),
+            str(r["model_runs"]),
+            str(r["first_stage_evaluations"]),
+            str(r["first_stage_rejections"]),
+            f"{r['wall_s']:.0f}",
+            f"{r['log_evidence']:.3f} +- {r['log_evidence_se']:.3f}",
+        )
+        ref = next(
+            (a for a in rows if a["form"] == "accurate" and a["n_samples"] == r["n_samples"]),
+            None,
+        )
+        cells = []
+        for j in range(len(names)):
+            x = r["samples"][:, j]
+            cell = f"{x.mean():.4g} ({x.std(ddof=1):.3g})"
+            if ref is not None and ref is not r:
+                y = ref["samples"][:, j]
+                d = abs(x.mean() - y.mean()) / y.std(ddof=1)
+                cell += f"; {d:.3f}, {ks_2samp(x, y).statistic:.3f}"
+            cells.append(cell)
+        post.add_row(str(r["n_samples"]), r["form"], *cells)
+    console = Console(width=220)
+    console.print(runs)
+    console.print(post)
+    if args.json is not None:
+        out = [{k: v for k, v in r.items() if k != "samples"} for r in rows]
+        for r, o in zip(rows, out, strict=True):
+            o["mean"] = np.mean(r["samples"], axis=0).tolist()
+            o["sd"] = np.std(r["samples"], axis=0, ddof=1).tolist()
+        args.json.write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
