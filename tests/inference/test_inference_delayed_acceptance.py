@@ -123,3 +123,41 @@ def test_batches_do_not_change_results(moves: str) -> None:
         assert sa.log_evidence == sb.log_evidence
         assert sa.first_stage_rejections == sb.first_stage_rejections
         assert sa.surrogate_error_sum == sb.surrogate_error_sum
+
+
+# --- a curved target the surrogate cannot reproduce (evidence by quadrature) -----------------
+
+Y_B, S_B = np.array([0.6, 0.3]), np.array([0.05, 0.04])
+
+
+class Banana:
+    """Responses r(theta) = (sin 2 a + b^2, a b), data Y_B with sd S_B, theta ~ U(-2, 2)^2:
+    a curved, two-branch posterior; the surrogate interpolates r with errors (~0.7 nat)."""
+
+    response_inputs = (0, 1)
+
+    def from_responses(self, X: np.ndarray, R: np.ndarray):
+        r = (Y_B - R) / S_B
+        ll = -0.5 * (r[:, 0] ** 2 + r[:, 1] ** 2) - np.log(S_B).sum() - math.log(2 * math.pi)
+        return ll, R
+
+    def __call__(self, X: np.ndarray):
+        R = np.stack([np.sin(2 * X[:, 0]) + X[:, 1] ** 2, X[:, 0] * X[:, 1]], axis=1)
+        return self.from_responses(X, R)
+
+
+def test_curved_target_with_an_imperfect_surrogate_keeps_the_evidence() -> None:
+    """Quadrature on a 4001^2 grid gives log Z (its error is far below 0.01). Over six seeds
+    at 1000 samples the error of log Z had sd 0.08 with the screen (0.16 without), mean -0.003;
+    0.3 nat is ~4 sd. The screen saves ~4/5 of the model runs here."""
+    g = np.linspace(-2.0, 2.0, 4001)
+    G0, G1 = np.meshgrid(g, g, indexing="ij")
+    ll, _ = Banana()(np.stack([G0.ravel(), G1.ravel()], axis=1))
+    log_z = float(np.logaddexp.reduce(ll) + 2 * math.log(g[1] - g[0]) - 2 * math.log(4.0))
+    prior = JointPrior({"a": Uniform(-2.0, 2.0), "b": Uniform(-2.0, 2.0)})
+    res = run_tmcmc(Banana(), prior, 1000, seed=2, settings=DA)
+    checks = sum(s.surrogate_checks for s in res.stages)
+    error = sum(s.surrogate_error_sum for s in res.stages) / checks
+    assert _screened(res) > res.n_model_runs  # most proposals never reached the model
+    assert error > 0.1  # the surrogate is really imperfect here
+    assert abs(res.log_evidence - log_z) < 0.3
