@@ -15,6 +15,7 @@ import socket
 import threading
 import time
 
+from scm_core.inference.wrapped import WrappedLikelihood
 from services.store import Store
 from services.store.records import BatchKey, BatchLease
 from services.studies.batching import DEFAULT_WORKERS
@@ -87,17 +88,17 @@ class _Heartbeat:
         self._thread.join()
 
 
-class _TimedLikelihood:
+class _TimedLikelihood(WrappedLikelihood):
     """The study likelihood, timing the model evaluations (simulator time) it does."""
 
     def __init__(self, func) -> None:
-        self.func = func
+        super().__init__(func)
         self.seconds = 0.0
 
-    def __call__(self, X):
+    def around(self, evaluate):
         t0 = time.perf_counter()
         try:
-            return self.func(X)
+            return evaluate()
         finally:
             self.seconds += time.perf_counter() - t0
 

@@ -21,6 +21,7 @@ from rich.progress import (
 
 from scm_core.calibration import StageStart
 from scm_core.inference import StageState
+from scm_core.inference.wrapped import WrappedLikelihood
 
 # ---------------------------------------------------------------------- progress
 
@@ -153,27 +154,17 @@ class StopRequest:
             self._previous = None
 
 
-class CheckedLikelihood:
-    """A batch likelihood that refuses to start while a stop is requested; the likelihood's
-    other members (its datasets as parts for early rejection, its responses for a surrogate)
-    are passed through, with the stop checked before each dataset's run too."""
+class CheckedLikelihood(WrappedLikelihood):
+    """A batch likelihood that refuses to start an evaluation (a batch, or one dataset's runs)
+    while a stop is requested; its other members are the likelihood's."""
 
     def __init__(self, stop: StopRequest, likelihood: Callable[[Any], Any]):
+        super().__init__(likelihood)
         self.stop = stop
-        self.likelihood = likelihood
 
-    def __call__(self, X):
+    def around(self, evaluate: Callable[[], Any]) -> Any:
         self.stop.check()
-        return self.likelihood(X)
-
-    def run_part(self, X, k: int):
-        self.stop.check()
-        return self.likelihood.run_part(X, k)
-
-    def __getattr__(self, name: str) -> Any:
-        if name == "likelihood":  # not set yet (e.g. while unpickling)
-            raise AttributeError(name)
-        return getattr(self.likelihood, name)
+        return evaluate()
 
 
 def is_interrupt(exc: BaseException | None) -> bool:
