@@ -9,6 +9,8 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import stats
 
+from scm_core.inference import JointPrior, TruncatedNormal
+
 LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
@@ -120,3 +122,35 @@ class PartedBimodal:
 
     def __call__(self, X: np.ndarray):
         return self.assemble(X, [self.run_part(X, k)[1] for k in range(2)])
+
+
+# --- shared problems -----------------------------------------------------------------------
+
+_rng = np.random.default_rng(1)
+#: the 5-D linear-Gaussian problem of test_inference_tmcmc_accuracy (8 observations)
+A5 = _rng.normal(size=(8, 5))
+S5 = 0.1
+Y5 = A5 @ _rng.normal(size=5) + S5 * _rng.normal(size=8)
+#: N(0, I) truncated at +-10 sd per axis (truncated mass ~1e-22, negligible)
+PRIOR5 = JointPrior({f"t{j}": TruncatedNormal(0.0, 1.0, -10.0, 10.0) for j in range(5)})
+
+
+def parted_5d(order: Sequence[int] | None = None) -> PartedLinearGaussian:
+    """The 5-D problem with its observations in four parts of two."""
+    return PartedLinearGaussian(A5, Y5, S5, [(0, 1), (2, 3), (4, 5), (6, 7)], order=order)
+
+
+def update_problem():
+    """As test_inference_update: y1 then y2 (4 observations each, 2-D, sd 0.3). Returns (prior,
+    the likelihood of y1 in two parts, the update's likelihood (y1's parts in the base density,
+    y2's tempered), A and y of both batches, sd)."""
+    rng = np.random.default_rng(7)
+    A1, A2 = rng.normal(size=(4, 2)), rng.normal(size=(4, 2))
+    theta, s = np.array([0.4, -0.7]), 0.3
+    y1 = A1 @ theta + s * rng.normal(size=4)
+    y2 = A2 @ theta + s * rng.normal(size=4)
+    prior = JointPrior({f"t{j}": TruncatedNormal(0.0, 1.0, -20.0, 20.0) for j in range(2)})
+    A, y = np.vstack([A1, A2]), np.concatenate([y1, y2])
+    old = PartedLinearGaussian(A1, y1, s, [(0, 1), (2, 3)])
+    new = PartedLinearGaussian(A, y, s, [(0, 1), (2, 3), (4, 5), (6, 7)], base=[1, 1, 0, 0])
+    return prior, old, new, A, y, s

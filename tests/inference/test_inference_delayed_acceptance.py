@@ -13,18 +13,22 @@ import math
 
 import numpy as np
 import pytest
-from parted_targets import PartedBimodal, PartedLinearGaussian, exact_linear
+from parted_targets import (
+    A5,
+    PRIOR5,
+    S5,
+    Y5,
+    PartedBimodal,
+    PartedLinearGaussian,
+    exact_linear,
+    parted_5d,
+    update_problem,
+)
 from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
 
 DA = TMCMCSettings(delayed_acceptance=True)
-
-_rng = np.random.default_rng(1)
-A5 = _rng.normal(size=(8, 5))
-S5 = 0.1
-Y5 = A5 @ _rng.normal(size=5) + S5 * _rng.normal(size=8)
-PRIOR5 = JointPrior({f"t{j}": TruncatedNormal(0.0, 1.0, -10.0, 10.0) for j in range(5)})
 
 
 def _screened(res) -> int:
@@ -32,7 +36,7 @@ def _screened(res) -> int:
 
 
 def test_linear_gaussian_5d_exact_answer_with_fewer_model_runs() -> None:
-    f = PartedLinearGaussian(A5, Y5, S5, [(0, 1), (2, 3), (4, 5), (6, 7)])
+    f = parted_5d()
     plain = run_tmcmc(f, PRIOR5, seed=0, settings=TMCMCSettings(early_rejection=False))
     res = run_tmcmc(f, PRIOR5, seed=0, settings=DA)
     mean, sd, log_z = exact_linear(A5, Y5, S5)
@@ -92,15 +96,8 @@ def test_posterior_piled_against_bound() -> None:
 def test_update_with_surrogate_and_early_rejection_exact_answer() -> None:
     """As test_inference_update, with both accelerations on (4000 samples: 0.1 sd, 7 %,
     0.2 nat, as test_update_with_base_parts_same_bits_and_exact_answer)."""
-    rng = np.random.default_rng(7)
-    A1, A2 = rng.normal(size=(4, 2)), rng.normal(size=(4, 2))
-    theta, s = np.array([0.4, -0.7]), 0.3
-    y1 = A1 @ theta + s * rng.normal(size=4)
-    y2 = A2 @ theta + s * rng.normal(size=4)
-    prior = JointPrior({f"t{j}": TruncatedNormal(0.0, 1.0, -20.0, 20.0) for j in range(2)})
-    A, y = np.vstack([A1, A2]), np.concatenate([y1, y2])
-    old = run_tmcmc(PartedLinearGaussian(A1, y1, s, [(0, 1), (2, 3)]), prior, 4000, seed=3)
-    f = PartedLinearGaussian(A, y, s, [(0, 1), (2, 3), (4, 5), (6, 7)], base=[1, 1, 0, 0])
+    prior, old_f, f, A, y, s = update_problem()
+    old = run_tmcmc(old_f, prior, 4000, seed=3)
     res = run_tmcmc(f, prior, 4000, seed=4, settings=DA, stage0_samples=old.samples)
     mean, sd, log_z = exact_linear(A, y, s)
     assert _screened(res) > 0
@@ -112,7 +109,7 @@ def test_update_with_surrogate_and_early_rejection_exact_answer() -> None:
 @pytest.mark.parametrize("moves", ["resample-move", "leader"])
 def test_batches_do_not_change_results(moves: str) -> None:
     """The surrogate is a function of the stage plan: any batch split gives the same bits."""
-    f = PartedLinearGaussian(A5, Y5, S5, [(0, 1), (2, 3), (4, 5), (6, 7)])
+    f = parted_5d()
     settings = TMCMCSettings(moves=moves, delayed_acceptance=True)
     a = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings)
     b = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings, batch_size=37)

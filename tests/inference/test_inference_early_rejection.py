@@ -14,7 +14,17 @@ import math
 
 import numpy as np
 import pytest
-from parted_targets import PartedBimodal, PartedLinearGaussian, exact_linear
+from parted_targets import (
+    A5,
+    PRIOR5,
+    S5,
+    Y5,
+    PartedBimodal,
+    PartedLinearGaussian,
+    exact_linear,
+    parted_5d,
+    update_problem,
+)
 from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
@@ -58,16 +68,10 @@ def _totals(res) -> tuple[int, int, int]:
 
 # --- 5-D linear-Gaussian (as test_inference_tmcmc_accuracy), 8 observations in 4 parts -------
 
-_rng = np.random.default_rng(1)
-A5 = _rng.normal(size=(8, 5))
-S5 = 0.1
-Y5 = A5 @ _rng.normal(size=5) + S5 * _rng.normal(size=8)
-PRIOR5 = JointPrior({f"t{j}": TruncatedNormal(0.0, 1.0, -10.0, 10.0) for j in range(5)})
-
 
 @pytest.mark.parametrize("moves", ["resample-move", "leader"])
 def test_linear_gaussian_5d_same_bits_fewer_runs_exact_answer(moves: str) -> None:
-    f = PartedLinearGaussian(A5, Y5, S5, [(0, 1), (2, 3), (4, 5), (6, 7)])
+    f = parted_5d()
     assert is_parted(f)
     off, on = _pair(f, PRIOR5, seed=0, moves=moves)
     assert_same_bits(off, on)
@@ -145,15 +149,8 @@ def test_bimodal_product_mode_masses_and_evidence() -> None:
 def test_update_with_base_parts_same_bits_and_exact_answer() -> None:
     """As test_inference_update: y1 then y2 (4 observations each, 2-D); the update's old
     observations are base parts (weight 1), the new ones tempered."""
-    rng = np.random.default_rng(7)
-    A1, A2 = rng.normal(size=(4, 2)), rng.normal(size=(4, 2))
-    theta, s = np.array([0.4, -0.7]), 0.3
-    y1 = A1 @ theta + s * rng.normal(size=4)
-    y2 = A2 @ theta + s * rng.normal(size=4)
-    prior = JointPrior({f"t{j}": TruncatedNormal(0.0, 1.0, -20.0, 20.0) for j in range(2)})
-    A, y = np.vstack([A1, A2]), np.concatenate([y1, y2])
-    old = run_tmcmc(PartedLinearGaussian(A1, y1, s, [(0, 1), (2, 3)]), prior, 4000, seed=3)
-    f = PartedLinearGaussian(A, y, s, [(0, 1), (2, 3), (4, 5), (6, 7)], base=[1, 1, 0, 0])
+    prior, old_f, f, A, y, s = update_problem()
+    old = run_tmcmc(old_f, prior, 4000, seed=3)
     off, on = _pair(f, prior, seed=4, n_samples=4000, stage0_samples=old.samples)
     assert_same_bits(off, on)
     assert _totals(on)[2] > 0
@@ -170,7 +167,7 @@ def test_update_with_base_parts_same_bits_and_exact_answer() -> None:
 
 def test_staged_evaluation_runs_parts_in_order_and_never_drops_a_reachable_proposal() -> None:
     rng = np.random.default_rng(0)
-    f = PartedLinearGaussian(A5, Y5, S5, [(0, 1), (2, 3), (4, 5), (6, 7)], order=[2, 0, 3, 1])
+    f = parted_5d(order=[2, 0, 3, 1])
     X = rng.normal(size=(400, 5))
     full, _ = f(X)
     for p in (0.05, 1.0):
@@ -207,7 +204,7 @@ def test_a_wrapped_likelihood_keeps_its_parts_and_responses() -> None:
             calls.append(1)
             return evaluate()
 
-    f = PartedLinearGaussian(A5, Y5, S5, [(0, 1), (2, 3), (4, 5), (6, 7)])
+    f = parted_5d()
     w = Counting(f)
     assert is_parted(w) and supports_surrogate(w)
     assert w.part_order == f.part_order and w.response_inputs == f.response_inputs
