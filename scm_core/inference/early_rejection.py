@@ -13,8 +13,7 @@ the maximum being the part's largest possible value at x' (a Gaussian term at ze
 -sum log(sqrt(2 pi) sigma)). The decision is the one the full evaluation would make, so the
 chains, samples and evidences are bit-identical with and without it; only the runs differ
 (Solonen et al. 2012, "Efficient MCMC for climate model parameter estimation: parallel
-adaptive chains and early rejection"; Banterle et al. 2019, "Accelerating Metropolis-Hastings
-algorithms by delayed acceptance" section 2: early rejection when the likelihood factorises).
+adaptive chains and early rejection", Bayesian Analysis 7(3)).
 
 A likelihood opts in by implementing :class:`PartedLikelihood`.
 """
