@@ -27,7 +27,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["PartedLikelihood", "StagedEvaluation", "evaluate_staged", "is_parted"]
+__all__ = ["PartedLikelihood", "StagedEvaluation", "evaluate_staged", "is_parted", "n_parts"]
 
 #: relative margin of the early test: a proposal is rejected early only if its bound misses the
 #: threshold by more than rounding could account for (sums taken in another order)
@@ -61,6 +61,11 @@ class PartedLikelihood(Protocol):
 def is_parted(f: object) -> bool:
     """Whether ``f`` can be evaluated part by part (and has more than one part)."""
     return isinstance(f, PartedLikelihood) and len(f.part_order) > 1
+
+
+def n_parts(f: object) -> int:
+    """Parts one full evaluation of ``f`` runs (a study's datasets; 1 if not parted)."""
+    return len(f.part_in_base) if is_parted(f) else 1  # type: ignore[attr-defined]
 
 
 @dataclass(frozen=True, eq=False)

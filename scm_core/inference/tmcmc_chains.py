@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference.early_rejection import evaluate_staged, is_parted
+from scm_core.inference.early_rejection import evaluate_staged, n_parts
 from scm_core.inference.surrogate import ResponseSurrogate, fit_surrogate, supports_surrogate
 from scm_core.inference.tmcmc_eval import batch_output, tempered
 from scm_core.inference.tmcmc_moves import move_of
@@ -130,8 +130,8 @@ def run_chains(
         "surrogate_checks": 0,
     }
     error = np.zeros(idx.size)  # per chain: sum of |log L~ - log L| at its full evaluations
-    staged = plan.settings.early_rejection and is_parted(f)
-    n_parts = len(f.part_in_base) if is_parted(f) else 1
+    parts = n_parts(f)
+    staged = plan.settings.early_rejection and parts > 1
     if sur is not None:
         # log pi~ of the current states; prior part: the prior alone (lp may hold log b)
         sur_x, _ = _surrogate_target(sur, f, x, np.asarray(prior.log_pdf(x), float), p)
@@ -184,7 +184,7 @@ def run_chains(
                 out = ev.output
             else:
                 out = f(x_prop[run])
-                n["part_runs"] += n_run * n_parts
+                n["part_runs"] += n_run * parts
             n["model_runs"] += n_run
             lp_prop[ok & ~evaluated] = -np.inf
             if out is not None:
@@ -206,8 +206,6 @@ def run_chains(
                     n["surrogate_checks"] += int(np.count_nonzero(fin))
                     chains = active[evaluated][fin]
                     error[chains] = error[chains] + diff[fin]
-        else:
-            lp_prop[ok] = -np.inf
         with np.errstate(invalid="ignore"):
             log_ratio = tempered(lp_prop, ll_prop, p) - current - gate
         acc = run & (log_u[rows] < log_ratio)

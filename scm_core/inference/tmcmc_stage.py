@@ -48,7 +48,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from scm_core.inference.early_rejection import is_parted
+from scm_core.inference.early_rejection import n_parts
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc_chains import chain_rng, run_chains
 from scm_core.inference.tmcmc_eval import call_batch
@@ -124,8 +124,8 @@ def evaluate_points(X: ArrayLike, log_likelihood_batch: LogLikelihoodBatch) -> P
     if X.shape[0] == 0:
         return PointEvaluation(np.empty(0), None, 0)
     ll, resp, n_failed, base = call_batch(log_likelihood_batch, X)
-    n_parts = len(log_likelihood_batch.part_in_base) if is_parted(log_likelihood_batch) else 1
-    return PointEvaluation(ll, resp, n_failed, base, part_runs=X.shape[0] * n_parts)
+    parts = n_parts(log_likelihood_batch)
+    return PointEvaluation(ll, resp, n_failed, base, part_runs=X.shape[0] * parts)
 
 
 def initial_state(
