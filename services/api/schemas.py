@@ -230,6 +230,9 @@ class StudyBrief(BaseModel):
     updated_at: datetime
     started_at: datetime | None
     finished_at: datetime | None
+    version: int = Field(
+        description="Raised by every change of the study's state (also its ETag's source)."
+    )
 
 
 class StudyOut(StudyBrief):

@@ -117,6 +117,7 @@ def study_brief(study: StudyRecord) -> StudyBrief:
         updated_at=study.updated_at,
         started_at=study.started_at,
         finished_at=study.finished_at,
+        version=study.version,
     )
 
 

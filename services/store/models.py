@@ -115,7 +115,9 @@ class Study(Base):
     calibration (stages of TMCMC chains), "morris" a sensitivity screening (one stage whose
     "chains" are the Morris design points; ``priors`` holds the factor box, ``sampler`` the
     design settings and ``result`` the Morris statistics) ... ``payload``: the kind's own
-    settings (JSON), ``result``: what the kind stores when the study ends.
+    settings (JSON), ``result``: what the kind stores when the study ends. ``version`` goes
+    up with every change of the study's state (each event appended for it, a stage starting):
+    the API's ETags.
     """
 
     __tablename__ = "studies"
@@ -144,6 +146,7 @@ class Study(Base):
     error: Mapped[str | None] = mapped_column(sa.Text)
     result: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     payload: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
+    version: Mapped[int] = mapped_column(sa.BigInteger, default=0, server_default=sa.text("0"))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)

@@ -128,6 +128,8 @@ class StudyRecord:
     finished_at: datetime | None
     result: dict[str, Any] | None = None
     payload: dict[str, Any] | None = None
+    #: raised by every change of the study's state (an ETag of it says "unchanged")
+    version: int = 0
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0004"
+    assert head_revision() == "0005"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -81,14 +81,14 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0004") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0005") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0004"
+    assert info.value.current == "ffff" and info.value.head == "0005"
 
     engine = make_engine(empty_url)
     try:
         with engine.begin() as conn:
-            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0004'"))
+            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0005'"))
     finally:
         engine.dispose()
     with Store.open(empty_url) as store:
@@ -103,13 +103,13 @@ def test_cli_db_commands(empty_url: str) -> None:
 
     res = runner.invoke(cli, ["db", "upgrade", "--url", empty_url])
     assert res.exit_code == 0, res.output
-    assert "base -> 0004" in res.output
+    assert "base -> 0005" in res.output
 
     res = runner.invoke(cli, ["db", "current", "--url", empty_url])
-    assert res.exit_code == 0 and "revision 0004" in res.output and "up to date" in res.output
+    assert res.exit_code == 0 and "revision 0005" in res.output and "up to date" in res.output
 
     res = runner.invoke(cli, ["db", "downgrade", "base", "--url", empty_url])
-    assert res.exit_code == 0 and "0004 -> base" in res.output
+    assert res.exit_code == 0 and "0005 -> base" in res.output
     assert current_revision(empty_url) is None
 
 
@@ -122,7 +122,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0004"
+        assert current_revision(url) == "0005"
     finally:
         get_settings.cache_clear()
 
@@ -197,7 +197,7 @@ def test_0004_accepts_any_registered_kind_and_refuses_to_downgrade_over_new_ones
             conn.execute(insert, {**row, "n": "new", "k": "update"})
         with pytest.raises(RuntimeError, match=r"1 studies are of kinds .* \(update\)"):
             downgrade(empty_url, "0003")
-        assert current_revision(empty_url) == "0004"
+        assert current_revision(empty_url) == "0004"  # 0005 -> 0004 went, 0004 -> 0003 refused
         with engine.begin() as conn:
             conn.execute(sa.text("DELETE FROM studies WHERE kind = 'update'"))
         downgrade(empty_url, "0003")
@@ -210,5 +210,34 @@ def test_0004_accepts_any_registered_kind_and_refuses_to_downgrade_over_new_ones
         )
         with pytest.raises(sa.exc.IntegrityError), engine.begin() as conn:
             conn.execute(old_insert, {"t": row["t"]})
+    finally:
+        engine.dispose()
+
+
+def test_0005_gives_existing_studies_version_0_and_events_raise_it(empty_url: str) -> None:
+    """A study stored at 0004 reads version 0 at 0005; an event appended for it raises the
+    version by one (the ETag's source); going back to 0004 drops the column."""
+    upgrade(empty_url, "0004")
+    engine = make_engine(empty_url)
+    try:
+        with engine.begin() as conn:
+            conn.execute(
+                sa.text(
+                    "INSERT INTO studies (name, kind, status, case_spec, priors, sampler, "
+                    "simulator, seed, n_samples, model_runs, failed_runs, created_at, "
+                    "updated_at) VALUES ('old', 'tmcmc', 'queued', '{}', '{}', '{}', '{}', 3, "
+                    "10, 0, 0, '2025-01-01 00:00:00', '2025-01-01 00:00:00')"
+                )
+            )
+        upgrade(empty_url)
+        with Store.open(empty_url) as store:
+            (study,) = store.studies.list().items
+            assert study.version == 0 and store.studies.version(study.id) == 0
+            store.events.append(study.id, "note", {"why": "test"})
+            assert store.studies.version(study.id) == 1
+            assert store.studies.get(study.id).updated_at > study.updated_at
+        downgrade(empty_url, "0004")
+        cols = {c["name"] for c in sa.inspect(engine).get_columns("studies")}
+        assert "version" not in cols and "payload" in cols
     finally:
         engine.dispose()

@@ -9,7 +9,7 @@ its stages, samples and events under ``/studies/{id}``.
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, HTTPException, Query, Response
+from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 
 from services.limits import INT64_MAX
 from services.store import Store, StudyRecord
@@ -17,6 +17,7 @@ from services.studies import create_and_start
 from services.studies.kinds.base import StudyKind
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
+from ..etags import etag_of, not_modified, set_etag
 from ..params import StudyId, parse_statuses, status_query
 from ..schemas import KindStudyOut, KindStudyPage
 from ..views import page_out, study_brief, study_progress
@@ -98,8 +99,14 @@ def kind_router(kind: StudyKind) -> APIRouter:
         summary=f"A {http.title}: progress and result",
         responses=errors(401, 404),
     )
-    def read(study_id: StudyId, store: StoreDep) -> Any:
-        """The study, the kind's settings (payload), progress and, once completed, its result."""
-        return out(store, get(store, study_id))
+    def read(study_id: StudyId, request: Request, response: Response, store: StoreDep) -> Any:
+        """The study, the kind's settings (payload), progress and, once completed, its result;
+        304 for an unchanged study's ETag."""
+        tag = etag_of(kind.name, study_id, store.studies.version(study_id))
+        if (unchanged := not_modified(request, tag)) is not None:
+            return unchanged
+        study = get(store, study_id)
+        set_etag(response, tag)
+        return out(store, study)
 
     return router

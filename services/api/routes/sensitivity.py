@@ -11,13 +11,14 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, Query, Response
+from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 
 from services.limits import INT64_MAX
 from services.store import Store, StudyRecord
 from services.studies import base_case, create_and_start, sensitivity_spec
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
+from ..etags import etag_of, not_modified, set_etag
 from ..params import StudyId, parse_statuses, status_query
 from ..schemas import SensitivityCreate, SensitivityOut, SensitivityPage
 from ..views import page_out, sensitivity_out
@@ -98,9 +99,16 @@ def list_sensitivity(
     summary="A sensitivity study: progress and Morris statistics",
     responses=errors(401, 404),
 )
-def get_sensitivity(study_id: StudyId, store: StoreDep) -> SensitivityOut:
+def get_sensitivity(
+    study_id: StudyId, request: Request, response: Response, store: StoreDep
+) -> SensitivityOut:
     """The design (factors, bounds, r, levels), the progress block (evaluations are design
     points) and, once completed, the Morris statistics: mu, mu*, sigma and the normalised
     linear (mu* / sum mu*) and non-linear (sigma / sum sigma) indices of Figure 4, per
-    response F [N], T [N m], z [m]."""
-    return sensitivity_out(store, _get(store, study_id))
+    response F [N], T [N m], z [m]. 304 for an unchanged study's ETag."""
+    tag = etag_of("sensitivity", study_id, store.studies.version(study_id))
+    if (unchanged := not_modified(request, tag)) is not None:
+        return unchanged  # type: ignore[return-value]
+    study = _get(store, study_id)
+    set_etag(response, tag)
+    return sensitivity_out(store, study)

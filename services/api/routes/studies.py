@@ -14,7 +14,7 @@ import math
 from collections.abc import Iterator
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Depends, HTTPException, Query, Response
+from fastapi import APIRouter, Body, Depends, HTTPException, Query, Request, Response
 from fastapi.responses import StreamingResponse
 
 from scm_core.calibration import CaseDefinition
@@ -34,6 +34,7 @@ from services.studies.kinds import KINDS
 from services.studies.kinds.update import update_spec
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
+from ..etags import etag_of, not_modified, set_etag
 from ..params import StageIndex, StudyId, parse_statuses, status_query
 from ..schemas import (
     CancelRequest,
@@ -145,6 +146,8 @@ def create_study(
 
 @router.get("", response_model=StudyPage, summary="List studies", responses=errors(401, 422))
 def list_studies(
+    request: Request,
+    response: Response,
     store: StoreDep,
     status: Annotated[str | None, status_query("studies")] = None,
     kind: Annotated[
@@ -157,10 +160,16 @@ def list_studies(
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
     offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> StudyPage:
-    """Studies of all kinds, newest first."""
+    """Studies of all kinds, newest first. The ETag changes when a study of the page changes
+    or the page's membership does: ``If-None-Match`` gets 304 otherwise."""
     statuses = parse_statuses(status)
     if kind is not None and kind not in KINDS:
         raise StudyRequestError(f"query.kind: unknown study kind {kind!r}; one of {sorted(KINDS)}")
+    versions = store.studies.list_versions(statuses, kind=kind, limit=limit, offset=offset)
+    tag = etag_of("studies", statuses, kind, limit, offset, versions)
+    if (unchanged := not_modified(request, tag)) is not None:
+        return unchanged  # type: ignore[return-value]
+    set_etag(response, tag)
     page = store.studies.list(statuses, kind=kind, limit=limit, offset=offset)
     return page_out(StudyPage, page, study_brief)
 
@@ -171,9 +180,14 @@ def list_studies(
     summary="A study with its progress",
     responses=errors(401, 404),
 )
-def get_study(study_id: StudyId, store: StoreDep) -> StudyOut:
+def get_study(study_id: StudyId, request: Request, response: Response, store: StoreDep) -> StudyOut:
     """The study, its case document and a progress block: current stage and exponent,
-    evaluations done and planned in it, model runs so far, rate and ETA of the stage."""
+    evaluations done and planned in it, model runs so far, rate and ETA of the stage. With the
+    ETag of an unchanged study in ``If-None-Match``: 304 (rate and ETA as of its last change)."""
+    tag = etag_of("study", study_id, store.studies.version(study_id))
+    if (unchanged := not_modified(request, tag)) is not None:
+        return unchanged  # type: ignore[return-value]
+    set_etag(response, tag)
     return study_out(store, store.studies.get(study_id))
 
 
@@ -203,8 +217,14 @@ def cancel_study(
     summary="Stages and their diagnostics",
     responses=errors(401, 404),
 )
-def list_stages(study_id: StudyId, store: StoreDep) -> list[StageOut]:
-    store.studies.get(study_id)
+def list_stages(
+    study_id: StudyId, request: Request, response: Response, store: StoreDep
+) -> list[StageOut]:
+    """Every stage so far with its diagnostics; 304 for an unchanged study's ETag."""
+    tag = etag_of("stages", study_id, store.studies.version(study_id))
+    if (unchanged := not_modified(request, tag)) is not None:
+        return unchanged  # type: ignore[return-value]
+    set_etag(response, tag)
     return [stage_out(store, s) for s in store.stages.list(study_id)]
 
 
@@ -360,14 +380,20 @@ def get_summary(study_id: StudyId, store: StoreDep) -> SummaryOut:
 )
 def list_events(
     study_id: StudyId,
+    request: Request,
+    response: Response,
     store: StoreDep,
     after_id: Annotated[
         int | None, Query(ge=0, le=INT64_MAX, description="Only events after this id.")
     ] = None,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
 ) -> list[EventOut]:
-    """The study's events in order (created, stage planned/done, cancelled, failed, ...)."""
-    store.studies.get(study_id)
+    """The study's events in order (created, stage planned/done, cancelled, failed, ...);
+    304 for an unchanged study's ETag (every event raises the study's version)."""
+    tag = etag_of("events", study_id, after_id, limit, store.studies.version(study_id))
+    if (unchanged := not_modified(request, tag)) is not None:
+        return unchanged  # type: ignore[return-value]
+    set_etag(response, tag)
     events = store.events.list(study_id, after_id=after_id, limit=limit)
     return [
         EventOut(

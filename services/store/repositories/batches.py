@@ -36,7 +36,7 @@ from ..records import (
     ReapReport,
 )
 from .base import Database
-from .events import append_event
+from .events import append_event, touch_study
 from .stages import ready_stages
 from .studies import fail_study
 
@@ -221,7 +221,7 @@ class BatchRepository:
         if row is None:
             return None
         key = _key(row)
-        s.execute(
+        started = s.execute(
             sa.update(Stage)
             .where(
                 Stage.study_id == key.study_id,
@@ -230,7 +230,9 @@ class BatchRepository:
             )
             .values(status="running", updated_at=now)
             .execution_options(synchronize_session=False)
-        )
+        ).rowcount
+        if started:
+            touch_study(s, key.study_id, now)
         if row.attempts > 1:
             append_event(
                 s,
@@ -379,23 +381,25 @@ class BatchRepository:
                 )
                 .execution_options(synchronize_session=False)
             )
-            if res.rowcount == 1:
-                status: Literal["stored", "duplicate", "rejected"] = "stored"
-                if event is not None:
-                    info = {"stage": key.stage_index, "batch": key.batch_index, **event}
-                    append_event(s, key.study_id, "batch_done", info, now)
-            else:
-                current = s.scalar(sa.select(WorkBatch.status).where(WorkBatch.id == row.id))
-                status = "duplicate" if current == "done" else "rejected"
             # Count under the stage's row lock: of several last results stored at once, each
             # transaction counts only after the previous one committed, so exactly one sees
             # the stage complete (READ COMMITTED alone would let each miss the others').
-            # Lock order as everywhere: batch row, then stage row.
+            # Lock order as everywhere: batch row, then stage row, then study row (the event).
             s.execute(
                 sa.select(Stage.id)
                 .where(Stage.study_id == key.study_id, Stage.stage_index == key.stage_index)
                 .with_for_update()
             )
+            if res.rowcount == 1:
+                status: Literal["stored", "duplicate", "rejected"] = "stored"
+                if event is not None:
+                    info = {"stage": key.stage_index, "batch": key.batch_index, **event}
+                    append_event(s, key.study_id, "batch_done", info, now)
+                else:
+                    touch_study(s, key.study_id, now)
+            else:
+                current = s.scalar(sa.select(WorkBatch.status).where(WorkBatch.id == row.id))
+                status = "duplicate" if current == "done" else "rejected"
             counts = self._counts(s, key.study_id, key.stage_index)
         return CompleteOutcome(status, counts["done"], sum(counts.values()))
 

@@ -1,5 +1,9 @@
 """The append-only event log: what happened to a study (or, with study_id None, the service).
 
+Appending a study's event is a change of its state: the study's ``version`` goes up and its
+``updated_at`` moves, in the same transaction (:func:`touch_study`). Callers that also hold a
+stage's row lock take it before appending (lock order: batch, stage, study).
+
 Order: by ``id``, which is allocated at insert. Concurrent writers may commit in a different
 order than their ids, so a poller reading ``after_id`` should re-read a short overlap window
 (or poll by study, where the orchestrator's transactions are serialised by the stage lock).
@@ -15,11 +19,11 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from ..engine import jsonable
-from ..models import Event
+from ..models import Event, Study
 from ..records import EventRecord
 from .base import Database
 
-__all__ = ["EventRepository", "append_event"]
+__all__ = ["EventRepository", "append_event", "touch_study"]
 
 
 def _record(e: Event) -> EventRecord:
@@ -32,6 +36,16 @@ def _record(e: Event) -> EventRecord:
     )
 
 
+def touch_study(session: Session, study_id: int, at: datetime) -> None:
+    """Raise the study's version and set its ``updated_at`` (caller's transaction)."""
+    session.execute(
+        sa.update(Study)
+        .where(Study.id == study_id)
+        .values(version=Study.version + 1, updated_at=at)
+        .execution_options(synchronize_session=False)
+    )
+
+
 def append_event(
     session: Session,
     study_id: int | None,
@@ -39,7 +53,10 @@ def append_event(
     payload: Mapping[str, Any] | None,
     at: datetime,
 ) -> Event:
-    """Add one event in the caller's transaction (flushed, so it has its id)."""
+    """Add one event in the caller's transaction (flushed, so it has its id); a study's event
+    raises the study's version."""
+    if study_id is not None:
+        touch_study(session, study_id, at)
     event = Event(
         study_id=study_id, kind=kind, payload=jsonable(dict(payload or {})), created_at=at
     )

@@ -67,6 +67,7 @@ def _record(st: Study, dataset_ids: tuple[int, ...]) -> StudyRecord:
         finished_at=st.finished_at,
         result=None if st.result is None else dict(st.result),
         payload=None if st.payload is None else dict(st.payload),
+        version=int(st.version or 0),
     )
 
 
@@ -116,6 +117,20 @@ def _check_kind(kind: str) -> None:
     """A kind's name is an identifier (which kinds exist is the study service's registry)."""
     if not isinstance(kind, str) or not re.match(STUDY_KIND_PATTERN, kind):
         raise ValueError(f"study kind must match {STUDY_KIND_PATTERN}, got {kind!r}")
+
+
+def _list_filter(status: str | Sequence[str] | None, kind: str | None) -> list[Any]:
+    where: list[Any] = []
+    if kind is not None:
+        _check_kind(kind)
+        where.append(Study.kind == kind)
+    if status is not None:
+        statuses = [status] if isinstance(status, str) else list(status)
+        unknown = set(statuses) - set(STUDY_STATUSES)
+        if unknown:
+            raise ValueError(f"unknown study status(es) {sorted(unknown)}")
+        where.append(Study.status.in_(statuses))
+    return where
 
 
 class StudyRepository:
@@ -172,11 +187,20 @@ class StudyRepository:
                 now,
             )
             s.flush()
+            s.refresh(st, ["version", "updated_at"])  # raised by the event
             return _record(st, tuple(dataset_ids))
 
     def get(self, study_id: int) -> StudyRecord:
         with self.db.read() as s:
             return load_study(s, study_id)
+
+    def version(self, study_id: int) -> int:
+        """The study's version (raised by every change of its state); one indexed read."""
+        with self.db.read() as s:
+            v = s.scalar(sa.select(Study.version).where(Study.id == study_id))
+        if v is None:
+            raise NotFoundError(f"study {study_id} not found")
+        return int(v)
 
     def list(
         self,
@@ -187,16 +211,7 @@ class StudyRepository:
         offset: int = 0,
     ) -> Page[StudyRecord]:
         """Studies, newest first, optionally only those with the given status(es) or kind."""
-        where = []
-        if kind is not None:
-            _check_kind(kind)
-            where.append(Study.kind == kind)
-        if status is not None:
-            statuses = [status] if isinstance(status, str) else list(status)
-            unknown = set(statuses) - set(STUDY_STATUSES)
-            if unknown:
-                raise ValueError(f"unknown study status(es) {sorted(unknown)}")
-            where.append(Study.status.in_(statuses))
+        where = _list_filter(status, kind)
         with self.db.read() as s:
             total = s.scalar(sa.select(sa.func.count()).select_from(Study).where(*where)) or 0
             studies = list(
@@ -211,6 +226,28 @@ class StudyRepository:
             ids = _dataset_ids(s, [st.id for st in studies])
             items = [_record(st, ids[st.id]) for st in studies]
         return Page(items, int(total), limit, offset)
+
+    def list_versions(
+        self,
+        status: str | Sequence[str] | None = None,
+        *,
+        kind: str | None = None,
+        limit: int = 50,
+        offset: int = 0,
+    ) -> tuple[int, list[tuple[int, int]]]:
+        """(total, [(id, version)]) of the page :meth:`list` would give: equal answers mean an
+        unchanged page (a study's datasets never change). Reads the studies table only."""
+        where = _list_filter(status, kind)
+        with self.db.read() as s:
+            total = s.scalar(sa.select(sa.func.count()).select_from(Study).where(*where)) or 0
+            rows = s.execute(
+                sa.select(Study.id, Study.version)
+                .where(*where)
+                .order_by(Study.id.desc())
+                .limit(max(int(limit), 0))
+                .offset(max(int(offset), 0))
+            ).all()
+        return int(total), [(int(i), int(v)) for i, v in rows]
 
     def stuck_queued(self, older_than: float) -> list[int]:
         """Ids of studies still ``queued`` ``older_than`` seconds after their creation (their
