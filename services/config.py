@@ -113,6 +113,10 @@ class Settings(BaseSettings):
     read_requires_token: bool = Field(
         default=False, description="Require a token for read endpoints too (writes always do)."
     )
+    dashboard: bool = Field(
+        default=True,
+        description="Serve the web dashboard at / (pages at /ui/...) with the API.",
+    )
     worker_concurrency: int = Field(
         default_factory=lambda: os.cpu_count() or 1,
         ge=1,

@@ -37,6 +37,7 @@ from services.store import NotFoundError, SchemaVersionError, Store
 from services.studies import StudyRequestError
 from services.studies.kinds.registry import KINDS
 
+from .dashboard import dashboard_router, mount_static
 from .deps import route_needs_token
 from .middleware import (
     BodyLimitMiddleware,
@@ -385,6 +386,9 @@ def create_app(
     _install_error_handlers(app)
     routers = [m.router for m in (health, datasets, presets, studies, sensitivity, pooled)]
     routers += [kind_router(k) for k in KINDS.values() if k.http is not None]
+    if settings.dashboard:
+        routers.append(dashboard_router())
+        mount_static(app)
     for router in routers:
         app.include_router(router)
     app.state.api_routes = [

@@ -369,6 +369,9 @@ class StageOut(BaseModel):
     first_stage_rejections: int | None = Field(
         None, description="Proposals the surrogate turned down (delayed acceptance: no run)."
     )
+    unique_samples: int | None = Field(
+        None, description="Distinct samples in the stage's population (resampling repeats)."
+    )
     surrogate_checks: int | None = Field(
         None, description="Model runs the surrogate's likelihood was compared with."
     )

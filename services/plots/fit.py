@@ -4,12 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from scm_core.signals import SWTDataset, TestConditions, lowpass
 from scm_core.simulator import SWTResult
+
+from .figures import save
 
 _ROWS = (
     ("F", "drawbar_pull", "drawbar pull F [N]", 1.0, "offset_F"),
@@ -41,21 +44,19 @@ def _filtered(t: np.ndarray, y: np.ndarray, cutoff_hz: float | None) -> np.ndarr
         return y
 
 
-def plot_fit(
+def fit_figure(
     datasets: Sequence[SWTDataset],
     sims: Sequence[SWTResult | None],
-    path: str | Path,
     title: str | None = None,
     responses: Sequence[str] = ("F", "T", "z"),
     offsets: dict[str, float] | None = None,
-) -> Path:
+) -> Figure:
     """One column per dataset, one row per response of ``responses`` that some dataset
     measured: the filtered measured signal with its steady mean over the experimental window,
     and the simulated signal with its mean over the simulation's windows. Summary datasets (no
     series) show their mean +- sd as a band; a response a dataset did not measure shows the
     simulation only. ``offsets`` (response -> value in SI) are measurement offsets added to the
     simulated signal (e.g. a calibrated sinkage datum)."""
-    path = Path(path)
     rows = [
         row for row in _ROWS if row[0] in responses and any(row[0] in d.responses for d in datasets)
     ]
@@ -132,5 +133,14 @@ def plot_fit(
             for r in range(len(rows)):
                 axes[r, c].set_xlim(0, t_end)
     fig.suptitle(title or "Measured vs simulated at the MAP sample")
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
+
+
+def plot_fit(
+    datasets: Sequence[SWTDataset],
+    sims: Sequence[SWTResult | None],
+    path: str | Path,
+    **options: Any,
+) -> Path:
+    """:func:`fit_figure` saved to ``path``."""
+    return save(fit_figure(datasets, sims, **options), path)

@@ -7,12 +7,15 @@ import itertools
 import math
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from scm_core.inference.posterior import kde_2d
+
+from .figures import save
 
 #: pairs of the paper's Figures 6 (case 1) and 7-8 (cases 2), in order of preference
 PAPER_PAIRS = (("k_c", "k_phi"), ("n", "phi"), ("phi", "J"), ("n", "R"))
@@ -70,11 +73,10 @@ def default_pairs(names: Sequence[str], limit: int = 3) -> list[tuple[str, str]]
     return pairs[:limit]
 
 
-def plot_prior_posterior(
+def prior_posterior_figure(
     names: Sequence[str],
     prior_samples: NDArray[np.float64],
     posterior_samples: NDArray[np.float64],
-    path: str | Path,
     bounds: NDArray[np.float64] | None = None,
     units: Mapping[str, str] | None = None,
     map_sample: NDArray[np.float64] | None = None,
@@ -85,7 +87,6 @@ def plot_prior_posterior(
 ) -> Path:
     """Histograms (densities) of prior and posterior samples per parameter (Figure 5);
     parameters in ``log_params`` (log-uniform priors) are drawn on a log10 scale."""
-    path = Path(path)
     d = len(names)
     ncols = min(4, d)
     nrows = math.ceil(d / ncols)
@@ -126,14 +127,23 @@ def plot_prior_posterior(
         ax.set_visible(False)
     axes[0].legend(fontsize=7)
     fig.suptitle(title or "Prior and posterior densities")
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
 
 
-def plot_pairs(
+def plot_prior_posterior(
+    names: Sequence[str],
+    prior_samples: NDArray[np.float64],
+    posterior_samples: NDArray[np.float64],
+    path: str | Path,
+    **options: Any,
+) -> Path:
+    """:func:`prior_posterior_figure` saved to ``path`` (PNG, SVG, PDF by its suffix)."""
+    return save(prior_posterior_figure(names, prior_samples, posterior_samples, **options), path)
+
+
+def pairs_figure(
     names: Sequence[str],
     samples: NDArray[np.float64],
-    path: str | Path,
     pairs: Sequence[tuple[str, str]] | None = None,
     units: Mapping[str, str] | None = None,
     reference: Mapping[str, float] | None = None,
@@ -141,25 +151,37 @@ def plot_pairs(
     truth: Mapping[str, float] | None = None,
     title: str | None = None,
     log_params: Collection[str] = (),
-) -> Path | None:
+    max_points: int = 4000,
+) -> Figure | None:
     """Bivariate kernel-density contours of posterior pairs (Figures 6-8); parameters in
     ``log_params`` are drawn (and their densities estimated) on a log10 scale.
 
     ``k_star_line`` = (k*, b_eff) draws the dashed line k_c / b_eff + k_phi = k* on the k_c-k_phi
     panel (the paper's bevameter k* at the simulations' mean b_eff); ``reference`` marks
-    bevameter means, ``truth`` the true values of a synthetic study. None if no pair.
+    bevameter means, ``truth`` the true values of a synthetic study. At most
+    ``max_points`` samples are drawn as dots (an even thinning; the densities use them all),
+    rasterised in vector formats. None if no pair.
     """
-    path = Path(path)
     pairs = list(pairs) if pairs is not None else default_pairs(names)
     if not pairs:
         return None
     index = {n: j for j, n in enumerate(names)}
-    fig = Figure(figsize=(4.6 * len(pairs), 4.0), layout="constrained")
+    fig = Figure(figsize=(max(4.6 * len(pairs), 6.4), 4.4), layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(pairs)))
     for ax, (a, b) in zip(axes, pairs, strict=True):
         x = _tx(a, samples[:, index[a]], log_params)
         y = _tx(b, samples[:, index[b]], log_params)
-        ax.scatter(x, y, s=3, color="0.4", alpha=0.25, lw=0, label="samples")
+        step = max(1, math.ceil(x.size / max_points))
+        ax.scatter(
+            x[::step],
+            y[::step],
+            s=3,
+            color="0.4",
+            alpha=0.25,
+            lw=0,
+            label="samples",
+            rasterized=True,
+        )
         distinct = np.unique(np.column_stack([x, y]), axis=0).shape[0]
         if np.ptp(x) > 0 and np.ptp(y) > 0 and distinct > 3:
             try:
@@ -205,5 +227,62 @@ def plot_pairs(
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     fig.suptitle(title or "Bivariate posterior densities")
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
+
+
+def plot_pairs(
+    names: Sequence[str], samples: NDArray[np.float64], path: str | Path, **options: Any
+) -> Path | None:
+    """:func:`pairs_figure` saved to ``path``; None (nothing written) if no pair."""
+    fig = pairs_figure(names, samples, **options)
+    return None if fig is None else save(fig, path)
+
+
+def compare_figure(
+    names: Sequence[str],
+    studies: Mapping[str, NDArray[np.float64]],
+    pooled: NDArray[np.float64] | None = None,
+    units: Mapping[str, str] | None = None,
+    log_params: Collection[str] = (),
+    title: str | None = None,
+) -> Figure:
+    """Posterior densities of shared parameters: each study's final stage as an outline and
+    the pooled sample filled (the paper's Figure 9); ``studies`` maps a label to samples
+    (n, len(names)) in the order of ``names``."""
+    d = len(names)
+    ncols = min(4, d)
+    nrows = math.ceil(d / ncols)
+    fig = Figure(figsize=(3.4 * ncols, 2.8 * nrows + 0.4), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
+    colors = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+    for j, name in enumerate(names):
+        ax = axes[j]
+        every = [_tx(name, x[:, j], log_params) for x in studies.values()]
+        if pooled is not None:
+            every.append(_tx(name, pooled[:, j], log_params))
+        lo = min(float(np.nanmin(v)) for v in every)
+        hi = max(float(np.nanmax(v)) for v in every)
+        if not hi > lo:
+            lo, hi = lo - 0.5, hi + 0.5
+        edges = np.linspace(lo, hi, 41)
+        if pooled is not None:
+            ax.hist(every[-1], bins=edges, density=True, color="0.8", label="pooled")
+        for k, (lab, _) in enumerate(studies.items()):
+            ax.hist(
+                every[k],
+                bins=edges,
+                density=True,
+                histtype="step",
+                lw=1.4,
+                color=colors[k % len(colors)],
+                label=lab,
+            )
+        ax.set_xlabel(_axis_label(name, units, log_params))
+        ax.set_ylabel("density")
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+        ax.grid(alpha=0.3)
+    for ax in axes[d:]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title or "Posterior densities of the compared studies and their pool")
+    return fig

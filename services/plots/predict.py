@@ -10,6 +10,8 @@ from matplotlib.figure import Figure
 
 from scm_core.calibration.predict import ConditionPrediction
 
+from .figures import save
+
 _PANELS = (
     ("F", "drawbar pull F [N]", 1.0),
     ("T", "torque T [N m]", 1.0),
@@ -21,18 +23,16 @@ _ROLE_STYLE = {
 }
 
 
-def plot_predictions(
+def predictions_figure(
     datasets: Sequence[ConditionPrediction],
     sweep: Sequence[ConditionPrediction],
-    path: str | Path,
     title: str | None = None,
     responses: Sequence[str] = ("F", "T", "z"),
-) -> Path:
+) -> Figure:
     """One panel per response against the symmetric lab slip (-1 = locked): the sweep's
     median and 95 % bands (simulated means, and with the prediction-error noise), each
     dataset's predicted median and 95 % predictive interval, and its measurement where it has
     one (filled: used in the calibration; squares: held out)."""
-    path = Path(path)
     panels = [p for p in _PANELS if p[0] in responses]
     fig = Figure(figsize=(7.0, 2.6 * len(panels) + 0.6), layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
@@ -101,5 +101,15 @@ def plot_predictions(
     axes[0].legend(fontsize=7, loc="best")
     axes[-1].set_xlabel("slip (omega r - v) / max(v, omega r)  [-1 = locked]")
     fig.suptitle(title or "Posterior predictions across slip")
-    fig.savefig(path, dpi=120)
-    return path
+    return fig
+
+
+def plot_predictions(
+    datasets: Sequence[ConditionPrediction],
+    sweep: Sequence[ConditionPrediction],
+    path: str | Path,
+    title: str | None = None,
+    responses: Sequence[str] = ("F", "T", "z"),
+) -> Path:
+    """:func:`predictions_figure` saved to ``path``."""
+    return save(predictions_figure(datasets, sweep, title, responses), path, dpi=120)

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 from matplotlib.figure import Figure
 
+from scm_core.signals import SWTDataset
 from scm_core.simulator import SWTResult
 
 _PANELS = (
@@ -38,3 +40,40 @@ def plot_swt(result: SWTResult, path: str | Path, title: str | None = None) -> P
     axes[0].set_title(title or f"SCM single-wheel test ({result.status})")
     fig.savefig(path, dpi=120)
     return path
+
+
+_MEASURED = (
+    ("F", "drawbar_pull", "drawbar pull F [N]", 1.0),
+    ("T", "torque", "torque T [N m]", 1.0),
+    ("z", "sinkage", "sinkage z [mm]", 1000.0),
+)
+
+
+def measured_figure(ds: SWTDataset, max_points: int = 4000, title: str | None = None) -> Figure:
+    """A lab log's channels against time: raw (light) and low-pass filtered, the averaging
+    window shaded and the steady mean +- its standard error marked. At most ``max_points``
+    samples per line (an even thinning; the means are those of all samples)."""
+    if ds.series is None:
+        raise ValueError(f"dataset {ds.name!r} has no series (a summary dataset)")
+    s = ds.series
+    rows = [r for r in _MEASURED if r[1] in s.raw]
+    fig = Figure(figsize=(8.0, 2.3 * len(rows) + 0.5), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(rows), 1, sharex=True))
+    step = max(1, -(-len(s.t) // max_points))
+    t = s.t[::step]
+    for ax, (key, column, label, scale) in zip(axes, rows, strict=True):
+        ax.plot(t, s.raw[column][::step] * scale, lw=0.4, color="0.7", label="raw")
+        ax.plot(t, s.filtered[column][::step] * scale, lw=0.9, color="tab:blue", label="filtered")
+        if ds.window is not None:
+            ax.axvspan(*ds.window, color="tab:orange", alpha=0.12, label="averaging window")
+        stat = ds.responses.get(key)
+        if stat is not None and ds.window is not None:
+            m = stat.mean * scale
+            ax.hlines(m, *ds.window, colors="tab:red", lw=2.0, label=f"mean {m:.4g}")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower right", fontsize=7)
+    axes[-1].set_xlabel("time t [s]")
+    cut = f", low-pass {ds.cutoff_hz:g} Hz" if ds.cutoff_hz else ""
+    axes[0].set_title(title or f"{ds.name}: measured signals{cut}")
+    return fig

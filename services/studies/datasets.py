@@ -12,7 +12,10 @@ from services.store import NotFoundError, Store
 
 from .errors import StudyRequestError
 
-__all__ = ["check_dataset_ids", "load_datasets"]
+__all__ = ["check_dataset_ids", "load_datasets", "stored_log"]
+
+#: averaging offset (s) of a log whose stored processing names none
+DEFAULT_OFFSET = 40.0
 
 
 def check_dataset_ids(store: Store, dataset_ids: Sequence[int], field: str = "dataset_ids") -> None:
@@ -69,3 +72,24 @@ def _processed_as_case_asks(stored: SWTDataset, case: CaseDefinition) -> bool:
         case.data.cutoff_hz if case.data.cutoff_hz is not None else default_cutoff(stored.rate_hz)
     )
     return stored.offset == case.data.offset and stored.cutoff_hz == cutoff
+
+
+def stored_log(store: Store, dataset_id: int) -> SWTDataset:
+    """A stored log with its series (raw and filtered channels), processed as at upload
+    (its stored offset and cutoff). NotFoundError for an unknown dataset; ValueError for a
+    summary dataset or a log stored without its raw bytes."""
+    rec = store.datasets.get(dataset_id)
+    if rec.source_kind != "timeseries":
+        raise ValueError(f"dataset {dataset_id} is a summary dataset: it has no series")
+    raw = store.datasets.raw(dataset_id)
+    if raw is None:
+        raise ValueError(f"dataset {dataset_id} was stored without its raw log")
+    p = rec.processed
+    cutoff = p.get("cutoff_hz")
+    return load_log(
+        raw,
+        metadata=rec.meta or None,
+        offset=float(p.get("offset") or DEFAULT_OFFSET),
+        cutoff_hz=None if cutoff is None else float(cutoff),
+        name=rec.name,
+    )

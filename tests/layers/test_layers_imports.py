@@ -35,7 +35,12 @@ ALLOWED: dict[str, set[str]] = {
     },
     "worker": {"worker", "services.studies", "services.store", "services.config", "scm_core"},
 }
-ALLOWED["services.api"] = ALLOWED["worker"] | {"worker", "services.api", "services.limits"}
+ALLOWED["services.api"] = ALLOWED["worker"] | {
+    "worker",
+    "services.api",
+    "services.limits",
+    "services.plots",  # the dashboard's figures
+}
 ALLOWED["services.cli"] = ALLOWED["services.api"] | {
     "services.cli",
     "services.api",

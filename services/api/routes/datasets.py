@@ -20,12 +20,13 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
-from scm_core.signals import LogFormatError, SWTDataset, load_dataset, load_log, load_summary
+from scm_core.signals import LogFormatError, SWTDataset, load_dataset, load_summary
 from scm_core.signals.hashing import canonical_json
 from scm_core.signals.loaders import looks_like_json
 from scm_core.signals.summary import MAX_SUMMARY_BYTES
 from services.limits import INT64_MAX, LimitError, check_json_depth
 from services.store import DatasetRecord
+from services.studies.datasets import DEFAULT_OFFSET, stored_log
 
 from ..deps import SettingsDep, StoreDep, require_read, require_write
 from ..params import DatasetId
@@ -44,7 +45,6 @@ SERIES_UNITS = {
     "normal_force": "N",
     "slip": "-",
 }
-DEFAULT_OFFSET = 40.0
 _HASH_CHUNK = 1 << 20
 
 _UPLOAD_BODY = {
@@ -345,19 +345,10 @@ def get_series(
     """The log's channels (SI) as uploaded and low-pass filtered, as stored processing saw
     them, decimated to at most ``max_points`` samples (every ``stride``-th), for plotting."""
     rec = store.datasets.get(dataset_id)
-    if rec.source_kind != "timeseries":
-        raise HTTPException(404, f"dataset {dataset_id} is a summary dataset: it has no series")
-    raw = store.datasets.raw(dataset_id)
-    if raw is None:
-        raise HTTPException(404, f"dataset {dataset_id} was stored without its raw log")
-    p = rec.processed
-    ds = load_log(
-        raw,
-        metadata=rec.meta or None,
-        offset=float(p.get("offset") or DEFAULT_OFFSET),
-        cutoff_hz=_num(p.get("cutoff_hz")),
-        name=rec.name,
-    )
+    try:
+        ds = stored_log(store, dataset_id)
+    except ValueError as exc:
+        raise HTTPException(404, str(exc)) from None
     series = ds.series
     assert series is not None
     n = len(series.t)

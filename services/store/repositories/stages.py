@@ -65,6 +65,7 @@ STAGE_COUNTS = (
     "part_runs_saved",
     "first_stage_rejections",
     "surrogate_checks",
+    "unique_samples",
 )
 
 

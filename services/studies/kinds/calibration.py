@@ -87,6 +87,10 @@ def planned_stage(plan: StagePlan) -> PlannedStage:
     )
 
 
+#: a stage's count of distinct samples, stored with its scalars (for the stage tables)
+_UNIQUE = "unique_samples"
+
+
 def reduced_stage(state: StageState) -> ReducedStage:
     """A TMCMC stage's population as the store keeps it (``meta``: the state's scalars)."""
     meta, _ = split(state)
@@ -103,13 +107,17 @@ def reduced_stage(state: StageState) -> ReducedStage:
         log_evidence=float(state.log_evidence),
         log_evidence_var=float(state.log_evidence_var),
         n_steps=int(state.n_steps) if state.stage else None,
-        meta={k: v for k, v in meta.items() if k not in _ARRAYS},
+        meta={
+            **{k: v for k, v in meta.items() if k not in _ARRAYS},
+            _UNIQUE: int(state.n_unique) if len(state.samples) else 0,
+        },
     )
 
 
 def stage_state(meta: dict[str, Any], population: SampleArrays) -> StageState:
     """The StageState of a done stage from the store's ``population(...)`` (bit-exact)."""
-    base = StageState.from_dict(dict(meta, **dict.fromkeys(_ARRAYS)))
+    scalars = {k: v for k, v in meta.items() if k != _UNIQUE}
+    base = StageState.from_dict(dict(scalars, **dict.fromkeys(_ARRAYS)))
     return dataclasses.replace(
         base,
         samples=population.samples,

@@ -1,0 +1,398 @@
+"""The dashboard's figures, drawn by ``services.plots`` from what the store holds.
+
+Each figure is a function of stored, immutable data (a finished stage's samples, a completed
+study's result, an uploaded log), so it is rendered once per (study, stage, figure, options,
+format) and kept in a small in-memory LRU cache (:class:`FigureCache`); the schedule, which
+grows with the study, is keyed by the study's version. Scatter layers are thinned and
+rasterised (``services.plots.posterior.pairs_figure``): a figure stays small whatever the
+number of samples.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from scm_core.calibration import CaseDefinition, StudyModel
+from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
+from scm_core.inference.posterior import map_sample, pool_samples
+from scm_core.signals import SWTDataset
+from services.plots.figures import render
+from services.plots.fit import fit_figure
+from services.plots.posterior import compare_figure, pairs_figure, prior_posterior_figure
+from services.plots.predict import predictions_figure
+from services.plots.sensitivity import indices_figure
+from services.plots.stages import schedule_figure
+from services.plots.swt import measured_figure
+from services.store import StageRecord, Store, StudyRecord
+from services.studies.datasets import load_datasets, stored_log
+
+__all__ = [
+    "STUDY_FIGURES",
+    "FigureCache",
+    "FigureError",
+    "compare",
+    "dataset_signals",
+    "mean_b_eff",
+    "study_figure",
+]
+
+RESPONSES = ("F", "T", "z")
+
+
+class FigureError(ValueError):
+    """The figure cannot be drawn for this study or stage (the message says why)."""
+
+
+class FigureCache:
+    """A thread-safe LRU cache of rendered figures (bytes) and of MAP simulations."""
+
+    def __init__(self, max_entries: int = 256) -> None:
+        self.max_entries = max_entries
+        self._items: OrderedDict[Hashable, Any] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get_or_make(self, key: Hashable, make: Callable[[], Any]) -> Any:
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+        value = make()  # outside the lock: figures take a while; a race only draws twice
+        with self._lock:
+            self._items[key] = value
+            while len(self._items) > self.max_entries:
+                self._items.popitem(last=False)
+        return value
+
+
+@dataclass(frozen=True)
+class StageData:
+    names: list[str]
+    samples: np.ndarray
+    log_prior: np.ndarray
+    log_likelihood: np.ndarray
+
+
+def _stage_data(store: Store, study: StudyRecord, stage: int) -> StageData:
+    a = store.samples.arrays(study.id, stage)
+    if len(a) < 2:
+        raise FigureError(f"stage {stage} of study {study.id} has fewer than 2 samples")
+    names = [p["name"] for p in study.priors.get("parameters", [])] or [
+        f"x{k}" for k in range(a.samples.shape[1])
+    ]
+    return StageData(names, a.samples, a.log_prior, a.log_likelihood)
+
+
+def _log_params(case: CaseDefinition) -> set[str]:
+    return {n for n, d in case.prior().dists.items() if d.kind == "log_uniform"}
+
+
+def _map(data: StageData) -> np.ndarray:
+    return map_sample(data.samples, data.log_prior, data.log_likelihood)[0]
+
+
+def mean_b_eff(sim: Any) -> float | None:
+    """Mean effective contact width b_eff (m) over the second half of a simulated run (the
+    k* line of eq. (11) is k_c / b_eff + k_phi = k*)."""
+    if sim is None:
+        return None
+    b = sim.series["b_eff"]
+    t = sim.series["t"]
+    sel = b[(t >= t[-1] / 2) & (b > 0)]
+    return float(sel.mean()) if sel.size else None
+
+
+def _plot_datasets(store: Store, case: CaseDefinition, ids: Sequence[int]) -> list[SWTDataset]:
+    """The study's datasets as the likelihood sees them, with the logs' series for drawing."""
+    out = []
+    for did, ds in zip(ids, load_datasets(store, case, ids), strict=True):
+        if ds.source_kind == "timeseries":
+            try:
+                series = stored_log(store, did).series
+            except ValueError:
+                series = None
+            out.append(ds if series is None else _with_series(ds, series))
+        else:
+            out.append(ds)
+    return out
+
+
+def _with_series(ds: SWTDataset, series: Any) -> SWTDataset:
+    return replace(ds, series=series)
+
+
+def map_simulations(
+    store: Store, study: StudyRecord, stage: int, cache: FigureCache
+) -> tuple[list[SWTDataset], list[Any], dict[str, float]]:
+    """(datasets, simulations at the stage's MAP sample, measurement offsets), cached."""
+
+    def make() -> tuple[list[SWTDataset], list[Any], dict[str, float]]:
+        case = CaseDefinition.from_dict(study.case)
+        data = _stage_data(store, study, stage)
+        theta = _map(data)
+        datasets = _plot_datasets(store, case, study.dataset_ids)
+        model = StudyModel(case, datasets)
+        sims = []
+        for k in range(len(datasets)):
+            try:
+                sims.append(model.simulate_at(theta, k))
+            except ValueError:
+                sims.append(None)
+        return datasets, sims, model.measurement_offsets(theta)
+
+    return cache.get_or_make(("map-sims", study.id, stage), make)
+
+
+# ---------------------------------------------------------------------------- study figures
+
+
+def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: Any) -> Figure:
+    return schedule_figure(
+        [s.stage_index for s in stages],
+        [s.exponent for s in stages],
+        [s.acceptance for s in stages],
+        [s.ess for s in stages],
+        study.n_samples,
+        title=f"{study.name}: TMCMC schedule ({study.status})",
+    )
+
+
+def _prior_posterior(store: Store, study: StudyRecord, stage: int, **_: Any) -> Figure:
+    case = CaseDefinition.from_dict(study.case)
+    prior = case.prior()
+    data = _stage_data(store, study, stage)
+    first = _stage_data(store, study, 0)
+    earlier = "earlier posterior" if study.kind == "update" else "prior"
+    return prior_posterior_figure(
+        data.names,
+        first.samples,
+        data.samples,
+        bounds=prior.bounds,
+        units=dict(prior.units or {}),
+        map_sample=_map(data),
+        reference=case.reference,
+        title=f"{study.name}: {earlier} and stage {stage} (Figure 5)",
+        log_params=_log_params(case),
+    )
+
+
+def _pairs(
+    store: Store,
+    study: StudyRecord,
+    stage: int,
+    cache: FigureCache,
+    pair: tuple[str, str] | None = None,
+    **_: Any,
+) -> Figure:
+    case = CaseDefinition.from_dict(study.case)
+    data = _stage_data(store, study, stage)
+    if pair is not None and not set(pair) <= set(data.names):
+        raise FigureError(f"pair {pair[0]}, {pair[1]}: parameters are {', '.join(data.names)}")
+    k_star_line = None
+    k_star = case.reference.get("k_star")
+    if (
+        k_star
+        and (pair is None or pair == ("k_c", "k_phi"))
+        and {"k_c", "k_phi"} <= set(data.names)
+    ):
+        _, sims, _ = map_simulations(store, study, stage, cache)
+        b_eff = mean_b_eff(sims[0])
+        k_star_line = (k_star, b_eff) if b_eff else None
+    fig = pairs_figure(
+        data.names,
+        data.samples,
+        pairs=None if pair is None else [pair],
+        units=dict(case.prior().units or {}),
+        reference=case.reference,
+        k_star_line=k_star_line,
+        title=f"{study.name}: bivariate posterior density, stage {stage} (Figures 6-8)",
+        log_params=_log_params(case),
+    )
+    if fig is None:
+        raise FigureError(f"study {study.id} has no parameter pair to draw")
+    return fig
+
+
+def _fit(store: Store, study: StudyRecord, stage: int, cache: FigureCache, **_: Any) -> Figure:
+    case = CaseDefinition.from_dict(study.case)
+    datasets, sims, offsets = map_simulations(store, study, stage, cache)
+    return fit_figure(
+        datasets,
+        sims,
+        title=f"{study.name}: measured vs simulated at the MAP sample of stage {stage} (Figure 3)",
+        responses=case.responses,
+        offsets=offsets,
+    )
+
+
+def _morris(store: Store, study: StudyRecord, **_: Any) -> Figure:
+    res = study.result or {}
+    if "linear_index" not in res:
+        raise FigureError(f"study {study.id} has no Morris result yet ({study.status})")
+    names = [f["name"] for f in res["factors"]]
+
+    def table(key: str) -> np.ndarray:
+        t = res[key]
+        return np.array(
+            [[np.nan if t[r][n] is None else t[r][n] for r in RESPONSES] for n in names]
+        )
+
+    return indices_figure(
+        names,
+        table("linear_index"),
+        table("nonlinear_index"),
+        f"{study.name}: Morris screening (r = {res['r']}, {res['levels']} levels, "
+        f"{res['n_runs']} runs, {res['n_failed_runs']} failed) (Figure 4)",
+    )
+
+
+def _band(b: dict[str, Any] | None) -> Band | None:
+    if b is None:
+        return None
+    return Band(*(np.nan if b[k] is None else float(b[k]) for k in ("median", "lo", "hi")))
+
+
+def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
+    res = study.result or {}
+    if "predictions" not in res:
+        raise FigureError(f"study {study.id} has no predictions yet ({study.status})")
+    conds = [
+        ConditionPrediction(
+            name=c["name"],
+            conditions=c["conditions"],
+            slip_symmetric=c["slip_symmetric"],
+            n_draws=c["n_draws"],
+            n_failed=c["n_failed"],
+            role=c["role"],
+            responses={
+                r: ResponsePrediction(
+                    r, _band(v["simulated"]), _band(v.get("predictive")), v.get("measured")
+                )
+                for r, v in c["responses"].items()
+            },
+        )
+        for c in res["predictions"]
+    ]
+    datasets = [c for c in conds if c.role != "sweep"]
+    sweep = [c for c in conds if c.role == "sweep"]
+    responses = [r for r in RESPONSES if conds and r in conds[0].responses]
+    return predictions_figure(
+        datasets, sweep, title=f"{study.name}: posterior predictions", responses=responses
+    )
+
+
+#: figure name -> (builder, needs a finished stage, kinds it applies to, what it shows)
+STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool, tuple[str, ...], str]] = {
+    "schedule": (
+        _schedule,
+        False,
+        ("tmcmc", "update"),
+        "tempering exponent and acceptance per stage",
+    ),
+    "prior_posterior": (
+        _prior_posterior,
+        True,
+        ("tmcmc", "update"),
+        "prior and posterior histograms of each parameter with the MAP and bevameter values",
+    ),
+    "pairs": (_pairs, True, ("tmcmc", "update"), "bivariate posterior density of a parameter pair"),
+    "fit": (_fit, True, ("tmcmc", "update"), "measured and simulated F, T, z at the MAP sample"),
+    "morris": (_morris, False, ("morris",), "Morris linear and non-linear indices per response"),
+    "predictions": (
+        _predictions,
+        False,
+        ("prediction",),
+        "predicted drawbar pull, torque and sinkage against slip with 95 % bands",
+    ),
+}
+
+
+def study_figure(
+    store: Store,
+    study: StudyRecord,
+    name: str,
+    fmt: str,
+    cache: FigureCache,
+    stage: int | None = None,
+    pair: tuple[str, str] | None = None,
+) -> bytes:
+    """Figure ``name`` of ``study`` as SVG or PNG bytes (cached). ``stage``: a finished stage
+    (default the last); ``pair``: the parameters of the bivariate density. FigureError if the
+    figure does not apply."""
+    if name not in STUDY_FIGURES:
+        raise FigureError(f"figure: unknown figure {name!r}; one of {sorted(STUDY_FIGURES)}")
+    build, needs_stage, kinds, _ = STUDY_FIGURES[name]
+    if study.kind not in kinds:
+        raise FigureError(f"figure {name}: not drawn for a {study.kind} study")
+    stages = store.stages.list(study.id)
+    if needs_stage:
+        done = [s.stage_index for s in stages if s.status == "done"]
+        if not done:
+            raise FigureError(f"study {study.id} has no finished stage yet")
+        if stage is None:
+            stage = done[-1]
+        elif stage not in done:
+            raise FigureError(f"stage {stage} of study {study.id} is not finished")
+        key: tuple = (study.id, stage, name, pair, fmt)
+    else:
+        key = (study.id, study.version, name, fmt)
+
+    def make() -> bytes:
+        fig = build(store=store, study=study, stages=stages, stage=stage, cache=cache, pair=pair)
+        return render(fig, fmt)
+
+    return cache.get_or_make(key, make)
+
+
+def dataset_signals(store: Store, dataset_id: int, fmt: str, cache: FigureCache) -> bytes:
+    """A stored log's raw and filtered channels with the averaging window (cached)."""
+
+    def make() -> bytes:
+        return render(measured_figure(stored_log(store, dataset_id)), fmt)
+
+    return cache.get_or_make(("signals", dataset_id, fmt), make)
+
+
+def compare(
+    store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureCache, seed: int = 0
+) -> bytes:
+    """Posterior densities of the parameters the studies share, each study's final stage and
+    their pool (equal numbers of samples from each; Figure 9)."""
+    finals = []
+    for st in studies:
+        stages = [s.stage_index for s in store.stages.list(st.id) if s.status == "done"]
+        if not stages:
+            raise FigureError(f"study {st.id} has no finished stage")
+        finals.append(_stage_data(store, st, stages[-1]))
+    shared = [n for n in finals[0].names if all(n in f.names for f in finals[1:])]
+    if not shared:
+        raise FigureError("the studies share no parameter")
+
+    def make() -> bytes:
+        cols = [np.array([f.names.index(n) for n in shared]) for f in finals]
+        per = {
+            f"{st.id}: {st.name}": f.samples[:, c]
+            for st, f, c in zip(studies, finals, cols, strict=True)
+        }
+        n = min(len(x) for x in per.values())
+        pooled = pool_samples(list(per.values()), n, seed)
+        case = CaseDefinition.from_dict(studies[0].case)
+        return render(
+            compare_figure(
+                shared,
+                per,
+                pooled,
+                units=dict(case.prior().units or {}),
+                log_params=_log_params(case),
+                title="Posteriors of the compared studies and their pool (Figure 9)",
+            ),
+            fmt,
+        )
+
+    return cache.get_or_make(("compare", tuple(s.id for s in studies), seed, fmt), make)

@@ -1,0 +1,439 @@
+"""The web dashboard: server-rendered pages (Jinja2) and htmx fragments over the store.
+
+Pages (``/``, ``/ui/...``) are shells that hold no data and need no token; each loads its
+content as fragments (``/ui/f/...``, read endpoints: they need the token when reads do) whose
+requests ``static/dashboard.js`` sends with the token kept in the browser session. Live
+fragments (a study's row, progress and stages) carry the study's ETag (``data-etag``) and poll
+with ``If-None-Match`` every few seconds while the tab is visible and the study is active: an
+unchanged study answers 304 from the studies table alone, and a study that has ended renders
+without a polling trigger. Figures (``/ui/figures/...``) are SVG or PNG from
+``services.plots``, cached per (study, stage, figure, options, format). Writes (cancel, upload,
+new study) go to the JSON API from the page's script, with the token.
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+from fastapi.templating import Jinja2Templates
+
+from services.limits import INT64_MAX
+from services.plots.figures import FORMATS
+from services.plots.posterior import default_pairs
+from services.store import NotFoundError, Store, StudyRecord
+from services.studies.kinds import KINDS
+
+from ..deps import StoreDep, require_read
+from ..etags import etag_of, not_modified, set_etag
+from ..params import DatasetId, StudyId, parse_statuses
+from ..routes.datasets import dataset_out
+from ..views import parameter_summaries, parameter_units, stage_out, study_brief, study_progress
+from .figures import STUDY_FIGURES, FigureCache, FigureError, compare, dataset_signals, study_figure
+
+__all__ = ["dashboard_router", "mount_static"]
+
+PAGE_SIZE = 50
+ACTIVE = ("queued", "running")
+#: seconds between polls of a live fragment (the list's own poll is slower: new studies)
+POLL_SECONDS = 2
+LIST_POLL_SECONDS = 10
+KIND_TITLES = {
+    "tmcmc": "calibration",
+    "morris": "sensitivity",
+    "update": "posterior update",
+    "prediction": "prediction",
+}
+
+
+def _templates() -> Jinja2Templates:
+    folder = resources.files("services.api.dashboard") / "templates"
+    t = Jinja2Templates(directory=str(folder))
+    t.env.filters["num"] = _fmt_num
+    t.env.filters["duration"] = _fmt_duration
+    t.env.globals.update(
+        POLL_SECONDS=POLL_SECONDS,
+        LIST_POLL_SECONDS=LIST_POLL_SECONDS,
+        KIND_TITLES=KIND_TITLES,
+        ACTIVE=ACTIVE,
+    )
+    return t
+
+
+def _fmt_num(x: Any, digits: int = 4) -> str:
+    if x is None:
+        return "–"
+    if isinstance(x, int):
+        return f"{x:,}"
+    if not math.isfinite(x):
+        return str(x)
+    return f"{x:.{digits}g}"
+
+
+def _fmt_duration(seconds: float | None) -> str:
+    if seconds is None:
+        return "–"
+    s = int(round(seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {(s % 3600) // 60:02d} min"
+
+
+def mount_static(app: Any) -> None:
+    """Serve ``static/`` (htmx, the page script and style) at ``/ui/static``."""
+    folder = resources.files("services.api.dashboard") / "static"
+    app.mount("/ui/static", StaticFiles(directory=str(folder)), name="dashboard-static")
+
+
+def _figure_response(data: bytes, fmt: str, filename: str) -> Response:
+    return Response(
+        data,
+        media_type=FORMATS[fmt],
+        headers={
+            "Cache-Control": "private, max-age=60",
+            "Content-Disposition": f'inline; filename="{filename}"',
+        },
+    )
+
+
+def _fmt(fmt: str) -> str:
+    if fmt not in FORMATS:
+        raise HTTPException(404, f"figure format must be one of {sorted(FORMATS)}, got {fmt!r}")
+    return fmt
+
+
+def _figures_of(study: StudyRecord) -> list[tuple[str, str]]:
+    return [(n, spec[3]) for n, spec in STUDY_FIGURES.items() if study.kind in spec[2]]
+
+
+def dashboard_router() -> APIRouter:
+    """Pages, fragments and figures of the dashboard (not in the OpenAPI document)."""
+    templates = _templates()
+    cache = FigureCache()
+    pages = APIRouter(include_in_schema=False)
+    reads = APIRouter(include_in_schema=False, dependencies=[Depends(require_read)])
+
+    def page(request: Request, name: str, **ctx: Any) -> HTMLResponse:
+        return templates.TemplateResponse(request, name, ctx)
+
+    def fragment(request: Request, name: str, tag: str | None = None, **ctx: Any) -> Response:
+        out = templates.TemplateResponse(request, name, {"etag": tag, **ctx})
+        if tag is not None:
+            set_etag(out, tag)
+        return out
+
+    # ---- pages (shells) ------------------------------------------------------------------
+
+    @pages.get("/", response_class=HTMLResponse)
+    def studies_page(
+        request: Request,
+        status: Annotated[str | None, Query(max_length=200)] = None,
+        kind: Annotated[str | None, Query(max_length=16)] = None,
+        offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
+    ) -> HTMLResponse:
+        return page(
+            request,
+            "studies.html",
+            status=status or "",
+            kind=kind or "",
+            offset=offset,
+            kinds=sorted(KINDS),
+            statuses=("queued", "running", "completed", "stalled", "failed", "cancelled"),
+        )
+
+    @pages.get("/ui/studies/{study_id}", response_class=HTMLResponse)
+    def study_page(request: Request, study_id: StudyId) -> HTMLResponse:
+        return page(request, "study.html", study_id=study_id)
+
+    @pages.get("/ui/compare", response_class=HTMLResponse)
+    def compare_page(
+        request: Request,
+        ids: Annotated[str | None, Query(max_length=400)] = None,
+        id: Annotated[list[int] | None, Query(max_length=50)] = None,
+    ) -> HTMLResponse:
+        chosen = ",".join(filter(None, [ids or "", *(str(i) for i in id or [])]))
+        return page(request, "compare.html", ids=chosen)
+
+    @pages.get("/ui/datasets", response_class=HTMLResponse)
+    def datasets_page(
+        request: Request, offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0
+    ) -> HTMLResponse:
+        return page(request, "datasets.html", offset=offset)
+
+    @pages.get("/ui/datasets/{dataset_id}", response_class=HTMLResponse)
+    def dataset_page(request: Request, dataset_id: DatasetId) -> HTMLResponse:
+        return page(request, "dataset.html", dataset_id=dataset_id)
+
+    # ---- fragments -----------------------------------------------------------------------
+
+    @reads.get("/ui/f/studies")
+    def studies_fragment(
+        request: Request,
+        store: StoreDep,
+        status: Annotated[str | None, Query(max_length=200)] = None,
+        kind: Annotated[str | None, Query(max_length=16)] = None,
+        offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
+    ) -> Response:
+        statuses = parse_statuses(status or None)
+        kind = kind or None
+        if kind is not None and kind not in KINDS:
+            raise HTTPException(422, f"query.kind: unknown study kind {kind!r}")
+        versions = store.studies.list_versions(statuses, kind=kind, limit=PAGE_SIZE, offset=offset)
+        tag = etag_of("ui-studies", statuses, kind, offset, versions)
+        if (unchanged := not_modified(request, tag)) is not None:
+            return unchanged
+        page_ = store.studies.list(statuses, kind=kind, limit=PAGE_SIZE, offset=offset)
+        rows = [_row(store, s) for s in page_.items]
+        return fragment(
+            request,
+            "_studies_table.html",
+            tag,
+            rows=rows,
+            total=page_.total,
+            offset=offset,
+            limit=PAGE_SIZE,
+            status=status or "",
+            kind=kind or "",
+        )
+
+    @reads.get("/ui/f/studies/{study_id}/row")
+    def study_row_fragment(request: Request, study_id: StudyId, store: StoreDep) -> Response:
+        tag = etag_of("ui-row", study_id, store.studies.version(study_id))
+        if (unchanged := not_modified(request, tag)) is not None:
+            return unchanged
+        return fragment(
+            request, "_study_row.html", tag, row=_row(store, store.studies.get(study_id))
+        )
+
+    @reads.get("/ui/f/studies/{study_id}/live")
+    def study_live_fragment(request: Request, study_id: StudyId, store: StoreDep) -> Response:
+        tag = etag_of("ui-live", study_id, store.studies.version(study_id))
+        if (unchanged := not_modified(request, tag)) is not None:
+            return unchanged
+        study = store.studies.get(study_id)
+        stages = [stage_out(store, s) for s in store.stages.list(study_id)]
+        return fragment(
+            request,
+            "_study_live.html",
+            tag,
+            study=study_brief(study),
+            progress=study_progress(store, study),
+            stages=stages,
+            kind_title=KIND_TITLES.get(study.kind, study.kind),
+            parent=(study.payload or {}).get("update_of"),
+        )
+
+    @reads.get("/ui/f/studies/{study_id}/results")
+    def study_results_fragment(request: Request, study_id: StudyId, store: StoreDep) -> Response:
+        study = store.studies.get(study_id)
+        finished = _finished_stage(study)
+        tag = etag_of("ui-results", study_id, study.status, finished)
+        if (unchanged := not_modified(request, tag)) is not None:
+            return unchanged
+        ctx: dict[str, Any] = {
+            "study": study_brief(study),
+            "figures": _figures_of(study),
+            "stage": finished,
+            "stages_done": [] if finished is None else list(range(finished + 1)),
+            "summary": None,
+            "pairs": [],
+            "names": [],
+            "result": study.result,
+        }
+        if study.kind in ("tmcmc", "update") and finished is not None:
+            a = store.samples.arrays(study_id, finished)
+            if len(a) >= 2:
+                names = [p["name"] for p in study.priors.get("parameters", [])]
+                params, _, _ = parameter_summaries(
+                    a.samples, names, parameter_units(study), a.log_prior, a.log_likelihood
+                )
+                ctx.update(summary=params, names=names, pairs=default_pairs(names, 1))
+        return fragment(request, "_study_results.html", tag, **ctx)
+
+    @reads.get("/ui/f/compare")
+    def compare_fragment(
+        request: Request, store: StoreDep, ids: Annotated[str | None, Query(max_length=400)] = None
+    ) -> Response:
+        chosen = _parse_ids(ids)
+        completed = store.studies.list("completed", kind="tmcmc", limit=500).items
+        completed += store.studies.list("completed", kind="update", limit=500).items
+        completed.sort(key=lambda s: -s.id)
+        studies = []
+        for sid in chosen:
+            try:
+                st = store.studies.get(sid)
+            except NotFoundError:
+                raise HTTPException(422, f"ids: no study with id {sid}") from None
+            if st.kind not in ("tmcmc", "update") or st.status != "completed":
+                raise HTTPException(
+                    422,
+                    f"ids: study {sid} is a {st.status} {st.kind} study, not a completed "
+                    "calibration",
+                )
+            studies.append(st)
+        ctx: dict[str, Any] = {"completed": completed, "chosen": chosen, "rows": [], "table": []}
+        if len(studies) >= 2:
+            ctx.update(_comparison(store, studies))
+        return fragment(request, "_compare.html", None, **ctx)
+
+    @reads.get("/ui/f/datasets")
+    def datasets_fragment(
+        request: Request,
+        store: StoreDep,
+        offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
+    ) -> Response:
+        page_ = store.datasets.list(limit=PAGE_SIZE, offset=offset)
+        return fragment(
+            request,
+            "_datasets_table.html",
+            None,
+            items=[dataset_out(d) for d in page_.items],
+            total=page_.total,
+            offset=offset,
+            limit=PAGE_SIZE,
+        )
+
+    @reads.get("/ui/f/datasets/{dataset_id}")
+    def dataset_fragment(request: Request, dataset_id: DatasetId, store: StoreDep) -> Response:
+        d = dataset_out(store.datasets.get(dataset_id))
+        return fragment(request, "_dataset.html", None, d=d)
+
+    @reads.get("/ui/f/presets")
+    def new_study_fragment(request: Request, store: StoreDep) -> Response:
+        from scm_core.calibration import PRESETS
+
+        datasets = store.datasets.list(limit=200).items
+        return fragment(
+            request, "_new_study.html", None, presets=sorted(PRESETS), datasets=datasets
+        )
+
+    # ---- figures -------------------------------------------------------------------------
+
+    @reads.get("/ui/figures/studies/{study_id}/{name}.{fmt}")
+    def study_figure_route(
+        study_id: StudyId,
+        name: str,
+        fmt: str,
+        store: StoreDep,
+        stage: Annotated[int | None, Query(ge=0, le=10_000)] = None,
+        a: Annotated[str | None, Query(max_length=40)] = None,
+        b: Annotated[str | None, Query(max_length=40)] = None,
+    ) -> Response:
+        fmt = _fmt(fmt)
+        study = store.studies.get(study_id)
+        pair = (a, b) if a and b else None
+        try:
+            data = study_figure(store, study, name, fmt, cache, stage=stage, pair=pair)
+        except FigureError as exc:
+            raise HTTPException(404, str(exc)) from None
+        suffix = f"_stage{stage}" if stage is not None else ""
+        return _figure_response(data, fmt, f"study{study_id}_{name}{suffix}.{fmt}")
+
+    @reads.get("/ui/figures/datasets/{dataset_id}/signals.{fmt}")
+    def dataset_figure_route(dataset_id: DatasetId, fmt: str, store: StoreDep) -> Response:
+        fmt = _fmt(fmt)
+        try:
+            data = dataset_signals(store, dataset_id, fmt, cache)
+        except ValueError as exc:
+            raise HTTPException(404, str(exc)) from None
+        return _figure_response(data, fmt, f"dataset{dataset_id}_signals.{fmt}")
+
+    @reads.get("/ui/figures/compare.{fmt}")
+    def compare_figure_route(
+        fmt: str, store: StoreDep, ids: Annotated[str, Query(max_length=400)]
+    ) -> Response:
+        fmt = _fmt(fmt)
+        studies = [store.studies.get(i) for i in _parse_ids(ids)]
+        if len(studies) < 2:
+            raise HTTPException(422, "ids: choose at least two completed studies")
+        try:
+            data = compare(store, studies, fmt, cache)
+        except FigureError as exc:
+            raise HTTPException(404, str(exc)) from None
+        return _figure_response(data, fmt, f"compare_{'_'.join(map(str, _parse_ids(ids)))}.{fmt}")
+
+    router = APIRouter(include_in_schema=False)
+    router.include_router(pages)
+    router.include_router(reads)
+    return router
+
+
+def _finished_stage(study: StudyRecord) -> int | None:
+    """The last finished stage, from the study's row alone (a running study's current stage
+    is not finished; an ended study's is)."""
+    if study.current_stage is None:
+        return None
+    if study.status in ACTIVE:
+        return study.current_stage - 1 if study.current_stage > 0 else None
+    return study.current_stage
+
+
+def _row(store: Store, study: StudyRecord) -> dict[str, Any]:
+    return {
+        "study": study_brief(study),
+        "progress": study_progress(store, study),
+        "kind_title": KIND_TITLES.get(study.kind, study.kind),
+        "active": study.status in ACTIVE,
+        "etag": etag_of("ui-row", study.id, study.version),
+    }
+
+
+def _parse_ids(ids: str | None) -> list[int]:
+    out: list[int] = []
+    for part in (ids or "").replace(" ", ",").split(","):
+        if not part:
+            continue
+        if not part.isdigit() or int(part) > INT64_MAX:
+            raise HTTPException(422, f"ids: {part!r} is not a study id")
+        if int(part) not in out:
+            out.append(int(part))
+    return out
+
+
+def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
+    """Log evidences and Bayes factors against the best-supported study, and the shared
+    parameters' posterior means and 95 % intervals per study."""
+    rows = []
+    best = max(
+        (s for s in studies if s.log_evidence is not None),
+        key=lambda s: s.log_evidence or -math.inf,
+        default=None,
+    )
+    for s in studies:
+        var = s.log_evidence_var
+        ln_b = None
+        if best is not None and s.log_evidence is not None:
+            ln_b = best.log_evidence - s.log_evidence
+        rows.append(
+            {
+                "study": s,
+                "log_evidence": s.log_evidence,
+                "log_evidence_sd": None if var is None or var < 0 else math.sqrt(var),
+                "ln_bayes_factor": ln_b,
+                "bayes_factor": None if ln_b is None else _safe_exp(ln_b),
+            }
+        )
+    per: dict[int, dict[str, Any]] = {}
+    shared: list[str] | None = None
+    for s in studies:
+        done = [st.stage_index for st in store.stages.list(s.id) if st.status == "done"]
+        a = store.samples.arrays(s.id, done[-1])
+        names = [p["name"] for p in s.priors.get("parameters", [])]
+        params, _, _ = parameter_summaries(a.samples, names, parameter_units(s))
+        per[s.id] = {p.name: p for p in params}
+        shared = names if shared is None else [n for n in shared if n in names]
+    table = [
+        {"name": n, "cells": [per[s.id][n] for s in studies], "unit": per[studies[0].id][n].unit}
+        for n in shared or []
+    ]
+    return {"rows": rows, "best": best, "table": table, "studies": studies, "shared": shared}
+
+
+def _safe_exp(x: float) -> float:
+    return math.exp(x) if x < 700 else math.inf

@@ -1,0 +1,194 @@
+/* scm-calib dashboard: the token, conditional polling, figures and writes.
+ *
+ * The API token is kept in sessionStorage (this tab only) and sent as a Bearer header with
+ * every htmx request, figure and download (reads need it when the server says so) and with
+ * the writes (cancel, upload, new study), which go to the JSON API.
+ * Live fragments carry their ETag in data-etag; polls send it as If-None-Match and a 304
+ * leaves the page as it is.
+ */
+(function () {
+  "use strict";
+  const KEY = "scm-calib-token";
+  const token = () => sessionStorage.getItem(KEY) || "";
+  const authHeaders = () => (token() ? { Authorization: "Bearer " + token() } : {});
+
+  function showTokenState() {
+    const el = document.getElementById("token-state");
+    if (el) el.textContent = token() ? "token set for this tab" : "no token";
+  }
+
+  function say(el, text, bad) {
+    if (!el) return;
+    el.textContent = text;
+    el.classList.toggle("error", !!bad);
+  }
+
+  async function detailOf(resp) {
+    try {
+      const body = await resp.json();
+      return body.detail || resp.statusText;
+    } catch (e) {
+      return resp.status + " " + resp.statusText;
+    }
+  }
+
+  /* figures: fetched with the token, shown from a blob URL */
+  const shown = new Map();
+  async function loadFigure(img) {
+    const src = img.dataset.src;
+    if (!src || img.dataset.loaded === src) return;
+    img.dataset.loaded = src;
+    img.classList.add("loading");
+    try {
+      const resp = await fetch(src, { headers: authHeaders() });
+      if (!resp.ok) {
+        img.classList.remove("loading");
+        img.replaceWith(Object.assign(document.createElement("p"), {
+          className: "error figure-error",
+          textContent: "figure unavailable: " + (await detailOf(resp)),
+        }));
+        return;
+      }
+      const url = URL.createObjectURL(await resp.blob());
+      const old = shown.get(img);
+      img.src = url;
+      shown.set(img, url);
+      if (old) URL.revokeObjectURL(old);
+    } finally {
+      img.classList.remove("loading");
+    }
+  }
+
+  function loadFigures(root) {
+    root.querySelectorAll("img[data-src]").forEach(loadFigure);
+  }
+
+  /* downloads: with a token, fetched and saved from a blob; without, the plain link */
+  document.addEventListener("click", async (ev) => {
+    const a = ev.target.closest("a[data-download]");
+    if (a && token()) {
+      ev.preventDefault();
+      const resp = await fetch(a.href, { headers: authHeaders() });
+      if (!resp.ok) return alert(await detailOf(resp));
+      const url = URL.createObjectURL(await resp.blob());
+      const tmp = Object.assign(document.createElement("a"), {
+        href: url,
+        download: a.getAttribute("download") || a.pathname.split("/").pop(),
+      });
+      document.body.appendChild(tmp);
+      tmp.click();
+      tmp.remove();
+      setTimeout(() => URL.revokeObjectURL(url), 10000);
+      return;
+    }
+    const cancel = ev.target.closest("button[data-cancel]");
+    if (cancel) {
+      const out = cancel.parentElement.querySelector(".write-result");
+      if (!token()) return say(out, "cancelling needs the API token (set it above)", true);
+      const resp = await fetch("/studies/" + cancel.dataset.cancel + "/cancel", {
+        method: "POST",
+        headers: { ...authHeaders(), "Content-Type": "application/json" },
+        body: JSON.stringify({ reason: "cancelled from the dashboard" }),
+      });
+      if (!resp.ok) return say(out, await detailOf(resp), true);
+      say(out, "cancelled");
+      htmx.ajax("GET", "/ui/f/studies/" + cancel.dataset.cancel + "/live", { target: "#live" });
+    }
+  });
+
+  /* the pair chooser swaps the bivariate figure */
+  document.addEventListener("change", (ev) => {
+    const form = ev.target.closest("form.pair-chooser");
+    if (!form) return;
+    const img = document.querySelector('img[data-figure="pairs"]');
+    if (!img) return;
+    const a = form.elements.a.value, b = form.elements.b.value;
+    if (a === b) return;
+    const swap = (s) => s.replace(/&a=[^&]*&b=[^&]*/, "&a=" + encodeURIComponent(a) + "&b=" + encodeURIComponent(b));
+    img.dataset.src = swap(img.dataset.src);
+    img.alt = "Bivariate posterior density of " + a + " and " + b;
+    img.closest("figure").querySelectorAll("a[data-download]").forEach((l) => { l.href = swap(l.getAttribute("href")); });
+    loadFigure(img);
+  });
+
+  document.addEventListener("submit", async (ev) => {
+    const form = ev.target;
+    if (form.id === "token-form") {
+      ev.preventDefault();
+      const v = document.getElementById("token-input").value.trim();
+      if (v) sessionStorage.setItem(KEY, v); else sessionStorage.removeItem(KEY);
+      document.getElementById("token-input").value = "";
+      showTokenState();
+      document.querySelectorAll("[hx-get][hx-trigger*='load']").forEach((el) => htmx.trigger(el, "load"));
+      return;
+    }
+    const out = form.querySelector(".write-result");
+    if (form.id === "upload-form") {
+      ev.preventDefault();
+      if (!token()) return say(out, "uploading needs the API token (set it above)", true);
+      const data = new FormData(form);
+      for (const k of ["name", "metadata"]) if (!data.get(k)) data.delete(k);
+      const resp = await fetch("/datasets", { method: "POST", headers: authHeaders(), body: data });
+      if (!resp.ok) return say(out, await detailOf(resp), true);
+      const d = await resp.json();
+      say(out, (d.created === false ? "already stored as dataset " : "stored as dataset ") + d.id);
+      form.reset();
+      htmx.trigger(document.body, "uploaded");
+    } else if (form.id === "new-study-form") {
+      ev.preventDefault();
+      if (!token()) return say(out, "starting a study needs the API token (set it above)", true);
+      const f = form.elements;
+      const body = {
+        preset: f.preset.value,
+        dataset_ids: [...form.querySelectorAll("input[name=dataset_ids]:checked")].map((i) => Number(i.value)),
+      };
+      if (f.n_samples.value) body.n_samples = Number(f.n_samples.value);
+      if (f.name.value) body.name = f.name.value;
+      const resp = await fetch("/studies", {
+        method: "POST",
+        headers: { ...authHeaders(), "Content-Type": "application/json" },
+        body: JSON.stringify(body),
+      });
+      if (!resp.ok) return say(out, await detailOf(resp), true);
+      const s = await resp.json();
+      window.location.href = "/ui/studies/" + s.id;
+    }
+  });
+
+  document.addEventListener("htmx:configRequest", (ev) => {
+    Object.assign(ev.detail.headers, authHeaders());
+    const tag = ev.detail.elt && ev.detail.elt.dataset ? ev.detail.elt.dataset.etag : null;
+    const trigger = ev.detail.triggeringEvent;
+    if (tag && !(trigger && trigger.type === "load")) {
+      ev.detail.headers["If-None-Match"] = tag;
+    }
+  });
+
+  document.addEventListener("htmx:beforeSwap", (ev) => {
+    const status = ev.detail.xhr.status;
+    if (status === 304) {
+      ev.detail.shouldSwap = false;
+    } else if (status === 401 || status === 403) {
+      ev.detail.shouldSwap = true;
+      ev.detail.isError = false;
+      ev.detail.serverResponse =
+        '<p class="error" role="alert">Reading needs the API token: set it above.</p>';
+    } else if (status >= 400) {
+      let msg = ev.detail.xhr.statusText;
+      try { msg = JSON.parse(ev.detail.xhr.responseText).detail || msg; } catch (e) { /* html */ }
+      ev.detail.shouldSwap = true;
+      ev.detail.isError = false;
+      const p = document.createElement("p");
+      p.className = "error";
+      p.setAttribute("role", "alert");
+      p.textContent = msg;
+      ev.detail.serverResponse = p.outerHTML;
+    }
+  });
+
+  document.addEventListener("htmx:afterSettle", (ev) => loadFigures(ev.detail.elt));
+  document.addEventListener("DOMContentLoaded", () => {
+    showTokenState();
+    loadFigures(document);
+  });
+})();

@@ -1,0 +1,31 @@
+"""Writing figures: to a file (format from its suffix) or to bytes (SVG or PNG) for HTTP."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from matplotlib.figure import Figure
+
+__all__ = ["FORMATS", "render", "save"]
+
+#: formats figures are served in, with their media types
+FORMATS = {"svg": "image/svg+xml", "png": "image/png"}
+
+
+def save(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
+    """Write ``fig`` to ``path`` (PNG, SVG or PDF by the suffix)."""
+    path = Path(path)
+    fig.savefig(path, dpi=dpi)
+    return path
+
+
+def render(fig: Figure, fmt: str, dpi: int = 110) -> bytes:
+    """``fig`` as the bytes of an SVG or PNG image (SVG text keeps no creation date, so the
+    same figure gives the same bytes)."""
+    if fmt not in FORMATS:
+        raise ValueError(f"figure format must be one of {sorted(FORMATS)}, got {fmt!r}")
+    buf = io.BytesIO()
+    metadata = {"Date": None} if fmt == "svg" else {}
+    fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata)
+    return buf.getvalue()

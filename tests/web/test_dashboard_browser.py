@@ -1,0 +1,388 @@
+"""The dashboard in a real headless Chromium (Debian's ``/usr/bin/chromium`` driven by
+Playwright; no browser download), against a real embedded ``scm-calib serve`` holding two
+finished calibrations, a finished sensitivity study and a calibration that runs while the
+browser watches.
+
+Every page is loaded with the console and failed requests collected (none allowed), its
+figures must load, downloads must parse, and screenshots of every page at 1280x800 and
+1920x1080 are written to ``test-output/dashboard/`` (gitignored). Page load times (Navigation
+Timing) are printed, not asserted tightly.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import shutil
+import time
+import xml.etree.ElementTree as ET
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, tiny_case
+
+ROOT = Path(__file__).resolve().parents[2]
+SHOTS = ROOT / "test-output" / "dashboard"
+CHROMIUM = os.environ.get("SCM_CALIB_TEST_CHROMIUM", "/usr/bin/chromium")
+ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+SIZES = {"1280x800": (1280, 800), "1920x1080": (1920, 1080)}
+TIMEOUT = 300.0
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+RESULT = "document.querySelector('#upload-form .write-result').textContent"
+
+
+def _wait(base: str, study_id: int, path: str = "/studies") -> dict:
+    deadline = time.monotonic() + TIMEOUT
+    while time.monotonic() < deadline:
+        body = httpx.get(f"{base}{path}/{study_id}").json()
+        if body["status"] not in ("queued", "running"):
+            return body
+        time.sleep(0.5)
+    pytest.fail(f"study {study_id} did not finish within {TIMEOUT} s")
+
+
+def _upload(base: str, path: Path) -> int:
+    files = {"file": (path.name, path.read_bytes(), "text/csv")}
+    data = {"metadata": path.with_suffix(".json").read_text()}
+    r = httpx.post(f"{base}/datasets", files=files, data=data, headers=AUTH, timeout=60)
+    assert r.status_code == 201, r.text
+    return r.json()["id"]
+
+
+def _submit(base: str, body: dict, path: str = "/studies") -> int:
+    r = httpx.post(f"{base}{path}", json=body, headers=AUTH, timeout=60)
+    assert r.status_code == 201, r.text
+    return r.json()["id"]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
+    """A served database with datasets, two completed calibrations of different cases and a
+    completed sensitivity study; ``running_case`` makes a calibration slow enough to watch."""
+    if not Path(CHROMIUM).exists():
+        pytest.fail(
+            f"Chromium is required at {CHROMIUM} (apt-get install chromium; .ci/run does)",
+            pytrace=False,
+        )
+    tmp = tmp_path_factory.mktemp("dashboard")
+    with serving(tmp, workers=2) as (base, _env, _tmp, _pid):
+        d1, d2 = _upload(base, LOG), _upload(base, LOG2)
+        a = _submit(base, {"case": tiny_case(seed=1), "dataset_ids": [d1, d2], "name": "case A"})
+        b = _submit(
+            base,
+            {
+                "case": tiny_case(seed=2, params=("phi", "n", "J")),
+                "dataset_ids": [d1, d2],
+                "name": "case B",
+            },
+        )
+        case = tiny_case(params=("phi",))
+        m = _submit(
+            base,
+            {"case": case, "dataset_id": d1, "r": 2, "levels": 4, "name": "screening"},
+            "/sensitivity",
+        )
+        for sid in (a, b):
+            assert _wait(base, sid)["status"] == "completed"
+        assert _wait(base, m, "/sensitivity")["status"] == "completed"
+        yield {"base": base, "datasets": (d1, d2), "a": a, "b": b, "morris": m}
+
+
+@pytest.fixture(scope="module")
+def browser():
+    from playwright.sync_api import sync_playwright
+
+    if SHOTS.exists():
+        shutil.rmtree(SHOTS)
+    SHOTS.mkdir(parents=True)
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+        yield b
+        b.close()
+
+
+class Watched:
+    """A page with its console errors, page errors and failed requests collected."""
+
+    def __init__(self, browser, size: tuple[int, int] = SIZES["1280x800"]) -> None:
+        self.context = browser.new_context(viewport={"width": size[0], "height": size[1]})
+        self.page = self.context.new_page()
+        self.problems: list[str] = []
+        self.page.on(
+            "console",
+            lambda m: (
+                self.problems.append(f"console {m.type}: {m.text}") if m.type == "error" else None
+            ),
+        )
+        self.page.on("pageerror", lambda e: self.problems.append(f"page error: {e}"))
+        self.page.on(
+            "requestfailed", lambda r: self.problems.append(f"request failed: {r.url} {r.failure}")
+        )
+        self.page.on(
+            "response",
+            lambda r: (
+                self.problems.append(f"HTTP {r.status}: {r.url}") if r.status >= 400 else None
+            ),
+        )
+
+    def goto(self, url: str) -> float:
+        """Load ``url`` and wait for its fragments; returns the load time (ms, Navigation
+        Timing: navigation start to the load event)."""
+        self.page.goto(url, wait_until="load")
+        self.page.wait_for_load_state("networkidle")
+        return float(
+            self.page.evaluate(
+                "() => { const n = performance.getEntriesByType('navigation')[0];"
+                " return n.loadEventEnd - n.startTime; }"
+            )
+        )
+
+    def elapsed_ms(self) -> float:
+        """Milliseconds since the navigation started (after waiting for fragments/figures)."""
+        return float(self.page.evaluate("() => performance.now()"))
+
+    def figures_loaded(self) -> int:
+        """Wait for every figure of the page; returns how many there are (each non-empty)."""
+        self.page.wait_for_function(
+            "() => [...document.querySelectorAll('img[data-src]')]"
+            ".every(i => i.complete && i.naturalWidth > 0)",
+            timeout=120_000,
+        )
+        return self.page.locator("img[data-src]").count()
+
+    def shoot(self, name: str) -> None:
+        self.page.screenshot(path=str(SHOTS / f"{name}.png"), full_page=True)
+
+    def close(self) -> None:
+        self.context.close()
+
+    def expect(self, status: int) -> None:
+        """Forget the problems an expected refusal (HTTP ``status``) caused."""
+        self.problems = [p for p in self.problems if f" {status}" not in p]
+
+    def clean(self) -> None:
+        assert self.problems == [], "\n".join(self.problems)
+
+
+def _set_token(page, token: str = TOKEN) -> None:
+    page.fill("#token-input", token)
+    page.click("#token-form button")
+    page.wait_for_selector("#token-state:has-text('token set')")
+
+
+def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> None:
+    base = server["base"]
+    pages = {
+        "studies": f"{base}/",
+        "study_calibration": f"{base}/ui/studies/{server['a']}",
+        "study_sensitivity": f"{base}/ui/studies/{server['morris']}",
+        "compare": f"{base}/ui/compare?ids={server['a']},{server['b']}",
+        "datasets": f"{base}/ui/datasets",
+        "dataset": f"{base}/ui/datasets/{server['datasets'][0]}",
+    }
+    expected_figures = {
+        "study_calibration": 4,  # schedule, prior-posterior, pair, fit
+        "study_sensitivity": 1,
+        "compare": 1,
+        "dataset": 1,
+    }
+    timings = {}
+    for size_name, size in SIZES.items():
+        for name, url in pages.items():
+            w = Watched(browser, size)
+            try:
+                shell = w.goto(url)
+                n = w.figures_loaded()
+                timings[(name, size_name)] = (shell, w.elapsed_ms())
+                assert n == expected_figures.get(name, 0), (name, n)
+                for img in w.page.locator("img[data-src]").all():
+                    assert (img.get_attribute("alt") or "").strip(), name
+                for table in w.page.locator("table").all():
+                    assert table.locator("th").count() > 0, name
+                w.shoot(f"{name}_{size_name}")
+                w.clean()
+            finally:
+                w.close()
+    print("\npage load times (ms from navigation start: load event, all fragments and figures):")
+    for (name, size_name), (shell, full) in sorted(timings.items()):
+        print(f"  {name:20s} {size_name:9s} {shell:8.0f} {full:8.0f}")
+
+
+def test_study_page_downloads_parse(server, browser) -> None:
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/studies/{server['a']}")
+        w.figures_loaded()
+        links = w.page.locator("a[data-download]").all()
+        kinds: dict[str, int] = {}
+        for link in links:
+            href = link.get_attribute("href")
+            r = w.page.request.get(server["base"] + href if href.startswith("/") else href)
+            assert r.status == 200, href
+            ctype = r.headers["content-type"]
+            body = r.body()
+            if ctype.startswith("text/csv"):
+                rows = list(csv.reader(io.StringIO(body.decode())))
+                assert rows[0][0] == "sample" and len(rows) > 2
+                kinds["csv"] = kinds.get("csv", 0) + 1
+            elif ctype.startswith("application/json"):
+                assert "parameters" in json.loads(body)
+                kinds["json"] = kinds.get("json", 0) + 1
+            elif ctype.startswith("image/svg+xml"):
+                assert ET.fromstring(body).tag.endswith("svg")
+                kinds["svg"] = kinds.get("svg", 0) + 1
+            elif ctype == "image/png":
+                assert body.startswith(PNG_MAGIC) and len(body) > 1000
+                kinds["png"] = kinds.get("png", 0) + 1
+            else:
+                pytest.fail(f"{href}: unexpected content type {ctype}")
+        assert kinds.get("svg") == kinds.get("png") == 4 and kinds.get("json") == 1
+        assert kinds.get("csv", 0) >= 2  # every finished stage
+        # the pair chooser redraws the bivariate density for another pair
+        chooser = w.page.locator("form.pair-chooser")
+        chooser.locator("select[name=b]").select_option("phi")
+        chooser.locator("select[name=a]").select_option("n")
+        w.page.wait_for_function(
+            "() => { const i = document.querySelector('img[data-figure=pairs]');"
+            " return i.dataset.loaded.includes('a=n&b=phi') && i.naturalWidth > 0; }"
+        )
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_compare_page_shows_evidences_and_a_bayes_factor(server, browser) -> None:
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/compare")
+        boxes = w.page.locator("input[name=id]")
+        assert boxes.count() >= 2
+        w.page.check(f"input[name=id][value='{server['a']}']")
+        w.page.check(f"input[name=id][value='{server['b']}']")
+        w.page.click("form.compare-form button")
+        w.page.wait_for_selector("table.evidence")
+        w.figures_loaded()
+        rows = w.page.locator("table.evidence tbody tr")
+        assert rows.count() == 2
+        shown = {
+            int(rows.nth(k).locator("th a").inner_text().split(":")[0]): float(
+                rows.nth(k).locator("td").nth(0).inner_text()
+            )
+            for k in range(2)
+        }
+        factors = [rows.nth(k).locator("td.bayes-factor").inner_text() for k in range(2)]
+        for sid, value in shown.items():
+            truth = httpx.get(f"{server['base']}/studies/{sid}").json()["log_evidence"]
+            assert value == pytest.approx(truth, rel=1e-5, abs=1e-4)
+        assert set(shown) == {server["a"], server["b"]}
+        assert "1" in factors  # the best-supported study against itself
+        assert all(float(f) >= 1.0 for f in factors)
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_datasets_page_uploads_and_shows_a_bad_files_error(server, browser, tmp_path) -> None:
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/datasets")
+        before = w.page.locator("table.datasets tbody tr").count()
+        bad = tmp_path / "bad.csv"
+        bad.write_text("time [s],drawbar_pull [N]\n0,1\n")
+        w.page.set_input_files("#upload-form input[type=file]", str(bad))
+        w.page.click("#upload-form button")
+        w.page.wait_for_selector("#upload-form .write-result.error")
+        assert "token" in w.page.inner_text("#upload-form .write-result")
+        _set_token(w.page)
+        w.page.set_input_files("#upload-form input[type=file]", str(bad))
+        w.page.click("#upload-form button")
+        w.page.wait_for_function(f"() => {RESULT}.includes('bad.csv')")
+        message = w.page.inner_text("#upload-form .write-result")
+        assert message.startswith("file bad.csv") and "Traceback" not in message
+        w.expect(422)  # the refusal itself
+        good = ROOT / "examples" / "wf34_s050.csv"  # stored already: the same dataset again
+        w.page.set_input_files("#upload-form input[type=file]", str(good))
+        w.page.fill("#upload-form textarea[name=metadata]", good.with_suffix(".json").read_text())
+        w.page.click("#upload-form button")
+        w.page.wait_for_function(f"() => /stored as dataset \\d+/.test({RESULT})")
+        w.page.wait_for_load_state("networkidle")
+        assert w.page.locator("table.datasets tbody tr").count() == before  # same content: reused
+        w.shoot("datasets_after_upload")
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_running_study_advances_on_screen_until_it_completes(server, browser) -> None:
+    base, (d1, d2) = server["base"], server["datasets"]
+    slow = tiny_case(seed=9, params=("phi", "n", "J"), n_samples=60)
+    slow["sampler"]["max_stages"] = 12
+    running = _submit(
+        base, {"case": slow, "dataset_ids": [d1, d2], "name": "watched", "batch_size": 6}
+    )
+    w = Watched(browser)
+    try:
+        w.goto(f"{base}/")
+        row = w.page.locator(f"#study-row-{running}")
+        for sid in (server["a"], server["b"], server["morris"], running):
+            assert w.page.locator(f"#study-row-{sid}").count() == 1
+        first = row.locator("td.evaluations").inner_text(), row.locator("td.stage").inner_text()
+        cell = f"document.querySelector('#study-row-{running} td.%s').textContent.trim()"
+        w.page.wait_for_function(
+            f"() => {cell % 'evaluations'} !== {json.dumps(first[0])}"
+            f" || {cell % 'stage'} !== {json.dumps(first[1])}",
+            timeout=120_000,
+        )
+        w.shoot("studies_running")
+        w.page.wait_for_selector(
+            f"#study-row-{running}[data-status=completed]", timeout=int(TIMEOUT * 1000)
+        )
+        assert "hx-get" not in (
+            w.page.locator(f"#study-row-{running}").get_attribute("hx-get") or ""
+        )
+        w.shoot("studies_completed")
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_cancel_works_with_the_token_and_is_refused_without(server, browser) -> None:
+    base, (d1, d2) = server["base"], server["datasets"]
+    long = tiny_case(seed=11, params=("phi", "n", "J"), n_samples=2000)  # minutes of work
+    to_cancel = _submit(
+        base, {"case": long, "dataset_ids": [d1, d2], "name": "to cancel", "batch_size": 50}
+    )
+    w = Watched(browser)
+    try:
+        w.goto(f"{base}/ui/studies/{to_cancel}")
+        assert httpx.get(f"{base}/studies/{to_cancel}").json()["status"] in ("queued", "running")
+        w.page.click("button[data-cancel]")
+        w.page.wait_for_selector(".write-result.error")
+        assert "token" in w.page.inner_text(".write-result")
+        assert httpx.get(f"{base}/studies/{to_cancel}").json()["status"] in ("queued", "running")
+        _set_token(w.page, "wrong-token")
+        w.page.click("button[data-cancel]")
+        w.page.wait_for_function(
+            "() => document.querySelector('.write-result').textContent.includes('token')"
+            " && document.querySelector('.write-result').classList.contains('error')"
+        )
+        w.expect(401)
+        _set_token(w.page)
+        w.page.click("button[data-cancel]")
+        w.page.wait_for_selector("#study-status:has-text('cancelled')")
+        assert httpx.get(f"{base}/studies/{to_cancel}").json()["status"] == "cancelled"
+        w.shoot("study_cancelled")
+        w.clean()
+    finally:
+        w.close()
