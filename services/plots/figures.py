@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+import matplotlib
 from matplotlib.figure import Figure
 
 __all__ = ["FORMATS", "render", "save"]
@@ -21,11 +22,13 @@ def save(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
 
 
 def render(fig: Figure, fmt: str, dpi: int = 110) -> bytes:
-    """``fig`` as the bytes of an SVG or PNG image (SVG text keeps no creation date, so the
+    """``fig`` as the bytes of an SVG or PNG image (the SVG keeps no creation date, so the
     same figure gives the same bytes)."""
     if fmt not in FORMATS:
         raise ValueError(f"figure format must be one of {sorted(FORMATS)}, got {fmt!r}")
     buf = io.BytesIO()
     metadata = {"Date": None} if fmt == "svg" else {}
-    fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata)
+    # SVG text as text (the page's fonts), not as glyph paths: a third of the size
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata)
     return buf.getvalue()

@@ -140,7 +140,12 @@ class Watched:
         """Load ``url`` and wait for its fragments; returns the load time (ms, Navigation
         Timing: navigation start to the load event)."""
         self.page.goto(url, wait_until="load")
-        self.page.wait_for_load_state("networkidle")
+        # fragments in: no htmx request in flight, no "Loading ..." placeholder left
+        self.page.wait_for_function(
+            "() => !document.querySelector('.htmx-request')"
+            " && !/Loading/.test(document.querySelector('main').innerText)",
+            timeout=60_000,
+        )
         return float(
             self.page.evaluate(
                 "() => { const n = performance.getEntriesByType('navigation')[0];"
@@ -372,11 +377,15 @@ def test_cancel_works_with_the_token_and_is_refused_without(server, browser) -> 
         assert "token" in w.page.inner_text(".write-result")
         assert httpx.get(f"{base}/studies/{to_cancel}").json()["status"] in ("queued", "running")
         _set_token(w.page, "wrong-token")
-        w.page.click("button[data-cancel]")
+        with w.page.expect_response(lambda r: r.url.endswith("/cancel")) as answer:
+            w.page.click("button[data-cancel]")
+        assert answer.value.status == 401
+        detail = answer.value.json()["detail"]
         w.page.wait_for_function(
-            "() => document.querySelector('.write-result').textContent.includes('token')"
-            " && document.querySelector('.write-result').classList.contains('error')"
+            f"() => document.querySelector('.write-result').textContent === {json.dumps(detail)}"
         )
+        assert httpx.get(f"{base}/studies/{to_cancel}").json()["status"] in ("queued", "running")
+        w.page.wait_for_timeout(200)  # the console's report of the refusal
         w.expect(401)
         _set_token(w.page)
         w.page.click("button[data-cancel]")

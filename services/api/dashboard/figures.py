@@ -41,6 +41,7 @@ __all__ = [
     "dataset_signals",
     "mean_b_eff",
     "study_figure",
+    "warm_up",
 ]
 
 RESPONSES = ("F", "T", "z")
@@ -396,3 +397,15 @@ def compare(
         )
 
     return cache.get_or_make(("compare", tuple(s.id for s in studies), seed, fmt), make)
+
+
+def warm_up() -> None:
+    """Load what the first figure of a server would otherwise pay for: matplotlib's fonts
+    and renderers, and the simulator's compiled code (the fit at the MAP simulates)."""
+    from scm_core.simulator import warm_up as simulator_warm_up
+
+    fig = Figure(figsize=(2, 2))
+    fig.subplots().plot([0, 1], [0, 1], label="x")
+    for fmt in ("svg", "png"):
+        render(fig, fmt)
+    simulator_warm_up()
