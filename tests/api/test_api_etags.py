@@ -135,3 +135,23 @@ def test_sensitivity_study_has_an_etag(env) -> None:
     sid = r.json()["id"]
     tag = client.get(f"/sensitivity/{sid}").headers["etag"]
     assert client.get(f"/sensitivity/{sid}", headers={"If-None-Match": tag}).status_code == 304
+
+
+def test_dashboard_polls_get_304_from_the_studies_table_alone(env) -> None:
+    """The dashboard's live fragments (a list row, a study's progress and stages) carry the
+    study's ETag in ``data-etag`` and answer a matching poll with 304 the same way."""
+    client, url = env
+    engine = client.app.state.store.engine
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    sid = _submit(client, ds, 3)
+    for path in (f"/ui/f/studies/{sid}/row", f"/ui/f/studies/{sid}/live", "/ui/f/studies"):
+        r = client.get(path)
+        assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
+        tag = r.headers["etag"]
+        assert f'data-etag="{tag}"' in r.text.replace("&#34;", '"')  # attribute-escaped
+        with statements(engine) as sql:
+            again = client.get(path, headers={"If-None-Match": tag})
+        assert again.status_code == 304 and again.content == b""
+        assert tables_read(sql) == set(), sql
+        _run_one_batch(url, sid)
+        assert client.get(path, headers={"If-None-Match": tag}).status_code == 200

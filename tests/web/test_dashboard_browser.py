@@ -23,7 +23,7 @@ from pathlib import Path
 
 import httpx
 import pytest
-from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, tiny_case
+from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, summary_doc, tiny_case
 
 ROOT = Path(__file__).resolve().parents[2]
 SHOTS = ROOT / "test-output" / "dashboard"
@@ -96,7 +96,26 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
         for sid in (a, b):
             assert _wait(base, sid)["status"] == "completed"
         assert _wait(base, m, "/sensitivity")["status"] == "completed"
-        yield {"base": base, "datasets": (d1, d2), "a": a, "b": b, "morris": m}
+        r = httpx.post(f"{base}/datasets", json=summary_doc(3.0), headers=AUTH)
+        assert r.status_code == 201, r.text
+        d3 = r.json()["id"]
+        u = _submit(base, {"update_of": a, "dataset_ids": [d3], "name": "case A + summary"})
+        p = _submit(
+            base,
+            {"study_id": a, "dataset_ids": [d1, d2], "draws": 8, "name": "pred"},
+            "/predictions",
+        )
+        assert _wait(base, u)["status"] == "completed"
+        assert _wait(base, p, "/predictions")["status"] == "completed"
+        yield {
+            "base": base,
+            "datasets": (d1, d2),
+            "a": a,
+            "b": b,
+            "morris": m,
+            "update": u,
+            "prediction": p,
+        }
 
 
 @pytest.fixture(scope="module")
@@ -192,6 +211,8 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
         "studies": f"{base}/",
         "study_calibration": f"{base}/ui/studies/{server['a']}",
         "study_sensitivity": f"{base}/ui/studies/{server['morris']}",
+        "study_update": f"{base}/ui/studies/{server['update']}",
+        "study_prediction": f"{base}/ui/studies/{server['prediction']}",
         "compare": f"{base}/ui/compare?ids={server['a']},{server['b']}",
         "datasets": f"{base}/ui/datasets",
         "dataset": f"{base}/ui/datasets/{server['datasets'][0]}",
@@ -199,6 +220,8 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
     expected_figures = {
         "study_calibration": 4,  # schedule, prior-posterior, pair, fit
         "study_sensitivity": 1,
+        "study_update": 4,
+        "study_prediction": 1,
         "compare": 1,
         "dataset": 1,
     }
@@ -395,3 +418,65 @@ def test_cancel_works_with_the_token_and_is_refused_without(server, browser) -> 
         w.clean()
     finally:
         w.close()
+
+
+def test_update_links_its_parent_and_shows_both_posteriors(server, browser) -> None:
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/studies/{server['update']}")
+        w.figures_loaded()
+        assert w.page.locator(f"a[href='/ui/studies/{server['a']}']").count() == 1
+        alt = w.page.locator("img[data-figure=prior_posterior]").get_attribute("alt")
+        assert "earlier" in alt
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_new_study_from_a_preset_and_chosen_datasets(server, browser) -> None:
+    base, (d1, _) = server["base"], server["datasets"]
+    w = Watched(browser)
+    try:
+        w.goto(f"{base}/")
+        w.page.click("details.new-study summary")
+        w.page.wait_for_selector("#new-study-form")
+        w.page.select_option("#new-study-form select[name=preset]", "1")
+        w.page.check(f"#new-study-form input[name=dataset_ids][value='{d1}']")
+        w.page.fill("#new-study-form input[name=n_samples]", "10")
+        w.page.fill("#new-study-form input[name=name]", "from the page")
+        w.page.click("#new-study-form button")
+        w.page.wait_for_selector("#new-study-form .write-result.error")
+        assert "token" in w.page.inner_text("#new-study-form .write-result")
+        _set_token(w.page)
+        w.page.click("#new-study-form button")
+        w.page.wait_for_url("**/ui/studies/*")
+        sid = int(w.page.url.rsplit("/", 1)[1])
+        study = httpx.get(f"{base}/studies/{sid}").json()
+        assert study["name"] == "from the page" and study["dataset_ids"] == [d1]
+        assert study["n_samples"] == 10
+        w.page.wait_for_selector("#study-status")
+        r = httpx.post(f"{base}/studies/{sid}/cancel", headers=AUTH)  # not to load the machine
+        assert r.status_code in (200, 409)
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_reads_need_the_token_when_the_server_says_so(browser, tmp_path) -> None:
+    from test_api_support import serve_env
+
+    env = serve_env(tmp_path, SCM_CALIB_READ_REQUIRES_TOKEN="true")
+    with serving(tmp_path, env=env, workers=1) as (base, *_):
+        d1 = _upload(base, LOG)
+        w = Watched(browser)
+        try:
+            w.goto(f"{base}/ui/datasets")
+            assert "needs the API token" in w.page.inner_text("#datasets")
+            w.expect(401)
+            _set_token(w.page)
+            w.page.wait_for_selector("table.datasets")
+            w.goto(f"{base}/ui/datasets/{d1}")  # the token stays for the tab's session
+            assert w.figures_loaded() == 1
+            w.clean()
+        finally:
+            w.close()

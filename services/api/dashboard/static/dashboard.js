@@ -119,7 +119,8 @@
       if (v) sessionStorage.setItem(KEY, v); else sessionStorage.removeItem(KEY);
       document.getElementById("token-input").value = "";
       showTokenState();
-      document.querySelectorAll("[hx-get][hx-trigger*='load']").forEach((el) => htmx.trigger(el, "load"));
+      // reload what a missing token kept from the page (reads may need it)
+      if (document.querySelector("main .needs-token")) window.location.reload();
       return;
     }
     const out = form.querySelector(".write-result");
@@ -172,7 +173,7 @@
       ev.detail.shouldSwap = true;
       ev.detail.isError = false;
       ev.detail.serverResponse =
-        '<p class="error" role="alert">Reading needs the API token: set it above.</p>';
+        '<p class="error needs-token" role="alert">Reading needs the API token: set it above.</p>';
     } else if (status >= 400) {
       let msg = ev.detail.xhr.statusText;
       try { msg = JSON.parse(ev.detail.xhr.responseText).detail || msg; } catch (e) { /* html */ }
