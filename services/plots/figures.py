@@ -28,7 +28,7 @@ def render(fig: Figure, fmt: str, dpi: int = 110) -> bytes:
         raise ValueError(f"figure format must be one of {sorted(FORMATS)}, got {fmt!r}")
     buf = io.BytesIO()
     metadata = {"Date": None} if fmt == "svg" else {}
-    # SVG text as text (the page's fonts), not as glyph paths: a third of the size
-    with matplotlib.rc_context({"svg.fonttype": "none"}):
+    # SVG text as text (the page's fonts), not glyph paths; element ids from a fixed salt
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "scm-calib"}):
         fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata)
     return buf.getvalue()

@@ -53,7 +53,8 @@ def fit_figure(
 ) -> Figure:
     """One column per dataset, one row per response of ``responses`` that some dataset
     measured: the filtered measured signal with its steady mean over the experimental window,
-    and the simulated signal with its mean over the simulation's windows. Summary datasets (no
+    and the simulated signal with its mean over the simulation's windows (both windows
+    shaded). Summary datasets (no
     series) show their mean +- sd as a band; a response a dataset did not measure shows the
     simulation only. ``offsets`` (response -> value in SI) are measurement offsets added to the
     simulated signal (e.g. a calibrated sinkage datum)."""
@@ -84,6 +85,7 @@ def fit_figure(
                     label="measured (filtered)",
                 )
                 lo, hi = ds.window if ds.window is not None else (float(t[0]), float(t[-1]))
+                ax.axvspan(lo, hi, color="0.5", alpha=0.08, lw=0, label="measured window")
                 ax.hlines(
                     stat.mean * scale,
                     lo,
@@ -112,6 +114,14 @@ def fit_figure(
                     lw=0.9,
                     color="tab:blue",
                     label="simulated (filtered)",
+                )
+                ax.axvspan(
+                    getattr(rig, offset_name),
+                    rig.duration,
+                    color="tab:blue",
+                    alpha=0.07,
+                    lw=0,
+                    label="simulated window",
                 )
                 if sim.means is not None:
                     m = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale

@@ -379,6 +379,7 @@ def _row(store: Store, study: StudyRecord) -> dict[str, Any]:
         "study": study_brief(study),
         "progress": study_progress(store, study),
         "kind_title": KIND_TITLES.get(study.kind, study.kind),
+        "case": str((study.case or {}).get("name") or "–"),
         "active": study.status in ACTIVE,
         "etag": etag_of("ui-row", study.id, study.version),
     }

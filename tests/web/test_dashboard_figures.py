@@ -1,0 +1,51 @@
+"""The figure layer the dashboard and the CLI share: rendering to bytes, the schedule with
+stages not yet done, thinning of large samples, and the cache."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from services.api.dashboard.figures import FigureCache
+from services.plots.figures import render
+from services.plots.posterior import pairs_figure
+from services.plots.stages import schedule_figure
+
+
+def test_render_is_deterministic_and_checks_the_format() -> None:
+    fig = schedule_figure([0, 1, 2], [0.0, 0.01, 1.0], [None, 0.3, 0.25], [500, 250, 260], 500)
+    svg = render(fig, "svg")
+    assert svg == render(fig, "svg")  # no creation date: the same figure, the same bytes
+    root = ET.fromstring(svg)
+    assert root.tag.endswith("svg")
+    texts = "".join(t.text or "" for t in root.iter() if t.tag.endswith("text"))
+    assert "stage j" in texts  # text kept as text
+    assert render(fig, "png").startswith(b"\x89PNG")
+    with pytest.raises(ValueError, match="format"):
+        render(fig, "gif")
+
+
+def test_schedule_of_a_stage_not_done_leaves_it_out() -> None:
+    fig = schedule_figure([0, 1, 2], [0.0, 0.05, None], [None, 0.4, None])
+    ax_p, ax_a = fig.axes[:2]
+    assert ax_p.lines[0].get_xdata().tolist() == [1.0]  # p = 0 has no place on a log axis
+    assert ax_a.lines[0].get_xdata().tolist() == [1.0]
+
+
+def test_pairs_of_a_large_sample_draw_at_most_max_points() -> None:
+    rng = np.random.default_rng(1)
+    X = rng.normal(size=(16_000, 2))
+    fig = pairs_figure(["a", "b"], X, pairs=[("a", "b")], max_points=4000)
+    dots = fig.axes[0].collections[0]
+    assert dots.get_offsets().shape[0] == 4000 and dots.get_rasterized()
+    assert len(render(fig, "svg")) < 300_000
+
+
+def test_cache_keeps_the_newest_entries() -> None:
+    cache = FigureCache(max_entries=2)
+    made = []
+    for key in ("a", "b", "a", "c", "b"):
+        cache.get_or_make(key, lambda k=key: made.append(k) or k)
+    assert made == ["a", "b", "c", "b"]  # "a" reused once; "b" evicted by "c" after "a"
