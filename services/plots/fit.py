@@ -65,7 +65,7 @@ def fit_figure(
         rows = [row for row in _ROWS if row[0] in responses] or list(_ROWS)
     offsets = offsets or {}
     ncols = len(datasets)
-    fig = Figure(figsize=(5.2 * ncols, 2.6 * len(rows) + 0.4), layout="constrained")
+    fig = Figure(figsize=(max(5.2 * ncols, 8.0), 2.6 * len(rows) + 0.4), layout="constrained")
     axes = np.array(fig.subplots(len(rows), ncols, squeeze=False))
     for c, (ds, sim) in enumerate(zip(datasets, sims, strict=True)):
         t_end = 0.0

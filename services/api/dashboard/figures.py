@@ -226,7 +226,7 @@ def _fit(store: Store, study: StudyRecord, stage: int, cache: FigureCache, **_: 
     return fit_figure(
         datasets,
         sims,
-        title=f"{study.name}: measured vs simulated at the MAP sample of stage {stage} (Figure 3)",
+        title=f"{study.name}: measured vs simulated at the MAP, stage {stage} (Figure 3)",
         responses=case.responses,
         offsets=offsets,
     )
