@@ -53,9 +53,10 @@ def _tx(name: str, x, log_params: Collection[str]):
         return np.log10(np.asarray(x, dtype=float))
 
 
-def _axis_label(name: str, units: Mapping[str, str] | None, log_params: Collection[str]) -> str:
-    text = label(name, units)
-    return f"log10 {text}" if _log(name, log_params) else text
+def _per_unit(v: NDArray[np.float64], width: float) -> NDArray[np.float64]:
+    """Histogram weights that make bar heights a density per unit of the binning scale
+    (per decade for log10 bins), whatever scale the bars are drawn on."""
+    return np.full(v.size, 1.0 / (v.size * width))
 
 
 def default_pairs(names: Sequence[str], limit: int = 3) -> list[tuple[str, str]]:
@@ -84,16 +85,19 @@ def prior_posterior_figure(
     reference: Mapping[str, float] | None = None,
     title: str | None = None,
     log_params: Collection[str] = (),
-) -> Path:
+) -> Figure:
     """Histograms (densities) of prior and posterior samples per parameter (Figure 5);
-    parameters in ``log_params`` (log-uniform priors) are drawn on a log10 scale."""
+    parameters in ``log_params`` (log-uniform priors, e.g. the moduli) are binned in log10 and
+    drawn on a log axis, their density per decade."""
     d = len(names)
     ncols = min(4, d)
     nrows = math.ceil(d / ncols)
-    fig = Figure(figsize=(3.4 * ncols, 2.7 * nrows), layout="constrained")
+    fig = Figure(figsize=(3.4 * ncols, 2.8 * nrows + 0.3), layout="constrained")
     axes = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
     for j, name in enumerate(names):
         ax = axes[j]
+        log = _log(name, log_params)
+        back = (lambda v: 10.0 ** np.asarray(v)) if log else (lambda v: np.asarray(v))
         pr = _tx(name, prior_samples[:, j], log_params)
         po = _tx(name, posterior_samples[:, j], log_params)
         if bounds is not None:
@@ -103,25 +107,39 @@ def prior_posterior_figure(
         if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
             lo, hi = float(np.min(po)) - 0.5, float(np.max(po)) + 0.5
         edges = np.linspace(lo, hi, 41)
-        ax.hist(pr, bins=edges, density=True, color="0.75", label="prior")
+        # densities on the binning scale (per unit, or per decade), drawn at the values
+        ax.hist(
+            back(pr),
+            bins=back(edges),
+            weights=_per_unit(pr, edges[1] - edges[0]),
+            color="0.75",
+            label="prior",
+        )
         p_lo, p_hi = float(po.min()), float(po.max())
         if p_hi > p_lo:
             fine = np.linspace(p_lo, p_hi, 31)
-            ax.hist(po, bins=fine, density=True, color="tab:blue", alpha=0.75, label="posterior")
+            ax.hist(
+                back(po),
+                bins=back(fine),
+                weights=_per_unit(po, fine[1] - fine[0]),
+                color="tab:blue",
+                alpha=0.75,
+                label="posterior",
+            )
         else:
-            ax.axvline(p_lo, color="tab:blue", lw=2, label="posterior")
+            ax.axvline(float(back(p_lo)), color="tab:blue", lw=2, label="posterior")
         if map_sample is not None:
-            ax.axvline(_tx(name, map_sample[j], log_params), color="tab:red", lw=1.2, label="MAP")
+            ax.axvline(map_sample[j], color="tab:red", lw=1.2, label="MAP")
         if truth and name in truth:
-            ax.axvline(
-                _tx(name, truth[name], log_params), color="tab:green", lw=1.2, ls="--", label="true"
-            )
+            ax.axvline(truth[name], color="tab:green", lw=1.2, ls="--", label="true")
         if reference and name in reference:
-            ax.axvline(
-                _tx(name, reference[name], log_params), color="k", lw=1.0, ls=":", label="bevameter"
-            )
-        ax.set_xlabel(_axis_label(name, units, log_params))
-        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+            ax.axvline(reference[name], color="k", lw=1.0, ls=":", label="bevameter")
+        ax.set_xlabel(label(name, units))
+        ax.set_ylabel("density per decade" if log else "density")
+        if log:
+            ax.set_xscale("log")
+        else:
+            ax.ticklabel_format(style="sci", scilimits=(-3, 4))
         ax.grid(alpha=0.3)
     for ax in axes[d:]:
         ax.set_visible(False)
@@ -154,7 +172,7 @@ def pairs_figure(
     max_points: int = 4000,
 ) -> Figure | None:
     """Bivariate kernel-density contours of posterior pairs (Figures 6-8); parameters in
-    ``log_params`` are drawn (and their densities estimated) on a log10 scale.
+    ``log_params`` are drawn on log axes (their densities estimated in log10).
 
     ``k_star_line`` = (k*, b_eff) draws the dashed line k_c / b_eff + k_phi = k* on the k_c-k_phi
     panel (the paper's bevameter k* at the simulations' mean b_eff); ``reference`` marks
@@ -169,12 +187,16 @@ def pairs_figure(
     fig = Figure(figsize=(max(4.6 * len(pairs), 6.4), 4.4), layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(pairs)))
     for ax, (a, b) in zip(axes, pairs, strict=True):
+        # estimated on the plotting scale (log10 for log-uniform priors), drawn at the values
+        log_a, log_b = _log(a, log_params), _log(b, log_params)
+        bx = (lambda v: 10.0 ** np.asarray(v)) if log_a else np.asarray
+        by = (lambda v: 10.0 ** np.asarray(v)) if log_b else np.asarray
         x = _tx(a, samples[:, index[a]], log_params)
         y = _tx(b, samples[:, index[b]], log_params)
         step = max(1, math.ceil(x.size / max_points))
         ax.scatter(
-            x[::step],
-            y[::step],
+            bx(x[::step]),
+            by(y[::step]),
             s=3,
             color="0.4",
             alpha=0.25,
@@ -187,43 +209,38 @@ def pairs_figure(
             try:
                 gx, gy, dens = kde_2d(x[::step], y[::step], n_grid=80)
                 levels = np.linspace(0.05, 0.95, 8) * float(dens.max())
-                ax.contour(gx, gy, dens, levels=levels, cmap="viridis", linewidths=1.0)
+                ax.contour(bx(gx), by(gy), dens, levels=levels, cmap="viridis", linewidths=1.0)
             except (np.linalg.LinAlgError, ValueError):
                 pass
+        if log_a:
+            ax.set_xscale("log")
+        if log_b:
+            ax.set_yscale("log")
         if k_star_line is not None and (a, b) == ("k_c", "k_phi"):
             k_star, b_eff = k_star_line
-            xs = np.linspace(*ax.get_xlim(), 200)
-            k_c = 10.0**xs if _log(a, log_params) else xs
+            lo, hi = ax.get_xlim()
+            k_c = np.geomspace(lo, hi, 200) if log_a else np.linspace(lo, hi, 200)
             ylim = ax.get_ylim()
-            ys = _tx(b, k_star - k_c / b_eff, log_params)
-            ax.plot(xs, ys, "--", color="0.5", label=f"k* = {k_star:.3g}")
+            with np.errstate(invalid="ignore"):
+                k_phi = k_star - k_c / b_eff
+            if log_b:
+                k_phi = np.where(k_phi > 0, k_phi, np.nan)
+            ax.plot(k_c, k_phi, "--", color="0.5", label=f"k* = {k_star:.3g}")
             ax.set_ylim(ylim)
         ref = {**(reference or {})}
         if "k_star" in ref and (a, b) == ("k_c", "k_phi"):
             ref.setdefault("k_c", 0.0)
             ref.setdefault("k_phi", ref["k_star"])
         if a in ref and b in ref:
-            ax.plot(
-                _tx(a, ref[a], log_params),
-                _tx(b, ref[b], log_params),
-                "k+",
-                ms=12,
-                mew=2,
-                label="bevameter",
-            )
+            ax.plot(ref[a], ref[b], "k+", ms=12, mew=2, label="bevameter")
         if truth and a in truth and b in truth:
-            ax.plot(
-                _tx(a, truth[a], log_params),
-                _tx(b, truth[b], log_params),
-                "x",
-                color="tab:green",
-                ms=10,
-                mew=2,
-                label="true",
-            )
-        ax.set_xlabel(_axis_label(a, units, log_params))
-        ax.set_ylabel(_axis_label(b, units, log_params))
-        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+            ax.plot(truth[a], truth[b], "x", color="tab:green", ms=10, mew=2, label="true")
+        ax.set_xlabel(label(a, units))
+        ax.set_ylabel(label(b, units))
+        if not log_a:
+            ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
+        if not log_b:
+            ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     fig.suptitle(title or "Bivariate posterior densities")
@@ -257,6 +274,8 @@ def compare_figure(
     colors = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
     for j, name in enumerate(names):
         ax = axes[j]
+        log = _log(name, log_params)
+        back = (lambda v: 10.0 ** np.asarray(v)) if log else np.asarray
         every = [_tx(name, x[:, j], log_params) for x in studies.values()]
         if pooled is not None:
             every.append(_tx(name, pooled[:, j], log_params))
@@ -265,21 +284,28 @@ def compare_figure(
         if not hi > lo:
             lo, hi = lo - 0.5, hi + 0.5
         edges = np.linspace(lo, hi, 41)
+        width = edges[1] - edges[0]
         if pooled is not None:
-            ax.hist(every[-1], bins=edges, density=True, color="0.8", label="pooled")
+            v = every[-1]
+            ax.hist(
+                back(v), bins=back(edges), weights=_per_unit(v, width), color="0.8", label="pooled"
+            )
         for k, (lab, _) in enumerate(studies.items()):
             ax.hist(
-                every[k],
-                bins=edges,
-                density=True,
+                back(every[k]),
+                bins=back(edges),
+                weights=_per_unit(every[k], width),
                 histtype="step",
                 lw=1.4,
                 color=colors[k % len(colors)],
                 label=lab,
             )
-        ax.set_xlabel(_axis_label(name, units, log_params))
-        ax.set_ylabel("density")
-        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+        ax.set_xlabel(label(name, units))
+        ax.set_ylabel("density per decade" if log else "density")
+        if log:
+            ax.set_xscale("log")
+        else:
+            ax.ticklabel_format(style="sci", scilimits=(-3, 4))
         ax.grid(alpha=0.3)
     for ax in axes[d:]:
         ax.set_visible(False)
