@@ -9,26 +9,38 @@ posterior whatever the surrogate's error (a poor surrogate only costs acceptance
 The surrogate predicts the likelihood's *responses* (a study's steady F, T, z per dataset) from
 the parameters that drive them, and pi~ is the exact likelihood of those predicted responses:
 the prediction-error sigmas, offsets, bounds and the tempering act exactly. It is a local
-thin-plate-spline radial basis function interpolant (scipy's ``RBFInterpolator`` with
-``neighbors``: each prediction solves its own small system from its nearest training points;
-rows are predicted one at a time, so a row's value does not depend on the other rows of a
-batch) fitted on the distinct starting
+thin-plate-spline radial basis function interpolant with a linear term, the formulation of
+scipy's ``RBFInterpolator`` with ``neighbors`` (each prediction solves its own small system
+from its nearest training points; :func:`local_tps`), fitted on the distinct starting
 states of the stage's chains and their stored responses: a function of the stage plan alone, so
-a resumed or redelivered batch, or any number of workers, sees the same first stage.
+a resumed or redelivered batch, or any number of workers, sees the same first stage. The
+systems of a batch of rows are built with element-wise operations and solved one by one
+(batched LAPACK), so a row's value does not depend on the other rows of the batch (scipy's
+own evaluation groups rows into matrix products whose rounding does).
 
 A likelihood opts in by implementing :class:`ResponseLikelihood`.
 """
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import RBFInterpolator
+from scipy.spatial import cKDTree
 
-__all__ = ["ResponseLikelihood", "ResponseSurrogate", "fit_surrogate", "supports_surrogate"]
+__all__ = [
+    "ResponseLikelihood",
+    "ResponseSurrogate",
+    "fit_surrogate",
+    "local_tps",
+    "supports_surrogate",
+]
+
+#: rows whose local systems are built and solved together (memory: rows x k x k floats)
+CHUNK = 256
 
 #: smallest training set (distinct states with finite responses) a surrogate is fitted on
 MIN_POINTS = 20
@@ -50,6 +62,59 @@ def supports_surrogate(f: object) -> bool:
     return isinstance(f, ResponseLikelihood)
 
 
+def _tps(r: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Thin-plate-spline kernel r^2 log r (0 at r = 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(r > 0.0, r * r * np.log(np.where(r > 0.0, r, 1.0)), 0.0)
+
+
+def local_tps(
+    points: NDArray[np.float64],
+    values: NDArray[np.float64],
+    neighbors: NDArray[np.intp],
+    U: NDArray[np.float64],
+    smoothing: float,
+) -> NDArray[np.float64]:
+    """Local thin-plate-spline interpolation with a linear term at the rows of U (m, d):
+    row i interpolates ``values`` (n, s) over its ``neighbors[i]`` (k indices into ``points``
+    (n, d)), in the formulation of scipy's ``RBFInterpolator(kernel="thin_plate_spline",
+    degree=1, neighbors=k, smoothing=...)``: polynomial coordinates shifted and scaled to the
+    neighbours' box, kernel matrix plus ``smoothing`` on its diagonal. A row whose system is
+    singular gives NaN."""
+    Y = points[neighbors]  # (m, k, d)
+    D = values[neighbors]  # (m, k, s)
+    m, k, d = Y.shape
+    lo, hi = Y.min(axis=1), Y.max(axis=1)
+    shift = (hi + lo) / 2.0
+    scale = (hi - lo) / 2.0
+    scale = np.where(scale == 0.0, 1.0, scale)
+    Yhat = (Y - shift[:, None, :]) / scale[:, None, :]
+    r2 = np.zeros((m, k, k))
+    for j in range(d):  # coordinate by coordinate: no (m, k, k, d) temporary
+        diff = Y[:, :, None, j] - Y[:, None, :, j]
+        r2 += diff * diff
+    r = np.sqrt(r2)
+    A = np.zeros((m, k + d + 1, k + d + 1))
+    A[:, :k, :k] = _tps(r) + smoothing * np.eye(k)
+    A[:, :k, k] = 1.0
+    A[:, :k, k + 1 :] = Yhat
+    A[:, k, :k] = 1.0
+    A[:, k + 1 :, :k] = np.swapaxes(Yhat, 1, 2)
+    B = np.zeros((m, k + d + 1, D.shape[2]))
+    B[:, :k] = D
+    coeffs = np.full_like(B, np.nan)
+    try:
+        coeffs = np.linalg.solve(A, B)
+    except np.linalg.LinAlgError:  # some system is singular: solve row by row
+        for i in range(m):
+            with contextlib.suppress(np.linalg.LinAlgError):
+                coeffs[i] = np.linalg.solve(A[i], B[i])
+    rx = np.sqrt(((U[:, None, :] - Y) ** 2).sum(axis=-1))  # (m, k)
+    Uhat = (U - shift) / scale
+    vec = np.concatenate([_tps(rx), np.ones((m, 1)), Uhat], axis=1)  # (m, k + 1 + d)
+    return (vec[:, :, None] * coeffs).sum(axis=1)
+
+
 @dataclass(frozen=True, eq=False)
 class ResponseSurrogate:
     """A fitted surrogate: ``predict(X)`` (m, k) responses at parameter vectors X (m, d)."""
@@ -59,16 +124,24 @@ class ResponseSurrogate:
     scale: NDArray[np.float64]
     y_center: NDArray[np.float64]
     y_scale: NDArray[np.float64]
-    interpolant: RBFInterpolator
+    points: NDArray[np.float64]
+    values: NDArray[np.float64]
+    tree: cKDTree
+    neighbors: int
+    smoothing: float
     n_points: int
 
     def predict(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Responses (m, k) at X (m, d), row by row: scipy evaluates a batch with matrix
-        products whose rounding depends on the batch, and a row's value must not."""
+        """Responses (m, k) at X (m, d); a row's value does not depend on the batch."""
         U = (np.asarray(X, dtype=float)[:, list(self.inputs)] - self.center) / self.scale
         out = np.empty((U.shape[0], self.y_center.shape[0]))
-        for i in range(U.shape[0]):
-            out[i] = self.interpolant(U[i : i + 1])[0]
+        for start in range(0, U.shape[0], CHUNK):
+            rows = U[start : start + CHUNK]
+            _, idx = self.tree.query(rows, k=self.neighbors)
+            idx = np.asarray(idx, dtype=np.intp).reshape(rows.shape[0], self.neighbors)
+            out[start : start + CHUNK] = local_tps(
+                self.points, self.values, idx, rows, self.smoothing
+            )
         return out * self.y_scale + self.y_center
 
 
@@ -101,17 +174,17 @@ def fit_surrogate(
     y_center, y_scale = R.mean(axis=0), R.std(axis=0)
     y_scale = np.where(y_scale > 0, y_scale, 1.0)
     k = int(min(neighbors, X.shape[0]))
-    try:
-        interp = RBFInterpolator(
-            (U - center) / scale,
-            (R - y_center) / y_scale,
-            neighbors=k,
-            kernel="thin_plate_spline",
-            degree=1,
-            smoothing=smoothing,
-        )
-    except (ValueError, np.linalg.LinAlgError):
-        return None
+    points = (U - center) / scale
     return ResponseSurrogate(
-        inputs, center, scale, y_center, y_scale, interp, n_points=int(X.shape[0])
+        inputs,
+        center,
+        scale,
+        y_center,
+        y_scale,
+        points=points,
+        values=(R - y_center) / y_scale,
+        tree=cKDTree(points),
+        neighbors=k,
+        smoothing=float(smoothing),
+        n_points=int(X.shape[0]),
     )

@@ -158,3 +158,33 @@ def test_curved_target_with_an_imperfect_surrogate_keeps_the_evidence() -> None:
     assert _screened(res) > res.n_model_runs  # most proposals never reached the model
     assert error > 0.1  # the surrogate is really imperfect here
     assert abs(res.log_evidence - log_z) < 0.3
+
+
+def test_surrogate_is_scipys_local_thin_plate_spline_row_by_row() -> None:
+    """The surrogate's interpolant is scipy's ``RBFInterpolator`` (thin-plate spline, linear
+    term, 50 neighbours, smoothing) to rounding, and a row's prediction is the same bytes
+    alone, in any batch or chunk (the reason it is computed here and not by scipy)."""
+    from scipy.interpolate import RBFInterpolator
+
+    from scm_core.inference.surrogate import CHUNK, fit_surrogate
+
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(400, 4))
+    R = np.column_stack([np.sin(X[:, 0]) + X[:, 1] ** 2, X[:, 2] * X[:, 3], np.exp(X[:, 0] / 3)])
+    X[5] = X[4]  # a repeated state is fitted once
+    surrogate = fit_surrogate(X, R, (0, 1, 2, 3), neighbors=50, smoothing=1e-3)
+    assert surrogate is not None and surrogate.n_points == 399
+    Q = rng.normal(size=(CHUNK + 44, 4))
+    mine = surrogate.predict(Q)
+    keep = np.sort(np.unique(X, axis=0, return_index=True)[1])
+    U = (X[keep] - surrogate.center) / surrogate.scale
+    V = (R[keep] - surrogate.y_center) / surrogate.y_scale
+    scipy_rbf = RBFInterpolator(
+        U, V, neighbors=50, kernel="thin_plate_spline", degree=1, smoothing=1e-3
+    )
+    ref = scipy_rbf((Q - surrogate.center) / surrogate.scale) * surrogate.y_scale
+    ref += surrogate.y_center
+    np.testing.assert_allclose(mine, ref, rtol=1e-10, atol=1e-10)
+    for i in (0, 17, CHUNK, CHUNK + 43):
+        assert np.array_equal(surrogate.predict(Q[i : i + 1])[0], mine[i])
+    assert np.array_equal(surrogate.predict(Q[9:]), mine[9:])  # other chunk boundaries
