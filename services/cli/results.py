@@ -208,6 +208,7 @@ def write_outputs(
         prior = case.prior()
         units = dict(prior.units or {})
         log_params = {n for n, d in prior.dists.items() if d.kind == "log_uniform"}
+        updated = bool(sections and "update" in sections)
         plot_prior_posterior(
             names,
             result.stages[0].samples,
@@ -217,9 +218,12 @@ def write_outputs(
             units=units,
             map_sample=theta,
             reference=case.reference,
-            title=f"{case.name}: {'earlier' if sections and 'update' in sections else 'prior'} "
+            title=f"{case.name}: {'earlier' if updated else 'prior'} "
             f"and posterior ({result.status})",
             log_params=log_params,
+            labels=("earlier posterior", "updated posterior")
+            if updated
+            else ("prior", "posterior"),
         )
         b_eff = _mean_b_eff(sims[0])
         k_star = case.reference.get("k_star")

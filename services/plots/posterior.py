@@ -85,8 +85,10 @@ def prior_posterior_figure(
     reference: Mapping[str, float] | None = None,
     title: str | None = None,
     log_params: Collection[str] = (),
+    labels: tuple[str, str] = ("prior", "posterior"),
 ) -> Figure:
     """Histograms (densities) of prior and posterior samples per parameter (Figure 5);
+    ``labels`` names the two (an update: the earlier and the updated posterior);
     parameters in ``log_params`` (log-uniform priors, e.g. the moduli) are binned in log10 and
     drawn on a log axis, their density per decade."""
     d = len(names)
@@ -113,7 +115,7 @@ def prior_posterior_figure(
             bins=back(edges),
             weights=_per_unit(pr, edges[1] - edges[0]),
             color="0.75",
-            label="prior",
+            label=labels[0],
         )
         p_lo, p_hi = float(po.min()), float(po.max())
         if p_hi > p_lo:
@@ -124,10 +126,10 @@ def prior_posterior_figure(
                 weights=_per_unit(po, fine[1] - fine[0]),
                 color="tab:blue",
                 alpha=0.75,
-                label="posterior",
+                label=labels[1],
             )
         else:
-            ax.axvline(float(back(p_lo)), color="tab:blue", lw=2, label="posterior")
+            ax.axvline(float(back(p_lo)), color="tab:blue", lw=2, label=labels[1])
         if map_sample is not None:
             ax.axvline(map_sample[j], color="tab:red", lw=1.2, label="MAP")
         if truth and name in truth:

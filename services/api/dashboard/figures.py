@@ -180,6 +180,7 @@ def _prior_posterior(store: Store, study: StudyRecord, stage: int, **_: Any) -> 
         reference=case.reference,
         title=f"{study.name}: {earlier} and stage {stage} (Figure 5)",
         log_params=_log_params(case),
+        labels=(earlier, "updated posterior" if study.kind == "update" else "posterior"),
     )
 
 

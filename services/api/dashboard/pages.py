@@ -433,7 +433,15 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         {"name": n, "cells": [per[s.id][n] for s in studies], "unit": per[studies[0].id][n].unit}
         for n in shared or []
     ]
-    return {"rows": rows, "best": best, "table": table, "studies": studies, "shared": shared}
+    same_data = len({tuple(sorted(s.dataset_ids)) for s in studies}) == 1
+    return {
+        "rows": rows,
+        "best": best,
+        "table": table,
+        "studies": studies,
+        "shared": shared,
+        "same_data": same_data,
+    }
 
 
 def _safe_exp(x: float) -> float:
