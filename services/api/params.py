@@ -52,3 +52,23 @@ def parse_statuses(status: str | None) -> list[str] | None:
             f"query.status: unknown status {unknown[0]!r}; one of {', '.join(STUDY_STATUSES)}",
         )
     return [s for s in items if s] or None
+
+
+def parse_id_list(items: list[str], field: str, limit: int = 1000) -> list[int]:
+    """Ids from query items, each one id or several comma-separated (spaces and empty items
+    around commas ignored), in order; 422 naming ``field`` for anything else, and "no study"
+    for an id beyond what the database can hold."""
+    ids: list[int] = []
+    for item in items:
+        parts = [p.strip(" ") for p in item.split(",")]
+        if not any(parts):
+            raise HTTPException(422, f"{field}: no study id in {item[:40]!r}")
+        for part in filter(None, parts):
+            if not (part.isascii() and part.isdigit()):
+                raise HTTPException(422, f"{field}: not a study id: {part[:40]!r}")
+            if len(part.lstrip("0")) > 19 or int(part) > INT64_MAX:  # beyond BIGINT
+                raise HTTPException(422, f"{field}: no study with id {part[:40]}")
+            ids.append(int(part))
+    if len(ids) > limit:
+        raise HTTPException(422, f"{field}: {len(ids)} studies, at most {limit}")
+    return ids

@@ -140,15 +140,6 @@ def write_stage_csv(
             w.writerow(row)
 
 
-def _mean_b_eff(sim) -> float | None:
-    if sim is None:
-        return None
-    b = sim.series["b_eff"]
-    t = sim.series["t"]
-    sel = b[(t >= t[-1] / 2) & (b > 0)]
-    return float(sel.mean()) if sel.size else None
-
-
 def write_outputs(
     out: Path,
     result: TMCMCResult,
@@ -201,7 +192,7 @@ def write_outputs(
 
     if plots:
         from services.plots.fit import plot_fit
-        from services.plots.posterior import plot_pairs, plot_prior_posterior
+        from services.plots.posterior import mean_b_eff, plot_pairs, plot_prior_posterior
 
         fig_dir = out / "figures"
         fig_dir.mkdir(exist_ok=True)
@@ -225,7 +216,7 @@ def write_outputs(
             if updated
             else ("prior", "posterior"),
         )
-        b_eff = _mean_b_eff(sims[0])
+        b_eff = mean_b_eff(sims[0])
         k_star = case.reference.get("k_star")
         plot_pairs(
             names,

@@ -53,6 +53,17 @@ def _tx(name: str, x, log_params: Collection[str]):
         return np.log10(np.asarray(x, dtype=float))
 
 
+def mean_b_eff(sim: Any) -> float | None:
+    """Mean effective contact width b_eff (m) of a simulated run (an ``SWTResult``) over its
+    second half: the width of the k* = k_c / b_eff + k_phi line (eq. (11)). None without one."""
+    if sim is None:
+        return None
+    b = sim.series["b_eff"]
+    t = sim.series["t"]
+    sel = b[(t >= t[-1] / 2) & (b > 0)]
+    return float(sel.mean()) if sel.size else None
+
+
 def _per_unit(v: NDArray[np.float64], width: float) -> NDArray[np.float64]:
     """Histogram weights that make bar heights a density per unit of the binning scale
     (per decade for log10 bins), whatever scale the bars are drawn on."""

@@ -25,7 +25,12 @@ from scm_core.inference.posterior import map_sample, pool_samples
 from scm_core.signals import SWTDataset
 from services.plots.figures import render
 from services.plots.fit import fit_figure
-from services.plots.posterior import compare_figure, pairs_figure, prior_posterior_figure
+from services.plots.posterior import (
+    compare_figure,
+    mean_b_eff,
+    pairs_figure,
+    prior_posterior_figure,
+)
 from services.plots.predict import predictions_figure
 from services.plots.sensitivity import indices_figure
 from services.plots.stages import schedule_figure
@@ -39,7 +44,6 @@ __all__ = [
     "FigureError",
     "compare",
     "dataset_signals",
-    "mean_b_eff",
     "study_figure",
     "warm_up",
 ]
@@ -96,17 +100,6 @@ def _log_params(case: CaseDefinition) -> set[str]:
 
 def _map(data: StageData) -> np.ndarray:
     return map_sample(data.samples, data.log_prior, data.log_likelihood)[0]
-
-
-def mean_b_eff(sim: Any) -> float | None:
-    """Mean effective contact width b_eff (m) over the second half of a simulated run (the
-    k* line of eq. (11) is k_c / b_eff + k_phi = k*)."""
-    if sim is None:
-        return None
-    b = sim.series["b_eff"]
-    t = sim.series["t"]
-    sel = b[(t >= t[-1] / 2) & (b > 0)]
-    return float(sel.mean()) if sel.size else None
 
 
 def _plot_datasets(store: Store, case: CaseDefinition, ids: Sequence[int]) -> list[SWTDataset]:
@@ -289,29 +282,14 @@ def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
     )
 
 
-#: figure name -> (builder, needs a finished stage, kinds it applies to, what it shows)
-STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool, tuple[str, ...], str]] = {
-    "schedule": (
-        _schedule,
-        False,
-        ("tmcmc", "update"),
-        "tempering exponent and acceptance per stage",
-    ),
-    "prior_posterior": (
-        _prior_posterior,
-        True,
-        ("tmcmc", "update"),
-        "prior and posterior histograms of each parameter with the MAP and bevameter values",
-    ),
-    "pairs": (_pairs, True, ("tmcmc", "update"), "bivariate posterior density of a parameter pair"),
-    "fit": (_fit, True, ("tmcmc", "update"), "measured and simulated F, T, z at the MAP sample"),
-    "morris": (_morris, False, ("morris",), "Morris linear and non-linear indices per response"),
-    "predictions": (
-        _predictions,
-        False,
-        ("prediction",),
-        "predicted drawbar pull, torque and sinkage against slip with 95 % bands",
-    ),
+#: figure name -> (builder, needs a finished stage, the study kinds it is drawn for)
+STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool, tuple[str, ...]]] = {
+    "schedule": (_schedule, False, ("tmcmc", "update")),
+    "prior_posterior": (_prior_posterior, True, ("tmcmc", "update")),
+    "pairs": (_pairs, True, ("tmcmc", "update")),
+    "fit": (_fit, True, ("tmcmc", "update")),
+    "morris": (_morris, False, ("morris",)),
+    "predictions": (_predictions, False, ("prediction",)),
 }
 
 
@@ -329,7 +307,7 @@ def study_figure(
     figure does not apply."""
     if name not in STUDY_FIGURES:
         raise FigureError(f"figure: unknown figure {name!r}; one of {sorted(STUDY_FIGURES)}")
-    build, needs_stage, kinds, _ = STUDY_FIGURES[name]
+    build, needs_stage, kinds = STUDY_FIGURES[name]
     if study.kind not in kinds:
         raise FigureError(f"figure {name}: not drawn for a {study.kind} study")
     stages = store.stages.list(study.id)

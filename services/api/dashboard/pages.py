@@ -30,10 +30,10 @@ from services.studies.kinds import KINDS
 
 from ..deps import StoreDep, require_read
 from ..etags import etag_of, not_modified, set_etag
-from ..params import DatasetId, StudyId, parse_statuses
+from ..params import DatasetId, StudyId, parse_id_list, parse_statuses
 from ..routes.datasets import dataset_out
 from ..views import parameter_summaries, parameter_units, stage_out, study_brief, study_progress
-from .figures import STUDY_FIGURES, FigureCache, FigureError, compare, dataset_signals, study_figure
+from .figures import FigureCache, FigureError, compare, dataset_signals, study_figure
 
 __all__ = ["dashboard_router", "mount_static"]
 
@@ -106,10 +106,6 @@ def _fmt(fmt: str) -> str:
     if fmt not in FORMATS:
         raise HTTPException(404, f"figure format must be one of {sorted(FORMATS)}, got {fmt!r}")
     return fmt
-
-
-def _figures_of(study: StudyRecord) -> list[tuple[str, str]]:
-    return [(n, spec[3]) for n, spec in STUDY_FIGURES.items() if study.kind in spec[2]]
 
 
 def dashboard_router() -> APIRouter:
@@ -238,7 +234,6 @@ def dashboard_router() -> APIRouter:
             return unchanged
         ctx: dict[str, Any] = {
             "study": study_brief(study),
-            "figures": _figures_of(study),
             "stage": finished,
             "stages_done": [] if finished is None else list(range(finished + 1)),
             "summary": None,
@@ -386,15 +381,8 @@ def _row(store: Store, study: StudyRecord) -> dict[str, Any]:
 
 
 def _parse_ids(ids: str | None) -> list[int]:
-    out: list[int] = []
-    for part in (ids or "").replace(" ", ",").split(","):
-        if not part:
-            continue
-        if not part.isdigit() or int(part) > INT64_MAX:
-            raise HTTPException(422, f"ids: {part!r} is not a study id")
-        if int(part) not in out:
-            out.append(int(part))
-    return out
+    """The distinct study ids of the comparison's ``ids`` (comma-separated), in order."""
+    return list(dict.fromkeys(parse_id_list([ids], "ids"))) if ids else []
 
 
 def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:

@@ -16,7 +16,8 @@ from scm_core.inference.posterior import pool_samples
 from services.store import NotFoundError, Store
 
 from ..deps import StoreDep, require_read
-from ..schemas import COUNT_MAX, ID_MAX, SEED_MAX, PooledOut, PooledRequest, PooledStudy
+from ..params import parse_id_list
+from ..schemas import COUNT_MAX, SEED_MAX, PooledOut, PooledRequest, PooledStudy
 from ..views import num, parameter_names, parameter_summaries, parameter_units, resolve_stage
 from . import errors
 
@@ -127,17 +128,5 @@ def pooled_get(
     n_per_study: Annotated[int | None, Query(ge=2, le=COUNT_MAX)] = None,
     seed: Annotated[int, Query(ge=0, le=SEED_MAX)] = 0,
 ) -> PooledOut:
-    ids: list[int] = []
-    for item in study_ids:  # what IDS_PATTERN admits
-        parts = [p.strip(" ") for p in item.split(",")]
-        if not any(parts):
-            raise _unprocessable(f"query.study_ids: no study id in {item[:40]!r}")
-        for part in filter(None, parts):
-            if not (part.isascii() and part.isdigit()):
-                raise _unprocessable(f"query.study_ids: not a study id: {part[:40]!r}")
-            if len(part.lstrip("0")) > 19 or int(part) > ID_MAX:  # beyond BIGINT: no study
-                raise _unprocessable(f"query.study_ids: no study with id {part[:40]}")
-            ids.append(int(part))
-    if len(ids) > 1000:
-        raise _unprocessable(f"query.study_ids: {len(ids)} studies, at most 1000")
+    ids = parse_id_list(study_ids, "query.study_ids")
     return pooled_summary(store, PooledRequest(study_ids=ids, n_per_study=n_per_study, seed=seed))
