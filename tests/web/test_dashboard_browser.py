@@ -39,6 +39,11 @@ ARGS = [
 SIZES = {"1280x800": (1280, 800), "1920x1080": (1920, 1080)}
 TIMEOUT = 300.0
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+#: makes the page believe its tab is hidden (true) or visible (false)
+HIDE = (
+    "() => { Object.defineProperty(document, 'hidden', {configurable: true, get: () => %s});"
+    " document.dispatchEvent(new Event('visibilitychange')); }"
+)
 RESULT = "document.querySelector('#upload-form .write-result').textContent"
 
 
@@ -480,3 +485,42 @@ def test_reads_need_the_token_when_the_server_says_so(browser, tmp_path) -> None
             w.clean()
         finally:
             w.close()
+
+
+def test_polling_stops_while_hidden_and_once_the_study_has_ended(server, browser) -> None:
+    """A running study's page polls its live fragments (with If-None-Match) while visible,
+    sends nothing while the tab is hidden, and stops for good once the study has ended."""
+    base, (d1, d2) = server["base"], server["datasets"]
+    long = tiny_case(seed=12, params=("phi", "n", "J"), n_samples=2000)
+    sid = _submit(base, {"case": long, "dataset_ids": [d1, d2], "name": "polled"})
+    w = Watched(browser)
+    polls: list[tuple[str, str | None, int]] = []
+    w.page.on(
+        "response",
+        lambda r: (
+            polls.append((r.url, r.request.headers.get("if-none-match"), r.status))
+            if "/ui/f/" in r.url
+            else None
+        ),
+    )
+    try:
+        w.goto(f"{base}/ui/studies/{sid}")
+        polls.clear()
+        w.page.wait_for_timeout(5000)
+        assert len(polls) >= 2, polls  # every 2 s
+        assert all(tag for _, tag, _ in polls)  # conditional: 304 while nothing changed
+        w.page.evaluate(HIDE % "true")
+        w.page.wait_for_timeout(500)
+        polls.clear()
+        w.page.wait_for_timeout(5000)
+        assert polls == []  # hidden: no request
+        assert httpx.post(f"{base}/studies/{sid}/cancel", headers=AUTH).status_code == 200
+        w.page.evaluate(HIDE % "false")
+        w.page.wait_for_selector("#study-status:has-text('cancelled')", timeout=15_000)
+        w.page.wait_for_timeout(1000)
+        polls.clear()
+        w.page.wait_for_timeout(5000)
+        assert polls == []  # ended: the fragments have no trigger left
+        w.clean()
+    finally:
+        w.close()

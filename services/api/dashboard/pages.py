@@ -228,14 +228,17 @@ def dashboard_router() -> APIRouter:
     @reads.get("/ui/f/studies/{study_id}/results")
     def study_results_fragment(request: Request, study_id: StudyId, store: StoreDep) -> Response:
         study = store.studies.get(study_id)
-        finished = _finished_stage(study)
-        tag = etag_of("ui-results", study_id, study.status, finished)
+        # the results change when a stage finishes (the current stage moves on) or the study
+        # ends: both are on the study's row
+        tag = etag_of("ui-results", study_id, study.status, study.current_stage)
         if (unchanged := not_modified(request, tag)) is not None:
             return unchanged
+        done = [s.stage_index for s in store.stages.list(study_id) if s.status == "done"]
+        finished = done[-1] if done else None
         ctx: dict[str, Any] = {
             "study": study_brief(study),
             "stage": finished,
-            "stages_done": [] if finished is None else list(range(finished + 1)),
+            "stages_done": done,
             "summary": None,
             "pairs": [],
             "names": [],
@@ -357,16 +360,6 @@ def dashboard_router() -> APIRouter:
     router.include_router(pages)
     router.include_router(reads)
     return router
-
-
-def _finished_stage(study: StudyRecord) -> int | None:
-    """The last finished stage, from the study's row alone (a running study's current stage
-    is not finished; an ended study's is)."""
-    if study.current_stage is None:
-        return None
-    if study.status in ACTIVE:
-        return study.current_stage - 1 if study.current_stage > 0 else None
-    return study.current_stage
 
 
 def _row(store: Store, study: StudyRecord) -> dict[str, Any]:
