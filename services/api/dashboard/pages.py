@@ -22,6 +22,7 @@ from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
+from scm_core.calibration import PRESETS
 from services.limits import INT64_MAX
 from services.plots.figures import FORMATS
 from services.plots.posterior import default_pairs
@@ -304,8 +305,6 @@ def dashboard_router() -> APIRouter:
 
     @reads.get("/ui/f/presets")
     def new_study_fragment(request: Request, store: StoreDep) -> Response:
-        from scm_core.calibration import PRESETS
-
         datasets = store.datasets.list(limit=200).items
         return fragment(
             request, "_new_study.html", None, presets=sorted(PRESETS), datasets=datasets
