@@ -64,6 +64,38 @@ def mean_b_eff(sim: Any) -> float | None:
     return float(sel.mean()) if sel.size else None
 
 
+def _from_plot_scale(log: bool) -> Any:
+    """The inverse of :func:`_tx` for one parameter: 10**v on a log10 scale, else v."""
+    return (lambda v: 10.0 ** np.asarray(v)) if log else np.asarray
+
+
+def _density_grid(d: int) -> tuple[Figure, NDArray[Any]]:
+    """A figure with one density panel per parameter, four to a row."""
+    ncols = min(4, d)
+    nrows = math.ceil(d / ncols)
+    fig = Figure(figsize=(3.4 * ncols, 2.8 * nrows + 0.4), layout="constrained")
+    return fig, np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
+
+
+def _density_axis(ax: Any, name: str, units: Mapping[str, str] | None, log: bool) -> None:
+    """Labels and scale of a density panel: a log axis (density per decade) for a
+    log-scale parameter, else scientific tick labels."""
+    ax.set_xlabel(label(name, units))
+    ax.set_ylabel("density per decade" if log else "density")
+    if log:
+        ax.set_xscale("log")
+    else:
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+    ax.grid(alpha=0.3)
+
+
+def _close_grid(axes: NDArray[Any], d: int) -> None:
+    """Hide the panels beyond the ``d`` parameters; the legend on the first."""
+    for ax in axes[d:]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+
+
 def _per_unit(v: NDArray[np.float64], width: float) -> NDArray[np.float64]:
     """Histogram weights that make bar heights a density per unit of the binning scale
     (per decade for log10 bins), whatever scale the bars are drawn on."""
@@ -103,14 +135,11 @@ def prior_posterior_figure(
     parameters in ``log_params`` (log-uniform priors, e.g. the moduli) are binned in log10 and
     drawn on a log axis, their density per decade."""
     d = len(names)
-    ncols = min(4, d)
-    nrows = math.ceil(d / ncols)
-    fig = Figure(figsize=(3.4 * ncols, 2.8 * nrows + 0.3), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
+    fig, axes = _density_grid(d)
     for j, name in enumerate(names):
         ax = axes[j]
         log = _log(name, log_params)
-        back = (lambda v: 10.0 ** np.asarray(v)) if log else (lambda v: np.asarray(v))
+        back = _from_plot_scale(log)
         pr = _tx(name, prior_samples[:, j], log_params)
         po = _tx(name, posterior_samples[:, j], log_params)
         if bounds is not None:
@@ -147,16 +176,8 @@ def prior_posterior_figure(
             ax.axvline(truth[name], color="tab:green", lw=1.2, ls="--", label="true")
         if reference and name in reference:
             ax.axvline(reference[name], color="k", lw=1.0, ls=":", label="bevameter")
-        ax.set_xlabel(label(name, units))
-        ax.set_ylabel("density per decade" if log else "density")
-        if log:
-            ax.set_xscale("log")
-        else:
-            ax.ticklabel_format(style="sci", scilimits=(-3, 4))
-        ax.grid(alpha=0.3)
-    for ax in axes[d:]:
-        ax.set_visible(False)
-    axes[0].legend(fontsize=7)
+        _density_axis(ax, name, units, log)
+    _close_grid(axes, d)
     fig.suptitle(title or "Prior and posterior densities")
     return fig
 
@@ -202,8 +223,7 @@ def pairs_figure(
     for ax, (a, b) in zip(axes, pairs, strict=True):
         # estimated on the plotting scale (log10 for log-uniform priors), drawn at the values
         log_a, log_b = _log(a, log_params), _log(b, log_params)
-        bx = (lambda v: 10.0 ** np.asarray(v)) if log_a else np.asarray
-        by = (lambda v: 10.0 ** np.asarray(v)) if log_b else np.asarray
+        bx, by = _from_plot_scale(log_a), _from_plot_scale(log_b)
         x = _tx(a, samples[:, index[a]], log_params)
         y = _tx(b, samples[:, index[b]], log_params)
         step = max(1, math.ceil(x.size / max_points))
@@ -280,15 +300,12 @@ def compare_figure(
     the pooled sample filled (the paper's Figure 9); ``studies`` maps a label to samples
     (n, len(names)) in the order of ``names``."""
     d = len(names)
-    ncols = min(4, d)
-    nrows = math.ceil(d / ncols)
-    fig = Figure(figsize=(3.4 * ncols, 2.8 * nrows + 0.4), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(nrows, ncols)).ravel()
+    fig, axes = _density_grid(d)
     colors = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
     for j, name in enumerate(names):
         ax = axes[j]
         log = _log(name, log_params)
-        back = (lambda v: 10.0 ** np.asarray(v)) if log else np.asarray
+        back = _from_plot_scale(log)
         every = [_tx(name, x[:, j], log_params) for x in studies.values()]
         if pooled is not None:
             every.append(_tx(name, pooled[:, j], log_params))
@@ -313,15 +330,7 @@ def compare_figure(
                 color=colors[k % len(colors)],
                 label=lab,
             )
-        ax.set_xlabel(label(name, units))
-        ax.set_ylabel("density per decade" if log else "density")
-        if log:
-            ax.set_xscale("log")
-        else:
-            ax.ticklabel_format(style="sci", scilimits=(-3, 4))
-        ax.grid(alpha=0.3)
-    for ax in axes[d:]:
-        ax.set_visible(False)
-    axes[0].legend(fontsize=7)
+        _density_axis(ax, name, units, log)
+    _close_grid(axes, d)
     fig.suptitle(title or "Posterior densities of the compared studies and their pool")
     return fig
