@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 
 import numpy as np
 import pytest
@@ -21,6 +20,7 @@ from test_api_support import (
     row_counts,
     tiny_case,
     upload_file,
+    wait_ended,
 )
 
 from scm_core.calibration import CaseDefinition, DatasetTerms
@@ -36,13 +36,7 @@ CONDITIONS = [
 
 
 def _wait(client, study_id: int) -> dict:
-    deadline = time.monotonic() + TIMEOUT
-    while time.monotonic() < deadline:
-        body = client.get(f"/studies/{study_id}").json()
-        if body["status"] not in ("queued", "running"):
-            return body
-        time.sleep(0.3)
-    pytest.fail(f"study {study_id} did not finish")
+    return wait_ended(client.get, f"/studies/{study_id}", TIMEOUT)
 
 
 @pytest.fixture(scope="module")

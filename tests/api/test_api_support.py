@@ -221,6 +221,18 @@ def run_inline(url: str, study_id: int, timeout: float = 300.0) -> str:
         store.close()
 
 
+def wait_ended(get: Any, path: str, timeout: float = 300.0, every: float = 0.3) -> dict:
+    """Poll ``get(path)`` (a TestClient's or an httpx client's ``get``) until the study there
+    is no longer queued or running; its JSON. Fails the test after ``timeout`` seconds."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        body = get(path).json()
+        if body["status"] not in ("queued", "running"):
+            return body
+        time.sleep(every)
+    pytest.fail(f"{path} did not finish within {timeout:g} s")
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

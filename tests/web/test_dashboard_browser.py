@@ -16,14 +16,13 @@ import io
 import json
 import os
 import shutil
-import time
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
 import pytest
-from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, summary_doc, tiny_case
+from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, summary_doc, tiny_case, wait_ended
 
 ROOT = Path(__file__).resolve().parents[2]
 SHOTS = ROOT / "test-output" / "dashboard"
@@ -48,13 +47,7 @@ RESULT = "document.querySelector('#upload-form .write-result').textContent"
 
 
 def _wait(base: str, study_id: int, path: str = "/studies") -> dict:
-    deadline = time.monotonic() + TIMEOUT
-    while time.monotonic() < deadline:
-        body = httpx.get(f"{base}{path}/{study_id}").json()
-        if body["status"] not in ("queued", "running"):
-            return body
-        time.sleep(0.5)
-    pytest.fail(f"study {study_id} did not finish within {TIMEOUT} s")
+    return wait_ended(lambda p: httpx.get(base + p), f"{path}/{study_id}", TIMEOUT, 0.5)
 
 
 def _upload(base: str, path: Path) -> int:
