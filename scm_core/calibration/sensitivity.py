@@ -288,6 +288,22 @@ class SensitivityDesign:
     def n_points(self) -> int:
         return int(self.design.points.shape[0])
 
+    def factor_box(self) -> dict[str, Any]:
+        """The factors as a prior document (``JointPrior.to_dict()`` form: names, uniform or
+        log-uniform bounds, units): the columns of the design points."""
+        return {
+            "parameters": [
+                {
+                    "name": n,
+                    "dist": "log_uniform" if self.log_scale[i] else "uniform",
+                    "lower": float(self.bounds[i, 0]),
+                    "upper": float(self.bounds[i, 1]),
+                    "unit": FACTOR_UNITS.get(n),
+                }
+                for i, n in enumerate(self.names)
+            ]
+        }
+
 
 def sensitivity_design(
     case: CaseDefinition | None = None,

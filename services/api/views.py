@@ -18,7 +18,7 @@ from scm_core.calibration import RESPONSES
 from scm_core.inference.posterior import credible_interval, summarize
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 from services.store.records import Page
-from services.studies.kinds import kind_of
+from services.studies.kinds import kind_of, study_terms
 
 from .schemas import (
     FactorOut,
@@ -78,11 +78,12 @@ def num_list(a: NDArray[np.float64]) -> list:
 
 
 def parameter_names(study: StudyRecord) -> list[str]:
-    return [str(p["name"]) for p in study.priors.get("parameters", [])]
+    """The columns of the study's samples (derived from its case by its kind)."""
+    return study_terms(study).parameter_names
 
 
 def parameter_units(study: StudyRecord) -> dict[str, str | None]:
-    return {str(p["name"]): p.get("unit") for p in study.priors.get("parameters", [])}
+    return study_terms(study).parameter_units
 
 
 def response_names(store: Store, study: StudyRecord) -> list[str]:
@@ -122,12 +123,13 @@ def study_brief(study: StudyRecord) -> StudyBrief:
 
 
 def study_out(store: Store, study: StudyRecord) -> StudyOut:
+    terms = study_terms(study)
     return StudyOut(
         **study_brief(study).model_dump(),
         log_evidence_var=num(study.log_evidence_var),
         case=study.case,
-        priors=study.priors,
-        sampler=study.sampler,
+        priors=terms.priors,
+        sampler=terms.sampler,
         payload=dict(study.payload or {}),
         result=study.result,
         progress=study_progress(store, study),
@@ -136,7 +138,8 @@ def study_out(store: Store, study: StudyRecord) -> StudyOut:
 
 def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
     """A Morris study (kind "morris") as ``GET /sensitivity/{id}`` shows it."""
-    cfg = study.sampler
+    terms = study_terms(study)
+    cfg = terms.sampler
     return SensitivityOut(
         id=study.id,
         name=study.name,
@@ -155,7 +158,7 @@ def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
                 log_scale=p["dist"] == "log_uniform",
                 unit=p.get("unit"),
             )
-            for p in study.priors["parameters"]
+            for p in terms.priors["parameters"]
         ],
         n_points=study.n_samples,
         batch_size=study.batch_size,

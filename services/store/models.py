@@ -109,15 +109,16 @@ class DatasetUpload(Base):
 
 
 class Study(Base):
-    """A study: case, priors, datasets, sampler settings, seed and progress.
+    """A study: its case document, datasets, seed and progress.
 
     ``kind`` names the plug-in that runs it (``services.studies.kinds``): "tmcmc" a
     calibration (stages of TMCMC chains), "morris" a sensitivity screening (one stage whose
-    "chains" are the Morris design points; ``priors`` holds the factor box, ``sampler`` the
-    design settings and ``result`` the Morris statistics) ... ``payload``: the kind's own
-    settings (JSON), ``result``: what the kind stores when the study ends. ``version`` goes
-    up with every change of the study's state (each event appended for it, a stage starting):
-    the API's ETags.
+    "chains" are the Morris design points) ... ``case_spec`` is the single source of what the
+    study is (priors, sampler and simulator settings are derived from it by the kind when
+    read); ``payload``: the kind's own settings (JSON: the study an update starts from, a
+    screening's design), ``result``: what the kind stores when the study ends. ``version``
+    goes up with every change of the study's state (each event appended for it, a stage
+    starting): the API's ETags.
     """
 
     __tablename__ = "studies"
@@ -132,9 +133,6 @@ class Study(Base):
     name: Mapped[str] = mapped_column(sa.String(200))
     status: Mapped[str] = mapped_column(sa.String(16), default="queued")
     case_spec: Mapped[dict[str, Any]] = mapped_column(JSONType)
-    priors: Mapped[dict[str, Any]] = mapped_column(JSONType)
-    sampler: Mapped[dict[str, Any]] = mapped_column(JSONType)
-    simulator: Mapped[dict[str, Any]] = mapped_column(JSONType)
     seed: Mapped[int] = mapped_column(sa.BigInteger)
     n_samples: Mapped[int] = mapped_column(sa.Integer)
     batch_size: Mapped[int | None] = mapped_column(sa.Integer)

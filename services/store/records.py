@@ -78,22 +78,19 @@ class DatasetRecord:
 class StudySpec:
     """What a new study is made of.
 
-    priors: ``JointPrior.to_dict()``; sampler: ``TMCMCSettings.to_dict()`` (plus whatever the
-    orchestrator needs); case and simulator: free JSON. ``dataset_ids`` in likelihood order.
-    seed: 0 <= seed < 2**63. batch_size: chains per work batch (None: orchestrator decides).
-    kind: the plug-in that runs it ("tmcmc" a calibration, "morris" a sensitivity study:
-    n_samples design points, priors the factor box, sampler the design settings ...; see
+    case: the study's case document (free JSON to the store: the single source its kind
+    derives priors and sampler settings from); ``dataset_ids`` in likelihood order. seed:
+    0 <= seed < 2**63. n_samples: items of a stage (samples, design points, draws).
+    batch_size: items per work batch (None: the orchestrator decides). kind: the plug-in that
+    runs it ("tmcmc" a calibration, "morris" a sensitivity study ...; see
     ``services.studies.kinds``). payload: the kind's own settings (JSON).
     """
 
     name: str
     case: Mapping[str, Any]
-    priors: Mapping[str, Any]
     dataset_ids: Sequence[int]
     seed: int
     n_samples: int
-    sampler: Mapping[str, Any] = field(default_factory=dict)
-    simulator: Mapping[str, Any] = field(default_factory=dict)
     batch_size: int | None = None
     kind: str = "tmcmc"
     payload: Mapping[str, Any] | None = None
@@ -109,9 +106,6 @@ class StudyRecord:
     name: str
     status: str
     case: dict[str, Any]
-    priors: dict[str, Any]
-    sampler: dict[str, Any]
-    simulator: dict[str, Any]
     seed: int
     n_samples: int
     batch_size: int | None

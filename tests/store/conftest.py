@@ -239,13 +239,16 @@ class Toy:
     def spec(self, dataset_ids=(), name: str = "toy", seed: int | None = None) -> StudySpec:
         return StudySpec(
             name=name,
-            case={"case": "toy", "responses": ["F", "T"]},
-            priors=self.prior.to_dict(),
+            case={
+                "case": "toy",
+                "responses": ["F", "T"],
+                "priors": self.prior.to_dict(),
+                "sampler": self.settings.to_dict(),
+                "simulator": {"duration": 25.0},
+            },
             dataset_ids=list(dataset_ids),
             seed=self.seed if seed is None else seed,
             n_samples=self.n_samples,
-            sampler=self.settings.to_dict(),
-            simulator={"duration": 25.0},
             batch_size=self.batch_size,
         )
 

@@ -3,7 +3,9 @@ models, the store refuses a database at the wrong revision, and the ``scm-calib 
 
 from __future__ import annotations
 
+import json
 import re
+from pathlib import Path
 
 import pytest
 import sqlalchemy as sa
@@ -11,11 +13,15 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from click.testing import CliRunner
 
+from scm_core.calibration import load_case, sensitivity_design
 from services.cli.main import cli
 from services.store import SchemaVersionError, Store, current_revision, downgrade, upgrade
 from services.store.engine import make_engine
 from services.store.migrate import head_revision, migrations_dir
 from services.store.models import Base
+from services.studies.kinds import study_terms
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 TABLES = {
     "datasets",
@@ -41,7 +47,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0005"
+    assert head_revision() == "0006"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -81,14 +87,14 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0005") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0006") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0005"
+    assert info.value.current == "ffff" and info.value.head == "0006"
 
     engine = make_engine(empty_url)
     try:
         with engine.begin() as conn:
-            conn.execute(sa.text("UPDATE alembic_version SET version_num = '0005'"))
+            conn.execute(sa.text(f"UPDATE alembic_version SET version_num = '{head_revision()}'"))
     finally:
         engine.dispose()
     with Store.open(empty_url) as store:
@@ -103,13 +109,17 @@ def test_cli_db_commands(empty_url: str) -> None:
 
     res = runner.invoke(cli, ["db", "upgrade", "--url", empty_url])
     assert res.exit_code == 0, res.output
-    assert "base -> 0005" in res.output
+    assert f"base -> {head_revision()}" in res.output
 
     res = runner.invoke(cli, ["db", "current", "--url", empty_url])
-    assert res.exit_code == 0 and "revision 0005" in res.output and "up to date" in res.output
+    assert (
+        res.exit_code == 0
+        and f"revision {head_revision()}" in res.output
+        and "up to date" in res.output
+    )
 
     res = runner.invoke(cli, ["db", "downgrade", "base", "--url", empty_url])
-    assert res.exit_code == 0 and "0005 -> base" in res.output
+    assert res.exit_code == 0 and f"{head_revision()} -> base" in res.output
     assert current_revision(empty_url) is None
 
 
@@ -122,7 +132,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0005"
+        assert current_revision(url) == "0006"
     finally:
         get_settings.cache_clear()
 
@@ -183,7 +193,7 @@ def test_0004_accepts_any_registered_kind_and_refuses_to_downgrade_over_new_ones
     """From 0004 the kind is the registry's business (no CHECK): a study of a new kind can be
     stored with its payload; going back to 0003 refuses while it exists, then works once it is
     deleted, and 0003's CHECK is back."""
-    upgrade(empty_url)
+    upgrade(empty_url, "0005")
     engine = make_engine(empty_url)
     insert = sa.text(
         "INSERT INTO studies (name, kind, status, case_spec, priors, sampler, simulator, seed, "
@@ -241,3 +251,65 @@ def test_0005_gives_existing_studies_version_0_and_events_raise_it(empty_url: st
         assert "version" not in cols and "payload" in cols
     finally:
         engine.dispose()
+
+
+def test_0006_derives_the_study_documents_from_the_case_and_back(empty_url: str) -> None:
+    """0006 drops the copies of the case (priors, sampler, simulator) and moves a screening's
+    design settings into its payload: what the API shows of both studies is what 0005 had
+    stored; the downgrade puts the same documents back."""
+    case = load_case(EXAMPLES / "quick.toml")
+    design = sensitivity_design(case, 3, 4, 9, True, None)
+    settings = {
+        "method": "morris",
+        "r": 3,
+        "levels": 4,
+        "joint_k": True,
+        "bounds": {p["name"]: [p["lower"], p["upper"]] for p in design.factor_box()["parameters"]},
+    }
+    stored = {
+        "tmcmc": (case.prior().to_dict(), case.tmcmc_settings().to_dict(), None),
+        "morris": (design.factor_box(), settings, None),
+    }
+    upgrade(empty_url, "0005")
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO studies (name, kind, status, case_spec, priors, sampler, simulator, seed, "
+        "n_samples, model_runs, failed_runs, created_at, updated_at, payload) VALUES "
+        "(:k, :k, 'queued', :c, :pr, :sa, :si, 9, 21, 0, 0, :t, :t, :p)"
+    )
+    try:
+        with engine.begin() as conn:
+            for kind, (priors, sampler, payload) in stored.items():
+                conn.execute(
+                    insert,
+                    {
+                        "k": kind,
+                        "c": json.dumps(case.to_dict()),
+                        "pr": json.dumps(priors),
+                        "sa": json.dumps(sampler),
+                        "si": json.dumps(dict(case.simulator)),
+                        "t": "2025-01-01 00:00:00",
+                        "p": payload,
+                    },
+                )
+        upgrade(empty_url)
+        with Store.open(empty_url) as store:
+            for study in store.studies.list().items:
+                priors, sampler, _ = stored[study.kind]
+                terms = study_terms(study)
+                assert (terms.priors, terms.sampler) == (priors, sampler)
+                assert terms.simulator == dict(case.simulator)
+                assert study.payload == ({"design": settings} if study.kind == "morris" else None)
+        downgrade(empty_url, "0005")
+        with engine.connect() as conn:
+            rows = conn.execute(sa.text("SELECT kind, priors, sampler, payload FROM studies"))
+            for kind, priors, sampler, payload in rows:
+                assert (_json(priors), _json(sampler)) == stored[kind][:2]
+                assert _json(payload) is None
+    finally:
+        engine.dispose()
+
+
+def _json(value):
+    """A JSON column's value as read by a text query (a string on SQLite, parsed on PG)."""
+    return json.loads(value) if isinstance(value, str) else value

@@ -82,8 +82,8 @@ def test_create_and_list_studies(store: Store, toy, make_dataset) -> None:
     d2, _ = store.datasets.add(*make_dataset(1.0))
     study = store.studies.create(toy.spec(dataset_ids=[d2.id, d1.id], name="case 1"))
     assert study.status == "queued" and study.dataset_ids == (d2.id, d1.id)
-    assert study.priors == toy.prior.to_dict() and study.seed == toy.seed
-    assert study.sampler == toy.settings.to_dict() and study.model_runs == 0
+    assert study.case["priors"] == toy.prior.to_dict() and study.seed == toy.seed
+    assert study.case["sampler"] == toy.settings.to_dict() and study.model_runs == 0
     got = store.studies.get(study.id)
     assert got == study
 
@@ -178,9 +178,17 @@ def test_timestamps_are_aware_utc_from_the_clock(store: Store, toy, clock) -> No
 
 def test_json_documents_keep_key_order(store: Store, toy) -> None:
     spec = StudySpec(
-        **{**toy.spec().__dict__, "case": {"zeta": 1, "alpha": {"y": 2, "b": 3}, "mid": [3, 1]}}
+        **{
+            **toy.spec().__dict__,
+            "case": {
+                "zeta": 1,
+                "alpha": {"y": 2, "b": 3},
+                "mid": [3, 1],
+                "priors": toy.prior.to_dict(),
+            },
+        }
     )
     study = store.studies.get(store.studies.create(spec).id)
-    assert list(study.case) == ["zeta", "alpha", "mid"]  # the same on SQLite and PostgreSQL
+    assert list(study.case) == ["zeta", "alpha", "mid", "priors"]  # the same on SQLite and PG
     assert list(study.case["alpha"]) == ["y", "b"]
-    assert [p["name"] for p in study.priors["parameters"]] == ["a", "b"]
+    assert [p["name"] for p in study.case["priors"]["parameters"]] == ["a", "b"]

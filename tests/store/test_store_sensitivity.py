@@ -55,8 +55,8 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     )
     assert spec.kind == "morris" and spec.n_samples == 3 * 7
     # phi is calibrated in the case: its prior bounds are the factor's; the rest are defaults
-    assert spec.sampler["bounds"]["phi"] == [20.0, 35.0]
-    assert spec.sampler["bounds"]["k_star"] == [1e6, 1e8]
+    assert spec.payload["design"]["bounds"]["phi"] == [20.0, 35.0]
+    assert spec.payload["design"]["bounds"]["k_star"] == [1e6, 1e8]
     study = store.studies.create(spec)
     start_study(store, study.id, None)
     cache = ContextCache()

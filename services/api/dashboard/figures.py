@@ -37,6 +37,7 @@ from services.plots.stages import schedule_figure
 from services.plots.swt import measured_figure
 from services.store import StageRecord, Store, StudyRecord
 from services.studies.datasets import load_datasets, stored_log
+from services.studies.kinds import study_terms
 
 __all__ = [
     "STUDY_FIGURES",
@@ -88,9 +89,7 @@ def _stage_data(store: Store, study: StudyRecord, stage: int) -> StageData:
     a = store.samples.arrays(study.id, stage)
     if len(a) < 2:
         raise FigureError(f"stage {stage} of study {study.id} has fewer than 2 samples")
-    names = [p["name"] for p in study.priors.get("parameters", [])] or [
-        f"x{k}" for k in range(a.samples.shape[1])
-    ]
+    names = study_terms(study).parameter_names or [f"x{k}" for k in range(a.samples.shape[1])]
     return StageData(names, a.samples, a.log_prior, a.log_likelihood)
 
 

@@ -33,7 +33,14 @@ from ..deps import StoreDep, require_read
 from ..etags import etag_of, not_modified, set_etag
 from ..params import DatasetId, StudyId, parse_id_list, parse_statuses
 from ..routes.datasets import dataset_out
-from ..views import parameter_summaries, parameter_units, stage_out, study_brief, study_progress
+from ..views import (
+    parameter_names,
+    parameter_summaries,
+    parameter_units,
+    stage_out,
+    study_brief,
+    study_progress,
+)
 from .figures import FigureCache, FigureError, compare, dataset_signals, study_figure
 
 __all__ = ["dashboard_router", "mount_static"]
@@ -248,7 +255,7 @@ def dashboard_router() -> APIRouter:
         if study.kind in ("tmcmc", "update") and finished is not None:
             a = store.samples.arrays(study_id, finished)
             if len(a) >= 2:
-                names = [p["name"] for p in study.priors.get("parameters", [])]
+                names = parameter_names(study)
                 params, _, _ = parameter_summaries(
                     a.samples, names, parameter_units(study), a.log_prior, a.log_likelihood
                 )
@@ -405,7 +412,7 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
     for s in studies:
         done = [st.stage_index for st in store.stages.list(s.id) if st.status == "done"]
         a = store.samples.arrays(s.id, done[-1])
-        names = [p["name"] for p in s.priors.get("parameters", [])]
+        names = parameter_names(s)
         params, _, _ = parameter_summaries(a.samples, names, parameter_units(s))
         per[s.id] = {p.name: p for p in params}
         shared = names if shared is None else [n for n in shared if n in names]

@@ -4,7 +4,9 @@ A kind turns a request into a :class:`~services.store.StudySpec` (validation, in
 builds the computation of a stored study (:meth:`StudyKind.build`), computes a work batch
 (:meth:`StudyRun.compute`, pure: same lease, same bytes), reduces a finished stage
 (:meth:`StudyRun.reducer`) and says how many model runs each batch of a stage plans
-(:meth:`StudyKind.planned_runs`, for progress). The store sees only blobs and
+(:meth:`StudyKind.planned_runs`, for progress) and derives what a stored study is from its
+case document and payload (:meth:`StudyKind.terms`: the case is the single source). The
+store sees only blobs and
 :class:`~services.store.ReducedStage` records; the worker sees only this protocol.
 
 A kind may bring its own collection of the HTTP API (:class:`KindHttp`: a path, a request
@@ -15,19 +17,30 @@ so a new kind needs its module and a line in the registry, nothing in the API.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import json
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel
 
+from scm_core.calibration import CaseDefinition
 from services.config import Settings
 from services.store import BatchLease, BatchOutput, Reducer, Store, StudyRecord, StudySpec
 from services.store.codec import encode
 
-__all__ = ["KindHttp", "ModelFunction", "StudyKind", "StudyRun", "batch_output"]
+__all__ = [
+    "KindHttp",
+    "ModelFunction",
+    "StudyKind",
+    "StudyRun",
+    "StudyTerms",
+    "batch_output",
+    "case_terms",
+]
 
 #: points (m, d) -> what the kind's batches need per point (log-likelihoods, responses ...)
 ModelFunction = Callable[[NDArray[np.float64]], Any]
@@ -68,6 +81,39 @@ class KindHttp:
     description: str
 
 
+@dataclass(frozen=True)
+class StudyTerms:
+    """What a stored study is, derived from its case document and payload when read.
+
+    ``priors``: the columns of its samples as a prior document (``JointPrior.to_dict()``
+    form; a screening's factor box); ``sampler``: its sampler or design settings;
+    ``simulator``: the case's simulator settings."""
+
+    priors: dict[str, Any]
+    sampler: dict[str, Any]
+    simulator: dict[str, Any]
+
+    @property
+    def parameter_names(self) -> list[str]:
+        return [str(p["name"]) for p in self.priors.get("parameters", [])]
+
+    @property
+    def parameter_units(self) -> dict[str, str | None]:
+        return {str(p["name"]): p.get("unit") for p in self.priors.get("parameters", [])}
+
+
+@lru_cache(maxsize=256)
+def _case_terms(text: str) -> StudyTerms:
+    case = CaseDefinition.from_dict(json.loads(text))
+    return StudyTerms(case.prior().to_dict(), case.tmcmc_settings().to_dict(), dict(case.simulator))
+
+
+def case_terms(case: Mapping[str, Any]) -> StudyTerms:
+    """The priors, TMCMC settings and simulator settings of a case document (cached: a page
+    of studies derives them once per distinct case). Treat the result as read-only."""
+    return _case_terms(json.dumps(case, allow_nan=True))
+
+
 class StudyKind(Protocol):
     """A kind of study; ``name`` is what ``studies.kind`` holds; ``http`` its API collection,
     if it has its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``)."""
@@ -81,6 +127,10 @@ class StudyKind(Protocol):
 
     def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
         """Model runs each batch of a stage will make (``plan``: the stage's plan blob)."""
+        ...
+
+    def terms(self, study: StudyRecord) -> StudyTerms:
+        """Priors, sampler and simulator settings of ``study``, from its case and payload."""
         ...
 
 

@@ -54,7 +54,7 @@ from services.store.codec import decode, encode, split
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of, work_batches
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import batch_output, one_run_per_item
+from .base import StudyTerms, batch_output, case_terms, one_run_per_item
 from .checks import check_runs, prior_medians
 
 __all__ = [
@@ -193,12 +193,9 @@ def calibration_spec(
     return StudySpec(
         name=case.name,
         case=case.to_dict(),
-        priors=case.prior().to_dict(),
         dataset_ids=ids,
         seed=case.seed,
         n_samples=case.sampler.n_samples,
-        sampler=case.tmcmc_settings().to_dict(),
-        simulator=dict(case.simulator),
         batch_size=size,
         kind=KIND.name,
     )
@@ -321,6 +318,10 @@ class CalibrationKind:
             return one_run_per_item(batches)
         lengths = np.asarray(decode(plan, StagePlan).chain_length, dtype=np.int64)
         return [int(lengths[r.start : r.stop].sum()) for r in batches]
+
+    def terms(self, study: StudyRecord) -> StudyTerms:
+        """Priors, TMCMC settings and simulator settings of the study's case."""
+        return case_terms(study.case)
 
 
 KIND = CalibrationKind()

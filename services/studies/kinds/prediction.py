@@ -10,8 +10,8 @@ means without and with the prediction noise, and the measured value with whether
 inside (:func:`scm_core.calibration.predict.summarize_predictions`). Each draw's runs depend on
 the draw only, so the result is the CLI's bit for bit however the draws were batched.
 
-Stored: ``case``/``priors``/``sampler``/``simulator`` the calibrated study's, ``n_samples`` the
-draws, ``seed`` the prediction seed, ``dataset_ids`` the target datasets, ``payload``
+Stored: ``case`` the calibrated study's (its priors and settings derived from it), ``n_samples``
+the draws, ``seed`` the prediction seed, ``dataset_ids`` the target datasets, ``payload``
 ``{"study_id", "conditions"}``; the stage's samples are the draws with their simulated F, T, z
 per target; ``result`` ``{"study_id", "draws", "seed", "level", "predictions": [...]}``.
 """
@@ -51,7 +51,7 @@ from services.store.codec import decode
 from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import KindHttp, batch_output, one_run_per_item
+from .base import KindHttp, StudyTerms, batch_output, case_terms, one_run_per_item
 from .checks import check_runs
 from .update import completed_calibration, old_dataset_ids
 
@@ -196,12 +196,9 @@ def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -
     return StudySpec(
         name=body.name or f"{parent.name} prediction",
         case=parent.case,
-        priors=parent.priors,
         dataset_ids=ids,
         seed=int(body.seed),
         n_samples=int(body.draws),
-        sampler=parent.sampler,
-        simulator=parent.simulator,
         batch_size=size,
         kind=KIND.name,
         payload={"study_id": parent.id, "conditions": conditions},
@@ -328,6 +325,10 @@ class PredictionKind:
 
     def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
         return one_run_per_item(batches)
+
+    def terms(self, study: StudyRecord) -> StudyTerms:
+        """The calibrated study's priors (the columns of the draws) and settings."""
+        return case_terms(study.case)
 
 
 KIND = PredictionKind()

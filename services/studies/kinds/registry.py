@@ -3,13 +3,15 @@ module (see :mod:`.base`) and one line here."""
 
 from __future__ import annotations
 
-from .base import StudyKind
+from services.store import StudyRecord
+
+from .base import StudyKind, StudyTerms
 from .calibration import KIND as CALIBRATION
 from .prediction import KIND as PREDICTION
 from .screening import KIND as SCREENING
 from .update import KIND as UPDATE
 
-__all__ = ["KINDS", "kind_of"]
+__all__ = ["KINDS", "kind_of", "study_terms"]
 
 KINDS: dict[str, StudyKind] = {k.name: k for k in (CALIBRATION, SCREENING, UPDATE, PREDICTION)}
 
@@ -20,3 +22,10 @@ def kind_of(name: str) -> StudyKind:
         return KINDS[name]
     except KeyError:
         raise KeyError(f"unknown study kind {name!r}; one of {sorted(KINDS)}") from None
+
+
+def study_terms(study: StudyRecord) -> StudyTerms:
+    """Priors, sampler and simulator settings of a stored study, derived by its kind from its
+    case and payload (empty documents for a kind this service does not know)."""
+    kind = KINDS.get(study.kind)
+    return StudyTerms({}, {}, {}) if kind is None else kind.terms(study)

@@ -2,10 +2,11 @@
 
 The design points are the work batches' "chains"; the Morris analysis is the reducer of the
 study's only stage. A screening runs on one dataset (whose test conditions are simulated; its
-measurements are not used). Stored: ``sampler`` = the design settings with every factor's
-bounds resolved (so the design can be rebuilt exactly, whatever later defaults become),
-``priors`` = the factor box (names, bounds, scale, units: the columns of the stage's samples),
-``n_samples`` = the number of design points r (d + 1), ``seed`` = the design seed. The stage's
+measurements are not used). Stored: the case, ``payload["design"]`` = the design settings
+with every factor's bounds resolved (so the design can be rebuilt exactly, whatever later
+defaults become), ``n_samples`` = the number of design points r (d + 1), ``seed`` = the design
+seed; the factor box (names, bounds, scale, units: the columns of the stage's samples) is
+derived from them when read (:meth:`ScreeningKind.terms`). The stage's
 samples are the design points with their steady F, T, z; the study's ``result`` is
 :meth:`scm_core.calibration.SensitivityResult.to_dict`. Outputs depend only on the point, so
 the result is bit-identical to ``run_sensitivity`` however the points were batched.
@@ -21,7 +22,6 @@ import numpy as np
 from pydantic import ValidationError
 
 from scm_core.calibration import (
-    FACTOR_UNITS,
     CaseDefinition,
     MorrisModel,
     SensitivityDesign,
@@ -52,7 +52,7 @@ from services.store.codec import decode
 from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import batch_output, one_run_per_item
+from .base import StudyTerms, batch_output, one_run_per_item
 from .checks import check_runs, prior_medians
 
 __all__ = [
@@ -80,19 +80,9 @@ def _settings(design: SensitivityDesign, joint_k: bool) -> dict[str, Any]:
     }
 
 
-def _factor_box(design: SensitivityDesign) -> dict[str, Any]:
-    return {
-        "parameters": [
-            {
-                "name": n,
-                "dist": "log_uniform" if design.log_scale[i] else "uniform",
-                "lower": float(design.bounds[i, 0]),
-                "upper": float(design.bounds[i, 1]),
-                "unit": FACTOR_UNITS.get(n),
-            }
-            for i, n in enumerate(design.names)
-        ]
-    }
+def design_settings(study: StudyRecord) -> dict[str, Any]:
+    """The stored design settings of a screening (r, levels, joint_k, resolved bounds)."""
+    return dict((study.payload or {})["design"])
 
 
 def sensitivity_spec(
@@ -151,14 +141,12 @@ def sensitivity_spec(
     return StudySpec(
         name=name or f"{case.name} sensitivity",
         case=case.to_dict(),
-        priors=_factor_box(design),
         dataset_ids=[int(dataset_id)],
         seed=int(seed),
         n_samples=design.n_points,
-        sampler=_settings(design, joint_k),
-        simulator=dict(case.simulator),
         batch_size=size,
         kind=KIND.name,
+        payload={"design": _settings(design, joint_k)},
     )
 
 
@@ -194,7 +182,7 @@ def _check_configuration(
 
 def design_of(study: StudyRecord, case: CaseDefinition) -> SensitivityDesign:
     """The study's Morris design, rebuilt from its stored settings."""
-    cfg = study.sampler
+    cfg = design_settings(study)
     bounds = {k: (float(v[0]), float(v[1])) for k, v in cfg["bounds"].items()}
     return sensitivity_design(
         case, int(cfg["r"]), int(cfg["levels"]), study.seed, bool(cfg["joint_k"]), bounds
@@ -255,6 +243,13 @@ class ScreeningKind:
 
     def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
         return one_run_per_item(batches)
+
+    def terms(self, study: StudyRecord) -> StudyTerms:
+        """The factor box (the columns of the design points) and the design settings."""
+        case = CaseDefinition.from_dict(study.case)
+        return StudyTerms(
+            design_of(study, case).factor_box(), design_settings(study), dict(case.simulator)
+        )
 
 
 KIND = ScreeningKind()

@@ -3,7 +3,7 @@
 Stage 0 is the final population of an earlier completed calibration (or update), the parent;
 the stages temper the new datasets' likelihood only, with the old datasets' likelihood in the
 base density (:class:`scm_core.calibration.UpdateLikelihood`), so the result targets
-prior x L(old) x L(new). The case, priors and sampler settings are the parent's. The study's
+prior x L(old) x L(new). The case (so the priors and sampler settings) is the parent's. The study's
 log evidence is the incremental one, log Z(new | old); the total, log Z(old) + log Z(new | old),
 is in its ``result`` with the parent's. Payload: ``{"update_of": parent id}``; ``dataset_ids``
 are the new datasets only (the old ones are the parent's, recursively). Seed: the request's,
@@ -103,12 +103,9 @@ def update_spec(
     return StudySpec(
         name=name or f"{parent.name} + update",
         case=parent.case,
-        priors=parent.priors,
         dataset_ids=ids,
         seed=int(seed),
         n_samples=parent.n_samples,
-        sampler=parent.sampler,
-        simulator=parent.simulator,
         batch_size=size,
         kind=KIND.name,
         payload={"update_of": parent.id},
