@@ -6,20 +6,26 @@ log at slip 0.2 (``examples/wf34_s020.csv``) with the default simulator, sampled
 
 * leader: the paper's form (Ching & Chen 2007), one model run per sample and stage;
 * accurate: resample-move, 10-50 Metropolis steps per sample and stage (the default form);
-* accelerated: the accurate form with delayed acceptance (Christen & Fox 2005): a surrogate of the
-  responses, fitted on each stage's starting states, screens every proposal before the model runs
-  (``scm_core/inference/surrogate.py``; exact: the chains still target the posterior).
+* accelerated: the accurate form with surrogate transitions (``--surrogate-steps`` K Metropolis
+  steps on a surrogate of the responses, fitted on each stage's starting states, then one model
+  run corrects; K = 1 is Christen & Fox's delayed acceptance; ``scm_core/inference/surrogate.py``;
+  exact: the chains still target the posterior).
 
 A one-dataset study has nothing for early rejection to cut, so it is on (the default) and idle.
-Per form and size: stages, model runs, first-stage evaluations (proposals the surrogate screened),
-the screen's rejections, wall time on ``--workers`` processes, log evidence with its standard
-error, and per parameter the posterior mean and sd and, for the other forms, the distance to the
-accurate form of the same size (|difference of means| in the accurate sd, and the two-sample KS
-statistic).
+Per form and size: stages, model runs, surrogate evaluations (the inner steps), moves the
+surrogate turned down without a model run, wall time on ``--workers`` processes, log evidence with
+its standard error, and per parameter the posterior mean and sd and, for the other forms, the
+distance to the accurate form of the same size (|difference of means| in the accurate sd, and the
+two-sample KS statistic).
 
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
-        [--forms leader accurate accelerated] [--seed 1] [--json OUT.json]
+        [--forms leader accurate accelerated] [--surrogate-steps 10] [--seed 1]
+        [--json OUT.json] [--save DIR] [--reference DIR]
+
+``--save DIR`` writes each run's final samples (``FORM_N.npy``); ``--reference DIR`` compares with
+the accurate form's samples saved there instead of running it again (the unaccelerated form's
+result does not change with the acceleration's settings).
 """
 
 from __future__ import annotations
@@ -48,8 +54,11 @@ FORMS = {
 }
 
 
-def run_form(form: str, n_samples: int, seed: int, workers: int) -> dict:
-    case = load_case(CASE).with_changes(sampler={"n_samples": n_samples, **FORMS[form]})
+def run_form(form: str, n_samples: int, seed: int, workers: int, surrogate_steps: int) -> dict:
+    sampler = {"n_samples": n_samples, **FORMS[form]}
+    if sampler["delayed_acceptance"]:
+        sampler["surrogate_steps"] = surrogate_steps
+    case = load_case(CASE).with_changes(sampler=sampler)
     data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
     model = StudyModel(case, [data])
     batch = max(1, n_samples // (4 * workers))
@@ -66,13 +75,14 @@ def run_form(form: str, n_samples: int, seed: int, workers: int) -> dict:
         )
     wall = time.perf_counter() - t0
     screened = sum(s.first_stage_rejections for s in res.stages)
+    inner = sum(s.inner_proposed for s in res.stages)
     return {
         "form": form,
         "n_samples": n_samples,
         "status": res.status,
         "stages": len(res.stages) - 1,
         "model_runs": int(res.n_model_runs),
-        "first_stage_evaluations": int(res.n_model_runs + screened if screened else 0),
+        "first_stage_evaluations": int(inner),
         "first_stage_rejections": int(screened),
         "wall_s": wall,
         "log_evidence": float(res.log_evidence),
@@ -88,22 +98,31 @@ def main() -> None:
     ap.add_argument("--forms", nargs="+", choices=list(FORMS), default=list(FORMS))
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--surrogate-steps", type=int, default=10)
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
+    ap.add_argument("--save", type=Path, default=None, help="write each run's samples here")
+    ap.add_argument("--reference", type=Path, default=None, help="saved accurate samples")
     args = ap.parse_args()
 
     rows = []
     for n in args.samples:
+        if args.reference is not None and "accurate" not in args.forms:
+            ref = np.load(args.reference / f"accurate_{n}.npy")
+            rows.append({"form": "accurate", "n_samples": n, "samples": ref, "saved": True})
         for form in args.forms:
-            rows.append(run_form(form, n, args.seed, args.workers))
+            rows.append(run_form(form, n, args.seed, args.workers, args.surrogate_steps))
             r = rows[-1]
+            if args.save is not None:
+                args.save.mkdir(parents=True, exist_ok=True)
+                np.save(args.save / f"{form}_{n}.npy", r["samples"])
             print(
                 f"{form} {n}: {r['model_runs']} runs, {r['wall_s']:.0f} s, "
                 f"log Z {r['log_evidence']:.3f}",
                 flush=True,
             )
-    names = rows[0]["names"]
+    names = next(r["names"] for r in rows if "names" in r)
     runs = Table(title=f"paper case 1 on wf34_s020, seed {args.seed}, {args.workers} workers")
-    for col in ("samples", "form", "stages", "model runs", "1st-stage evals", "screened out"):
+    for col in ("samples", "form", "stages", "model runs", "surrogate evals", "screened out"):
         runs.add_column(col, justify="right")
     for col in ("wall s", "log Z"):
         runs.add_column(col, justify="right")
@@ -113,16 +132,19 @@ def main() -> None:
     for name in names:
         post.add_column(name, justify="right")
     for r in rows:
-        runs.add_row(
-            str(r["n_samples"]),
-            r["form"],
-            str(r["stages"]),
-            str(r["model_runs"]),
-            str(r["first_stage_evaluations"]),
-            str(r["first_stage_rejections"]),
-            f"{r['wall_s']:.0f}",
-            f"{r['log_evidence']:.3f} +- {r['log_evidence_se']:.3f}",
-        )
+        if r.get("saved"):
+            runs.add_row(str(r["n_samples"]), "accurate (saved)", *["-"] * 6)
+        else:
+            runs.add_row(
+                str(r["n_samples"]),
+                r["form"],
+                str(r["stages"]),
+                str(r["model_runs"]),
+                str(r["first_stage_evaluations"]),
+                str(r["first_stage_rejections"]),
+                f"{r['wall_s']:.0f}",
+                f"{r['log_evidence']:.3f} +- {r['log_evidence_se']:.3f}",
+            )
         ref = next(
             (a for a in rows if a["form"] == "accurate" and a["n_samples"] == r["n_samples"]),
             None,
@@ -141,8 +163,8 @@ def main() -> None:
     console.print(runs)
     console.print(post)
     if args.json is not None:
-        out = [{k: v for k, v in r.items() if k != "samples"} for r in rows]
-        for r, o in zip(rows, out, strict=True):
+        out = [{k: v for k, v in r.items() if k != "samples"} for r in rows if "names" in r]
+        for r, o in zip([r for r in rows if "names" in r], out, strict=True):
             o["mean"] = np.mean(r["samples"], axis=0).tolist()
             o["sd"] = np.std(r["samples"], axis=0, ddof=1).tolist()
         args.json.write_text(json.dumps(out, indent=1))

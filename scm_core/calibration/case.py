@@ -152,9 +152,10 @@ class SamplerSettings(_Strict):
     not change the results). ``max_stages``: stop (status "max_stages") after that many
     tempering stages. ``early_rejection``: stop simulating a proposal's datasets once they
     cannot lift it over the acceptance threshold (exact, same samples; see
-    :mod:`scm_core.inference.early_rejection`). ``delayed_acceptance``: screen proposals with a
-    surrogate of the responses fitted on the stage's starting states before simulating them
-    (exact, other samples; :mod:`scm_core.inference.surrogate`).
+    :mod:`scm_core.inference.early_rejection`). ``delayed_acceptance``: move with a surrogate
+    of the responses fitted on the stage's starting states before simulating (exact, other
+    samples; :mod:`scm_core.inference.surrogate`): ``surrogate_steps`` Metropolis steps on the
+    surrogate per model run (1: Christen & Fox's delayed acceptance).
     """
 
     n_samples: int = Field(2000, ge=10)
@@ -165,6 +166,7 @@ class SamplerSettings(_Strict):
     target_cov: float = Field(1.0, gt=0.0)
     early_rejection: bool = True
     delayed_acceptance: bool = False
+    surrogate_steps: int = Field(1, ge=1, le=100)
 
     def tmcmc_settings(self) -> TMCMCSettings:
         return TMCMCSettings(
@@ -174,6 +176,7 @@ class SamplerSettings(_Strict):
             target_cov=self.target_cov,
             early_rejection=self.early_rejection,
             delayed_acceptance=self.delayed_acceptance,
+            surrogate_steps=self.surrogate_steps,
         )
 
 

@@ -1,10 +1,14 @@
-"""Delayed acceptance (Christen & Fox 2005) with a surrogate of the model's responses.
+"""Surrogate transitions (Liu 2001, section 9.4.3; with one inner step, Christen & Fox's 2005
+delayed acceptance) with a surrogate of the model's responses.
 
-Each Metropolis step first screens the proposal x' with a cheap approximation pi~ of the
-tempered target: it goes on only with probability min(1, pi~(x') / pi~(x)); only then is the
-model run, and the move is accepted with min(1, pi(x') pi~(x) / (pi(x) pi~(x'))). The two stages
-together are reversible with respect to the exact pi, so the chain targets the exact tempered
-posterior whatever the surrogate's error (a poor surrogate only costs acceptance).
+A move makes K Metropolis steps on a cheap approximation pi~ of the tempered target, from x to
+y, without running the model; if they moved, the model runs once at y and y is accepted with
+min(1, pi(y) pi~(x) / (pi(x) pi~(y))). K steps of a pi~-reversible kernel are pi~-reversible,
+so the move is reversible with respect to the exact pi and the chain targets the exact
+tempered posterior whatever the surrogate's error (a poor surrogate only costs acceptance).
+pi~ is floored where the surrogate gives no finite value (a constant of the stage plan), so it
+is positive wherever the prior is. With a good surrogate most moves cost one model run however
+far the K inner steps went, instead of one run per step.
 
 The surrogate predicts the likelihood's *responses* (a study's steady F, T, z per dataset) from
 the parameters that drive them, and pi~ is the exact likelihood of those predicted responses:

@@ -120,8 +120,9 @@ class TMCMCResult:
     def diagnostics(self) -> list[dict[str, float | int]]:
         """One row per stage: exponent, beta, acceptance, ESS, unique samples, runs (model runs:
         likelihood evaluations; part runs: their parts, a study's simulator runs, with those early
-        rejection saved; proposals the surrogate turned down, full evaluations it was checked
-        against and its mean |log L~ - log L| there), evidence."""
+        rejection saved; moves the surrogate turned down, full evaluations it was checked
+        against and its mean |log L~ - log L| there, the acceptance of the surrogate
+        transitions' inner steps), evidence."""
         return [
             {
                 "stage": s.stage,
@@ -141,6 +142,10 @@ class TMCMCResult:
                 "surrogate_checks": s.surrogate_checks,
                 "surrogate_error": (
                     s.surrogate_error_sum / s.surrogate_checks if s.surrogate_checks else math.nan
+                ),
+                "surrogate_steps": s.inner_proposed,
+                "surrogate_acceptance": (
+                    s.inner_accepted / s.inner_proposed if s.inner_proposed else math.nan
                 ),
                 "log_evidence": s.log_evidence,
             }

@@ -62,13 +62,18 @@ class ResampleMove:
     def chains(
         self, parent: NDArray[np.int64], acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        # a surrogate transition makes ``surrogate_steps`` Metropolis steps per move
+        k = int(settings.surrogate_steps) if settings.delayed_acceptance else 1
         if settings.n_steps is not None:
             n_steps = int(settings.n_steps)
         elif not math.isfinite(acceptance_rate):
-            n_steps = int(settings.initial_steps)
+            n_steps = math.ceil(settings.initial_steps / k)
         else:
             n_steps = steps_for_acceptance(
-                acceptance_rate, settings.move_probability, settings.min_steps, settings.max_steps
+                acceptance_rate,
+                settings.move_probability,
+                math.ceil(settings.min_steps / k),
+                settings.max_steps,
             )
         return parent, np.full(parent.shape[0], n_steps)
 

@@ -246,6 +246,12 @@ def plan_stage(
     )
     chain_start = chain_start.astype(np.int64)
     resp = state.responses
+    train_x = train_r = None
+    if settings.delayed_acceptance and resp is not None:
+        # what earlier stages evaluated, else (stage 0, an update's parent) the population
+        have = state.train_samples is not None and state.train_responses is not None
+        train_x = state.train_samples if have else state.samples
+        train_r = state.train_responses if have else resp
     return StagePlan(
         stage=stage,
         seed=state.seed,
@@ -271,6 +277,8 @@ def plan_stage(
         prev_log_evidence_var=float(state.log_evidence_var),
         prev_stall_count=int(state.stall_count),
         n_samples=n,
+        train_samples=train_x,
+        train_responses=train_r,
     )
 
 
@@ -318,6 +326,11 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
     accepted = int(sum(int(r.accepted.sum()) for r in results))
     proposed = int(sum(int(r.proposed.sum()) for r in results))
     acceptance = accepted / proposed if proposed else math.nan
+    inner_accepted = int(sum(r.inner_accepted for r in results))
+    inner_proposed = int(sum(r.inner_proposed for r in results))
+    # the proposal scale follows the Metropolis steps it drives: a surrogate transition's
+    # inner steps when there are any, else the moves themselves
+    step_acceptance = inner_accepted / inner_proposed if inner_proposed else acceptance
     stalled = (plan.exponent - plan.prev_exponent) < plan.settings.stall_tol
     return StageState(
         stage=plan.stage,
@@ -326,7 +339,7 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
         log_likelihood=gather("log_likelihood"),
         log_prior=gather("log_prior"),
         responses=responses,
-        beta=adapt_beta(plan.prev_beta, acceptance, plan.settings),
+        beta=adapt_beta(plan.prev_beta, step_acceptance, plan.settings),
         acceptance_rate=float(acceptance),
         log_evidence=plan.prev_log_evidence + plan.log_evidence_increment,
         log_evidence_var=plan.prev_log_evidence_var + plan.log_evidence_increment_var,
@@ -346,4 +359,29 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
         first_stage_rejections=int(sum(r.first_stage_rejections for r in results)),
         surrogate_checks=int(sum(r.surrogate_checks for r in results)),
         surrogate_error_sum=float(np.sum(_chain_ordered(results, "surrogate_error"))),
+        inner_accepted=inner_accepted,
+        inner_proposed=inner_proposed,
+        **_training_set(plan, results),
     )
+
+
+def _training_set(
+    plan: StagePlan, results: Sequence[ChainBatchResult]
+) -> dict[str, NDArray[np.float64] | None]:
+    """The surrogate's carried training set after the stage: the plan's, then the states the
+    stage's model runs evaluated (chain by chain, each in step order, whatever the batches),
+    the newest ``surrogate_memory`` rows; None without delayed acceptance."""
+    if not plan.settings.delayed_acceptance or plan.start_responses is None:
+        return {"train_samples": None, "train_responses": None}
+    kept = [r for r in results if r.evaluated_counts is not None]
+    labels = [np.repeat(r.chain_indices, r.evaluated_counts) for r in kept]
+    order = np.argsort(np.concatenate(labels), kind="stable") if labels else np.empty(0, int)
+    d, k = plan.start_samples.shape[1], plan.start_responses.shape[1]
+    new_x = np.concatenate([r.evaluated_samples for r in kept] or [np.empty((0, d))])[order]
+    new_r = np.concatenate([r.evaluated_responses for r in kept] or [np.empty((0, k))])[order]
+    old_x = np.empty((0, d)) if plan.train_samples is None else plan.train_samples
+    old_r = np.empty((0, k)) if plan.train_responses is None else plan.train_responses
+    keep = plan.settings.surrogate_memory
+    x = np.concatenate([old_x, new_x])[-keep:] if keep else np.empty((0, d))
+    r = np.concatenate([old_r, new_r])[-keep:] if keep else np.empty((0, k))
+    return {"train_samples": x, "train_responses": r}

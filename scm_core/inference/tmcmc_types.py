@@ -75,9 +75,15 @@ class TMCMCSettings(_Fields):
     early_rejection: run a proposal's likelihood parts (datasets) one by one and stop once they
         cannot reach the acceptance threshold (exact: the same samples, fewer runs; only
         likelihoods with several parts, see :mod:`scm_core.inference.early_rejection`).
-    delayed_acceptance: screen each proposal with a surrogate of the responses before running
-        the model (exact: see :mod:`scm_core.inference.surrogate`); surrogate_neighbors and
-        surrogate_smoothing: its local RBF interpolant's neighbours and smoothing (standardised).
+    delayed_acceptance: move with a surrogate of the responses before running the model
+        (exact: see :mod:`scm_core.inference.surrogate`): each move is ``surrogate_steps``
+        Metropolis steps on the surrogate target, then one model run corrects (a surrogate
+        transition; 1 step: Christen & Fox's delayed acceptance). Chain lengths then count
+        moves: at least ceil(min_steps / surrogate_steps), ceil(initial_steps /
+        surrogate_steps) for stage 1, and beta adapts on the inner steps' acceptance.
+        surrogate_neighbors and surrogate_smoothing: the surrogate's local RBF interpolant's
+        neighbours and smoothing (standardised); surrogate_memory: the newest model-evaluated
+        states (with their responses) carried from stage to stage as its training set.
     """
 
     moves: str = "resample-move"
@@ -99,6 +105,8 @@ class TMCMCSettings(_Fields):
     delayed_acceptance: bool = False
     surrogate_neighbors: int = 50
     surrogate_smoothing: float = 1e-3
+    surrogate_steps: int = 1
+    surrogate_memory: int = 20_000
 
     def __post_init__(self) -> None:
         if self.moves not in MOVES:
@@ -129,6 +137,10 @@ class TMCMCSettings(_Fields):
             raise ValueError(f"'max_stages' must be >= 1, got {self.max_stages!r}")
         if self.stall_stages < 1:
             raise ValueError(f"'stall_stages' must be >= 1, got {self.stall_stages!r}")
+        if self.surrogate_memory < 0:
+            raise ValueError(f"'surrogate_memory' must be >= 0, got {self.surrogate_memory!r}")
+        if self.surrogate_steps < 1:
+            raise ValueError(f"'surrogate_steps' must be >= 1, got {self.surrogate_steps!r}")
         if self.surrogate_neighbors < 2:
             raise ValueError(
                 f"'surrogate_neighbors' must be >= 2, got {self.surrogate_neighbors!r}"
@@ -155,9 +167,13 @@ class StageState(_Fields):
     part_runs: likelihood parts run this stage (a study's parts are its datasets: simulator
     runs); early_rejections: proposals rejected before their last part; part_runs_saved: parts
     not run thanks to early rejection (0 when it is off or the likelihood has one part).
-    first_stage_rejections: proposals the surrogate turned down (delayed acceptance: no model
-    run); surrogate_checks, surrogate_error_sum: full evaluations where the surrogate's
-    log-likelihood was compared with the model's, and the sum of |difference| (untempered).
+    first_stage_rejections: moves the surrogate turned down (delayed acceptance: the inner
+    steps did not move, no model run); surrogate_checks, surrogate_error_sum: full evaluations
+    where the surrogate's log-likelihood was compared with the model's, and the sum of
+    |difference| (untempered). inner_accepted, inner_proposed: Metropolis steps of the
+    surrogate transitions (delayed acceptance; beta adapts on their rate). train_samples,
+    train_responses: with delayed acceptance, the newest ``surrogate_memory`` states the model
+    evaluated up to this stage, in chain and step order (else None).
     """
 
     stage: int
@@ -186,6 +202,10 @@ class StageState(_Fields):
     first_stage_rejections: int = 0
     surrogate_checks: int = 0
     surrogate_error_sum: float = 0.0
+    inner_accepted: int = 0
+    inner_proposed: int = 0
+    train_samples: NDArray[np.float64] | None = None
+    train_responses: NDArray[np.float64] | None = None
 
     @property
     def n_samples(self) -> int:
@@ -210,6 +230,9 @@ class StagePlan(_Fields):
     chain starts; chain_length (c,): its number of Metropolis steps. start_* are the starting
     states (copied so that the previous state is not needed by :func:`run_chains`).
     proposal_cov (d, d) = beta^2 Cov_w (+ jitter) and its lower Cholesky factor proposal_chol.
+    train_samples, train_responses: states the model evaluated in earlier stages and their
+    responses, the delayed-acceptance surrogate's training set with the starting states (None
+    without delayed acceptance).
     """
 
     stage: int
@@ -236,6 +259,8 @@ class StagePlan(_Fields):
     prev_log_evidence_var: float
     prev_stall_count: int
     n_samples: int
+    train_samples: NDArray[np.float64] | None = None
+    train_responses: NDArray[np.float64] | None = None
 
     @property
     def n_chains(self) -> int:
@@ -251,7 +276,10 @@ class ChainBatchResult(_Fields):
     one per step, for leader). accepted, proposed (c,): per-chain Metropolis counts (proposals
     outside the prior support count as proposed and rejected). model_runs, failed_runs,
     out_of_support, part_runs, early_rejections, part_runs_saved, first_stage_rejections,
-    surrogate_checks: batch totals (see :class:`StageState`); surrogate_error (c,): per chain,
+    surrogate_checks, inner_accepted, inner_proposed: batch totals (see :class:`StageState`);
+    evaluated_counts (c,), evaluated_samples, evaluated_responses: with delayed acceptance, the
+    states each chain's model runs evaluated with finite responses, chain by chain in step
+    order (the surrogate's next training states; else None). surrogate_error (c,): per chain,
     the sum of |log L~ - log L| over its checked evaluations (None without a surrogate).
     """
 
@@ -273,6 +301,11 @@ class ChainBatchResult(_Fields):
     first_stage_rejections: int = 0
     surrogate_checks: int = 0
     surrogate_error: NDArray[np.float64] | None = None
+    inner_accepted: int = 0
+    inner_proposed: int = 0
+    evaluated_counts: NDArray[np.int64] | None = None
+    evaluated_samples: NDArray[np.float64] | None = None
+    evaluated_responses: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True, eq=False)

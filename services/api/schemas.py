@@ -367,7 +367,13 @@ class StageOut(BaseModel):
         None, description="Simulator runs early rejection saved (exact: the same samples)."
     )
     first_stage_rejections: int | None = Field(
-        None, description="Proposals the surrogate turned down (delayed acceptance: no run)."
+        None, description="Moves the surrogate turned down (delayed acceptance: no run)."
+    )
+    surrogate_steps: int | None = Field(
+        None, description="Metropolis steps on the surrogate (delayed acceptance's inner steps)."
+    )
+    surrogate_steps_accepted: int | None = Field(
+        None, description="Of those, the accepted ones (the proposal scale adapts on their rate)."
     )
     unique_samples: int | None = Field(
         None, description="Distinct samples in the stage's population (resampling repeats)."

@@ -251,6 +251,8 @@ def stage_out(store: Store, stage: StageRecord) -> StageOut:
         part_runs_saved=stage.counts.get("part_runs_saved"),
         first_stage_rejections=stage.counts.get("first_stage_rejections"),
         surrogate_checks=stage.counts.get("surrogate_checks"),
+        surrogate_steps=stage.counts.get("inner_proposed"),
+        surrogate_steps_accepted=stage.counts.get("inner_accepted"),
         unique_samples=stage.counts.get("unique_samples"),
         created_at=stage.created_at,
         finished_at=stage.finished_at,

@@ -111,8 +111,12 @@ class StageDisplay:
             )
             if state.part_runs_saved:
                 text += f", {state.part_runs_saved} simulations saved by early rejection"
-            if state.first_stage_rejections:
-                text += f", {state.first_stage_rejections} proposals screened out by the surrogate"
+            if state.inner_proposed:
+                text += (
+                    f", {state.inner_proposed} surrogate steps "
+                    f"(acceptance {state.inner_accepted / state.inner_proposed:.2f}), "
+                    f"{state.first_stage_rejections} moves turned down without a run"
+                )
 
             if self.lines:
                 self._line(text)

@@ -65,6 +65,8 @@ STAGE_COUNTS = (
     "part_runs_saved",
     "first_stage_rejections",
     "surrogate_checks",
+    "inner_accepted",
+    "inner_proposed",
     "unique_samples",
 )
 
