@@ -14,8 +14,10 @@ the result is bit-identical to ``run_sensitivity`` however the points were batch
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -182,10 +184,13 @@ def _check_configuration(
 
 def design_of(study: StudyRecord, case: CaseDefinition) -> SensitivityDesign:
     """The study's Morris design, rebuilt from its stored settings."""
-    cfg = design_settings(study)
+    return _design(case, design_settings(study), study.seed)
+
+
+def _design(case: CaseDefinition, cfg: Mapping[str, Any], seed: int) -> SensitivityDesign:
     bounds = {k: (float(v[0]), float(v[1])) for k, v in cfg["bounds"].items()}
     return sensitivity_design(
-        case, int(cfg["r"]), int(cfg["levels"]), study.seed, bool(cfg["joint_k"]), bounds
+        case, int(cfg["r"]), int(cfg["levels"]), int(seed), bool(cfg["joint_k"]), bounds
     )
 
 
@@ -245,11 +250,16 @@ class ScreeningKind:
         return one_run_per_item(batches)
 
     def terms(self, study: StudyRecord) -> StudyTerms:
-        """The factor box (the columns of the design points) and the design settings."""
-        case = CaseDefinition.from_dict(study.case)
-        return StudyTerms(
-            design_of(study, case).factor_box(), design_settings(study), dict(case.simulator)
-        )
+        """The factor box (the columns of the design points) and the design settings (cached
+        per case, design and seed: a page of studies rebuilds each design once)."""
+        return _screening_terms(json.dumps([study.case, design_settings(study), study.seed]))
+
+
+@lru_cache(maxsize=256)
+def _screening_terms(text: str) -> StudyTerms:
+    case_doc, cfg, seed = json.loads(text)
+    case = CaseDefinition.from_dict(case_doc)
+    return StudyTerms(_design(case, cfg, seed).factor_box(), cfg, dict(case.simulator))
 
 
 KIND = ScreeningKind()
