@@ -21,7 +21,7 @@ update's total log evidence (base + increment) estimates the joint one.
 
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_update.py [--seeds 7 8 9] [--workers 2] [--samples 500]
-        [--moves resample-move|leader]
+        [--moves resample-move|leader] [--surrogate-steps K]
 """
 
 from __future__ import annotations
@@ -78,13 +78,23 @@ def main() -> None:
         default="resample-move",
         help="TMCMC moves (the quick case's own are the leader form's)",
     )
+    ap.add_argument(
+        "--surrogate-steps",
+        type=int,
+        default=0,
+        help="surrogate transitions with this many surrogate steps per model run (0: off)",
+    )
     args = ap.parse_args()
 
-    case = load_case(CASE).with_changes(sampler={"n_samples": args.samples, "moves": args.moves})
+    sampler = {"n_samples": args.samples, "moves": args.moves}
+    if args.surrogate_steps:
+        sampler |= {"delayed_acceptance": True, "surrogate_steps": args.surrogate_steps}
+    case = load_case(CASE).with_changes(sampler=sampler)
     data = [load_dataset(p, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz) for p in LOGS]
     names = list(case.parameter_names)
     batch = max(1, args.samples // (4 * args.workers))
-    runs = Table(title=f"quick case, {args.samples} samples, {case.sampler.moves} moves")
+    accel = f", surrogate steps {args.surrogate_steps}" if args.surrogate_steps else ""
+    runs = Table(title=f"quick case, {args.samples} samples, {case.sampler.moves} moves{accel}")
     cols = ("seed", "study", "stages", "model runs", "simulations", "saved by ER", "wall s")
     cols = (*cols, "log Z")
     for col in cols:
