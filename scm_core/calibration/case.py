@@ -7,6 +7,8 @@ the simulator settings, the sampler settings and the datasets. It is written as 
     seed = 1
     likelihood = "normalized"          # eq. (12)-(15); or "gaussian", eq. (6)
     responses = ["F", "T", "z"]        # steady means entering the likelihood
+    trials = "mean"                    # a summary of repeated trials is one test at its mean;
+                                       # "each": every trial is a test (its mean, sd, n_trials)
 
     [parameters]                       # calibrated, in this order (the sample columns)
     k_c = { dist = "uniform", lower = -1e9, upper = 1e9, unit = "N/m^(n+1)" }
@@ -203,6 +205,7 @@ class CaseDefinition(_Strict):
     name: str = Field(min_length=1)
     seed: int = Field(0, ge=0)
     likelihood: Literal["normalized", "gaussian"] = "normalized"
+    trials: Literal["mean", "each"] = "mean"
     responses: tuple[Literal["F", "T", "z"], ...] = RESPONSES
     parameters: dict[str, PriorSpec]
     nominal: dict[str, float | int | bool | str] = Field(default_factory=dict)
@@ -375,6 +378,8 @@ class CaseDefinition(_Strict):
         out["parameters"] = {n: s.to_dict() for n, s in self.parameters.items()}
         out["responses"] = list(self.responses)
         out["data"]["files"] = list(self.data.files)
+        if self.trials == "mean":  # the default, left out: stored cases and fingerprints keep
+            del out["trials"]  # the form they had before the key existed
         return out
 
     def fingerprint(self) -> str:

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import ValidationError
 
-from scm_core.inference.likelihood import LIKELIHOODS, LOG_SQRT_2PI
+from scm_core.inference.likelihood import LOG_SQRT_2PI, log_likelihood_trials
 from scm_core.signals import SWTDataset
 from scm_core.simulator import (
     RigConfig,
@@ -52,13 +52,15 @@ __all__ = ["DatasetTerms", "StudyModel", "dataset_terms"]
 @dataclass(frozen=True)
 class DatasetTerms:
     """What the likelihood needs from one dataset: its name, simulator condition keys (W, slip,
-    omega, R, b, n_grousers, grouser_height, as available) and the steady means (F N, T N m,
-    z m)."""
+    omega, R, b, n_grousers, grouser_height, as available), the steady means (F N, T N m,
+    z m) and, for a summary of repeated trials, their number and sample sds (same units)."""
 
     name: str
     conditions: dict[str, float | int | str]
     means: tuple[float, float, float]  # NaN for a response the dataset did not measure
     content_hash: str = ""
+    n_trials: int = 1
+    trial_sd: tuple[float, float, float] = (np.nan, np.nan, np.nan)
 
     @property
     def measured(self) -> tuple[str, ...]:
@@ -71,11 +73,17 @@ def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
     if isinstance(dataset, DatasetTerms):
         return dataset
     m = dataset.means
+    trials = dataset.n_trials if dataset.source_kind == "summary" and dataset.n_trials else 1
     return DatasetTerms(
         name=dataset.name,
         conditions=dict(dataset.conditions.to_sim_config()),
         means=tuple(float(m.get(r, np.nan)) for r in RESPONSES),
         content_hash=dataset.content_hash,
+        n_trials=int(trials),
+        trial_sd=tuple(
+            float(dataset.responses[r].sd) if r in dataset.responses and trials > 1 else np.nan
+            for r in RESPONSES
+        ),
     )
 
 
@@ -129,6 +137,7 @@ class StudyModel:
             raise ValueError("a study needs at least one dataset")
         self.names: tuple[str, ...] = case.parameter_names
         self.likelihood: str = case.likelihood
+        self.trials: str = case.trials
         self.used: tuple[int, ...] = tuple(RESPONSES.index(r) for r in case.responses)
         sig = case.sigma_spec()
         self.sigma_columns: tuple[int | None, ...] = tuple(
@@ -162,6 +171,11 @@ class StudyModel:
         self.likelihood_columns: tuple[tuple[int, ...], ...] = tuple(
             tuple(u for u, i in enumerate(self.used) if np.isfinite(self.x_exp[k, i]))
             for k in range(len(self.datasets))
+        )
+        #: per dataset, the tests its likelihood counts: its trials (``trials = "each"``, a
+        #: summary of repeated trials) or one
+        self.n_tests: tuple[int, ...] = tuple(
+            d.n_trials if self.trials == "each" else 1 for d in self.datasets
         )
 
     # ------------------------------------------------------------------ configurations
@@ -277,14 +291,21 @@ class StudyModel:
     ) -> NDArray[np.float64]:
         """log L (m,) from simulated means (m, n_datasets, 3) and sigmas (m, n_used); summed
         over ``datasets`` (default all) in order (row results independent of m)."""
-        func = LIKELIHOODS[self.likelihood]
         total = np.zeros(means.shape[0])
         for k in range(self.n_datasets) if datasets is None else datasets:
             cols = self.likelihood_columns[k]
             if not cols:
                 continue
             resp = [self.used[u] for u in cols]
-            ll = func(self.x_exp[k, resp], means[:, k, resp], sigma[:, cols])
+            sd = np.asarray(self.datasets[k].trial_sd, dtype=float)[resp]
+            ll = log_likelihood_trials(
+                self.likelihood,
+                self.x_exp[k, resp],
+                sd,
+                self.n_tests[k],
+                means[:, k, resp],
+                sigma[:, cols],
+            )
             total = total + np.asarray(ll, dtype=float).reshape(-1)
         return np.where(np.isnan(total), -np.inf, total)
 
@@ -355,6 +376,12 @@ class StudyModel:
             with np.errstate(divide="ignore", invalid="ignore"):
                 per = per - np.log(sigma)
         bound = per.sum(axis=1)
+        n = self.n_tests[k]
+        if n > 1:  # zero residual of the trial mean; the trials' own scatter stays
+            resp = [self.used[u] for u in self.likelihood_columns[k]]
+            sd = np.asarray(self.datasets[k].trial_sd, dtype=float)[resp]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bound = n * bound - ((n - 1) * sd * sd / (2.0 * sigma * sigma)).sum(axis=1)
         valid = np.all(np.isfinite(sigma) & (sigma > 0), axis=1)
         return np.where(valid, bound, np.inf)
 

@@ -29,6 +29,7 @@ __all__ = [
     "LOG_SQRT_2PI",
     "log_likelihood_gaussian",
     "log_likelihood_normalized",
+    "log_likelihood_trials",
     "standardized_residuals",
 ]
 
@@ -93,6 +94,35 @@ def log_likelihood_gaussian(
     with np.errstate(all="ignore"):
         log_sigma = np.log(np.where(np.isnan(xi), 1.0, sigma_b))
     return _sum_responses(-0.5 * xi * xi - LOG_SQRT_2PI - log_sigma)
+
+
+def log_likelihood_trials(
+    likelihood: str,
+    x_mean: ArrayLike,
+    x_sd: ArrayLike,
+    n_trials: int,
+    x_num: ArrayLike,
+    sigma: ArrayLike,
+) -> NDArray[np.float64] | float:
+    """Eq. (6) or (12)-(15) summed over the n repeated trials of one test condition, from their
+    sufficient statistics: the trial mean ``x_mean``, the sample sd ``x_sd`` (ddof = 1, same
+    units) and n.
+
+    Every trial j is a test with the same simulated mean x_num, and
+    sum_j (x_j - x_num)^2 = (n - 1) sd^2 + n (x_mean - x_num)^2, so the sum is
+    n * L1(x_mean) - sum_i (n - 1) sd_i^2 / (2 sigma_i^2), L1 the one-test form. Exactly what the
+    trials give uploaded as n datasets of one trial each; n = 1 is the one-test form.
+    """
+    func = LIKELIHOODS[likelihood]
+    one = np.asarray(func(x_mean, x_num, sigma), dtype=float)
+    if n_trials == 1:
+        return float(one) if one.ndim == 0 else one
+    sd, sig = np.broadcast_arrays(np.asarray(x_sd, dtype=float), np.asarray(sigma, dtype=float))
+    with np.errstate(all="ignore"):
+        scatter = ((n_trials - 1) * sd * sd / (2.0 * sig * sig)).sum(axis=-1)
+    total = n_trials * one - scatter
+    total = np.where(np.isnan(total), -np.inf, total)
+    return float(total) if total.ndim == 0 else total
 
 
 LIKELIHOODS: dict[str, Callable[[ArrayLike, ArrayLike, ArrayLike], NDArray[np.float64] | float]] = {
