@@ -22,7 +22,9 @@ wheel surface sliding over the soil):
   by at most the layer's depth) and leaves behind the wheel. Under a skidding wheel the layer
   cannot thicken: the rim drags it forwards from under the wheel's bottom (the wheel sinks: slip
   sinkage, the skid's counterpart of digging in) and pushes it ahead into the bow wave. Each row
-  at its mean slip.
+  at its mean slip. Optional ploughing (``SoilParams.ploughing`` kappa > 0): a skidding wheel's
+  front face below the ground ahead (height h) is a blade, and the layer it pushes ahead
+  thickens by kappa h, so the slip sinkage grows with the sinkage itself (convexly with skid).
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -46,6 +48,7 @@ from .layout import (
     P_J,
     P_K,
     P_OMEGA,
+    P_PLOUGH,
     P_SHEARDISP,
     P_SLIPFLOW,
     P_V,
@@ -284,6 +287,7 @@ def flow_and_erode(
     keep = 1.0 - prm[P_COMPACTION]
     depth = prm[P_FLOWDEPTH]
     fslip = prm[P_SLIPFLOW]
+    plough = prm[P_PLOUGH]
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
     clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
@@ -355,7 +359,7 @@ def flow_and_erode(
         rx = xi[k] - xc
         for j in range(cmin[k], cmax[k] + 1):
             d = dsp[k + 1, j]
-            if cflag[k + 1, j] < LOADED_YIELDING or d <= 0.0:
+            if cflag[k + 1, j] == 0 or d <= 0.0:  # elastic nodes: loose soil pushed off
                 continue
             compacted += (1.0 - keep) * d
             dv = keep * d
@@ -379,7 +383,7 @@ def flow_and_erode(
                 acc_p[k] += 0.5 * side
                 acc_m[k] += 0.5 * side
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
-    if depth > 0.0 and fslip > 0.0:
+    if (depth > 0.0 or plough > 0.0) and fslip > 0.0:
         for j in range(jw0, jw0 + nyw):
             if gmax[j] < 0:
                 continue
@@ -399,7 +403,15 @@ def flow_and_erode(
             if u == 0.0:
                 continue
             sgn = 1 if u > 0.0 else -1
-            a = _conveyed(depth, fslip * mob * abs(u), sgn, v) * dt / dx
+            layer = depth
+            if sgn > 0 and plough > 0.0:
+                # ploughing: the front face below the ground ahead is a blade; the fraction
+                # `plough` of the soil in its path (height h) is pushed ahead with the layer
+                # instead of being rolled under
+                ca = c0 + gmax[j] + 1
+                if ca < nx:
+                    layer += plough * max(h0[ca, j] - sp[ca, j] - (zw - r_out), 0.0)
+            a = _conveyed(layer, fslip * mob * abs(u), sgn, v) * dt / dx
             if sgn > 0:
                 # skid: the rim drags the ground's top layer forwards from under the wheel's
                 # bottom (slip sinkage) and pushes it ahead as the bow wave (loose soil)

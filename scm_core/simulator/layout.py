@@ -47,7 +47,8 @@ P_OFF_T = 31
 P_OFF_Z = 32
 P_DYDX = 33
 P_INCL = 34  # exponent of the bearing-capacity inclination factor (0: off)
-N_PARAMS = 35
+P_PLOUGH = 35  # fraction of a skidding wheel's path pushed ahead (0: off)
+N_PARAMS = 36
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -100,4 +101,5 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_OFF_Z] = rig.offset_z
     p[P_DYDX] = rig.dy_over_dx
     p[P_INCL] = soil.bearing_inclination
+    p[P_PLOUGH] = soil.ploughing
     return p

@@ -83,6 +83,16 @@ class SoilParams(_Frozen):
         "from the vertical (Meyerhof 1953: m = 2); 0 = off, the paper's SCM",
     )
 
+    ploughing: float = Field(
+        0.0,
+        ge=0.0,
+        lt=1.0,
+        description="Fraction of the soil in a skidding wheel's path above its lowest point "
+        "(the front face's height below the ground ahead) that the rim pushes ahead instead of "
+        "rolling it under, at full skid [-]; taken from under the wheel like the dragged layer "
+        "(bulldozing, Wong & Reece 1967 part II); 0 = off, the paper's SCM",
+    )
+
     @property
     def tan_phi(self) -> float:
         return math.tan(math.radians(self.phi))

@@ -133,3 +133,30 @@ def test_locked_wheel_simulates():
         [SoilParams()], rigs=[RigConfig(omega=0.0, carriage_speed=0.01, duration=25.0)]
     )
     assert res.status == ["ok"] and res.means[0, 0] < 0 and 0.01 < res.means[0, 2] < 0.1
+
+
+def test_ploughing_deepens_and_brakes_a_skid_and_leaves_drive_alone():
+    """Ploughing (a skidding wheel's front face pushes soil ahead as a blade, Wong & Reece 1967
+    part II): on a small smooth wheel in sand, the locked wheel and a 0.5 skid sink deeper and
+    brake harder as kappa grows; a driven wheel is untouched (bit-identical), and kappa = 0 is
+    the model without the option."""
+    wheel = WheelGeometry(R=0.058, b=0.05, n_grousers=0)
+    kappas = (0.0, 0.5, 0.9)
+    slips = (-1.0, -0.5, 0.5)
+    base = dict(k_phi=5e6, n=1.2, phi=30.0, J=0.015)
+    soils = [SoilParams(**base, ploughing=k) for k in kappas for _ in slips]
+    rigs = [
+        RigConfig(W=22.0, slip=s, slip_convention="symmetric", carriage_speed=0.01)
+        for _ in kappas
+        for s in slips
+    ]
+    res = simulate_batch(soils, wheel, rigs)
+    assert res.ok.all()
+    m = res.means.reshape(len(kappas), len(slips), 3)
+    F, z = m[:, :2, 0], m[:, :2, 2]  # skids: rows kappa, columns locked / 0.5
+    assert np.all(np.diff(z, axis=0) > 0)  # more ploughing, deeper
+    assert np.all(np.diff(F, axis=0) < 0)  # and more braking
+    assert np.mean(z[-1] / z[0]) > 1.1  # clearly so: the option is not a rounding error
+    np.testing.assert_array_equal(m[1:, 2], np.repeat(m[:1, 2], 2, axis=0))  # drive untouched
+    plain = simulate_batch([SoilParams(**base)], wheel, rigs[0])
+    np.testing.assert_array_equal(plain.means[0], m[0, 0])

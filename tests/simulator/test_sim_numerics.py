@@ -2,7 +2,7 @@
 
 import pytest
 
-from scm_core.simulator import RigConfig, WheelGeometry, resolve_rig, simulate_swt
+from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, resolve_rig, simulate_swt
 
 DEFAULT = resolve_rig(WheelGeometry(), RigConfig())  # the paper's set-up: dt 20 ms, dx 5 mm
 
@@ -43,10 +43,16 @@ def test_grid_convergence(default_run):
         RigConfig(omega=0.0, carriage_speed=0.01, duration=25.0),  # locked: bulldozing
     ],
 )
-def test_volume_conserved_up_to_compaction(rig):
+@pytest.mark.parametrize(
+    "soil",
+    [SoilParams(), SoilParams(ploughing=0.8), SoilParams(shear_band=0.06)],
+    ids=["default", "ploughing", "deep-conveyor"],  # the last two bury loose soil under the rim
+)
+def test_volume_conserved_up_to_compaction(rig, soil):
     """Flow and erosion move soil; only the documented compaction (and soil that would leave
-    the grid, counted as spilled) removes volume."""
-    result = simulate_swt(rig=rig)
+    the grid, counted as spilled) removes volume, also where the wheel pushes loose soil off
+    nodes it loads elastically (lost before this was tested on a locked, ploughing wheel)."""
+    result = simulate_swt(soil=soil, rig=rig)
     d = result.diagnostics
     assert d["compacted_volume"] > 0.0
     balance = d["volume_final"] - d["volume_initial"] + d["compacted_volume"] + d["volume_spilled"]
