@@ -276,6 +276,9 @@ class CaseDefinition(_Strict):
                 raise CaseError(f"{where}: {_strip_cls(str(exc))}") from None
             if CALIBRATABLE[name] == "sigma" and dist.lower < 0:
                 raise CaseError(f"{where}: a standard deviation needs lower >= 0")
+            owner = {"soil": SoilParams, "wheel": WheelGeometry}.get(CALIBRATABLE[name])
+            if owner is not None:
+                _check_prior_range(where, name, dist.lower, dist.upper, owner)
         for name in self.nominal:
             if name not in NOMINAL_NAMES:
                 raise CaseError(
@@ -433,6 +436,33 @@ def _describe(exc: ValidationError) -> str:
     if "input" in err and kind != "model_type":
         return f"{where}: {msg} (got {err['input']!r})"
     return f"{where}: {msg}"
+
+
+def field_range(cls: type[BaseModel], name: str) -> tuple[float, float]:
+    """Closed range [lo, hi] of a float field's own bounds (ge/gt, le/lt; +-inf if none)."""
+    lo, hi = -math.inf, math.inf
+    for rule in cls.model_fields[name].metadata:
+        for attr in ("ge", "gt"):
+            if getattr(rule, attr, None) is not None:
+                lo = max(lo, float(getattr(rule, attr)))
+        for attr in ("le", "lt"):
+            if getattr(rule, attr, None) is not None:
+                hi = min(hi, float(getattr(rule, attr)))
+    return lo, hi
+
+
+def _check_prior_range(
+    where: str, name: str, lower: float, upper: float, cls: type[BaseModel]
+) -> None:
+    """A prior must not put mass where the simulator refuses the value: such draws would fail
+    and silently truncate the prior. An open bound (gt/lt) may be the prior's bound (a set of
+    probability zero)."""
+    lo, hi = field_range(cls, name)
+    if lower < lo or upper > hi:
+        raise CaseError(
+            f"{where}: the prior's range [{lower:g}, {upper:g}] leaves the simulator's range "
+            f"of {name}, [{lo:g}, {hi:g}]; narrow the prior's lower/upper"
+        )
 
 
 def _validate_config(cls: type[BaseModel], values: dict[str, Any], label: str) -> None:

@@ -65,6 +65,10 @@ def _lower_above_upper(doc: dict) -> None:
     doc["parameters"]["k_phi"]["lower"] = 2e10
 
 
+def _prior_beyond_field(doc: dict) -> None:
+    doc["parameters"]["phi"] = {"dist": "uniform", "lower": 20.0, "upper": 95.0}
+
+
 def _lower_equals_upper(doc: dict) -> None:
     doc["parameters"]["phi"] = {"dist": "uniform", "lower": 30.0, "upper": 30.0}
 
@@ -113,6 +117,9 @@ CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] =
     ("prior-lower-above-upper", "POST", "/studies",
      lambda e: {"json": {"case": _case(e, _lower_above_upper), "dataset_ids": [e.dataset_id]}},
      422, ("case.parameters.k_phi",)),
+    ("prior-beyond-field-range", "POST", "/studies",
+     lambda e: {"json": {"case": _case(e, _prior_beyond_field), "dataset_ids": [e.dataset_id]}},
+     422, ("case.parameters.phi", "simulator's range")),
     ("prior-lower-equals-upper", "POST", "/studies",
      lambda e: {"json": {"case": _case(e, _lower_equals_upper), "dataset_ids": [e.dataset_id]}},
      422, ("case.parameters.phi",)),

@@ -113,6 +113,14 @@ def test_fingerprint_ignores_what_does_not_change_samples() -> None:
             "parameters.sigma_F: a standard deviation needs lower >= 0",
         ),
         (
+            {"parameters": {"phi": {"dist": "uniform", "lower": 20.0, "upper": 95.0}}},
+            "parameters.phi: the prior's range [20, 95] leaves the simulator's range of phi",
+        ),
+        (
+            {"parameters": {"K": {"dist": "log_uniform", "lower": -1.0, "upper": 1e8}}},
+            "parameters.K",
+        ),
+        (
             {"nominal": {"J": 0.002, "sigma_T": 0.5, "sigma_z": 0.001}},
             "parameters.J: 'J' is both calibrated and nominal",
         ),
