@@ -36,6 +36,7 @@ __all__ = [
     "predict",
     "prediction_draws",
     "summarize_predictions",
+    "sweep_loads",
     "sweep_targets",
 ]
 
@@ -150,10 +151,32 @@ def _slip_symmetric(conditions: dict[str, Any]) -> float | None:
     return float(s) / (1.0 - float(s))
 
 
-def sweep_targets(template: DatasetTerms, values: Sequence[float]) -> list[DatasetTerms]:
+def sweep_loads(datasets: Sequence[DatasetTerms]) -> tuple[NDArray, NDArray] | None:
+    """(symmetric slips ascending, loads W [N]) of the datasets that state both, or None if
+    fewer than two do (the sweep then keeps its template's load)."""
+    pts = sorted(
+        (s, float(d.conditions["W"]))
+        for d in datasets
+        if d.conditions.get("W") is not None and (s := _slip_symmetric(d.conditions)) is not None
+    )
+    if len({s for s, _ in pts}) < 2:
+        return None
+    slips = np.array([s for s, _ in pts])
+    loads = np.array([w for _, w in pts])
+    return slips, loads
+
+
+def sweep_targets(
+    template: DatasetTerms,
+    values: Sequence[float],
+    loads: tuple[NDArray, NDArray] | None = None,
+) -> list[DatasetTerms]:
     """Conditions of ``template`` with the slip replaced by each of ``values`` (symmetric lab
     convention, -1 = locked) at the template's carriage speed (as a lab sweeps the wheel speed);
-    without a known carriage speed, the rig's default speeds for a slip."""
+    without a known carriage speed, the rig's default speeds for a slip. ``loads`` (from
+    :func:`sweep_loads`): the load W at each sweep slip is interpolated linearly between the
+    datasets' measured loads (held constant beyond the outermost ones), as on a rig whose
+    normal load is not commanded; otherwise the template's load."""
     cond = dict(template.conditions)
     v = cond.get("carriage_speed")
     if v is None and cond.get("omega") is not None and cond.get("R") is not None:
@@ -171,14 +194,13 @@ def sweep_targets(template: DatasetTerms, values: Sequence[float]) -> list[Datas
     if v is not None:
         base["carriage_speed"] = v
     nan3 = (math.nan, math.nan, math.nan)
-    return [
-        DatasetTerms(
-            name=f"slip {s:.4g}",
-            conditions={**base, "slip": float(s), "slip_convention": "symmetric"},
-            means=nan3,
-        )
-        for s in values
-    ]
+    out = []
+    for s in values:
+        cond_s = {**base, "slip": float(s), "slip_convention": "symmetric"}
+        if loads is not None:
+            cond_s["W"] = float(np.interp(s, loads[0], loads[1]))
+        out.append(DatasetTerms(name=f"slip {s:.4g}", conditions=cond_s, means=nan3))
+    return out
 
 
 def prediction_draws(

@@ -22,7 +22,12 @@ from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import CaseDefinition, CaseError, DatasetTerms
-from scm_core.calibration.predict import ConditionPrediction, predict, sweep_targets
+from scm_core.calibration.predict import (
+    ConditionPrediction,
+    predict,
+    sweep_loads,
+    sweep_targets,
+)
 
 from .common import CLIError, data_option, read_datasets
 from .pool import batch_map
@@ -92,7 +97,8 @@ def parse_sweep(spec: str | None) -> list[float]:
     default=None,
     metavar="slip=LO:HI:N",
     help="Also predict along a slip sweep (symmetric convention, -1 = locked) at the "
-    "first dataset's conditions.",
+    "first dataset's conditions, with the load interpolated between the datasets' loads "
+    "when several are given.",
 )
 @click.option(
     "--out",
@@ -131,14 +137,18 @@ def predict_cmd(
     used = {d.get("content_hash") for d in summary.get("datasets", [])}
     roles = ["calibration" if d.content_hash in used else "predicted" for d in datasets]
     if slips:
+        loads = None
         if datasets:
-            template = DatasetTerms(
-                datasets[0].name, datasets[0].conditions.to_sim_config(), (math.nan,) * 3
-            )
+            terms = [
+                DatasetTerms(d.name, d.conditions.to_sim_config(), (math.nan,) * 3)
+                for d in datasets
+            ]
+            template = terms[0]
+            loads = sweep_loads(terms)
         else:
             first = (summary.get("datasets") or [{}])[0]
             template = DatasetTerms("study", dict(first.get("conditions") or {}), (math.nan,) * 3)
-        sweep_terms = sweep_targets(template, slips)
+        sweep_terms = sweep_targets(template, slips, loads)
     else:
         sweep_terms = []
     with batch_map(workers) as mapper:
