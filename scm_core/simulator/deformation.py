@@ -22,9 +22,12 @@ wheel surface sliding over the soil):
   by at most the layer's depth) and leaves behind the wheel. Under a skidding wheel the layer
   cannot thicken: the rim drags it forwards from under the wheel's bottom (the wheel sinks: slip
   sinkage, the skid's counterpart of digging in) and pushes it ahead into the bow wave. Each row
-  at its mean slip. Optional ploughing (``SoilParams.ploughing`` kappa > 0): a skidding wheel's
-  front face below the ground ahead (height h) is a blade, and the layer it pushes ahead
-  thickens by kappa h, so the slip sinkage grows with the sinkage itself (convexly with skid).
+  at its mean slip. Optional ploughing (``SoilParams.ploughing`` kappa > 0): of the path ahead
+  of a skidding wheel (height h above its lowest point, coming at v in the wheel's frame) the rim
+  rolls under what its bottom speed omega r takes; the rest, h (v - omega r), meets the front
+  face as a blade, which pushes the fraction kappa of it ahead with the dragged layer, taken
+  from under the wheel's bottom: the slip sinkage grows with the sinkage itself and with the
+  skid (a locked wheel's faster than 1 / (1 - kappa)).
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -383,7 +386,7 @@ def flow_and_erode(
                 acc_p[k] += 0.5 * side
                 acc_m[k] += 0.5 * side
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
-    if (depth > 0.0 or plough > 0.0) and fslip > 0.0:
+    if (depth > 0.0 and fslip > 0.0) or plough > 0.0:
         for j in range(jw0, jw0 + nyw):
             if gmax[j] < 0:
                 continue
@@ -403,15 +406,17 @@ def flow_and_erode(
             if u == 0.0:
                 continue
             sgn = 1 if u > 0.0 else -1
-            layer = depth
+            flux = _conveyed(depth, fslip * mob * abs(u), sgn, v)
             if sgn > 0 and plough > 0.0:
-                # ploughing: the front face below the ground ahead is a blade; the fraction
-                # `plough` of the soil in its path (height h) is pushed ahead with the layer
-                # instead of being rolled under
+                # ploughing: in the wheel's frame the path ahead (height h above the wheel's
+                # lowest point) comes at v; the rim rolls it under at its bottom speed
+                # omega r, the rest meets the front face as a blade, which pushes the fraction
+                # `plough` of it ahead with the dragged layer
                 ca = c0 + gmax[j] + 1
                 if ca < nx:
-                    layer += plough * max(h0[ca, j] - sp[ca, j] - (zw - r_out), 0.0)
-            a = _conveyed(layer, fslip * mob * abs(u), sgn, v) * dt / dx
+                    h = max(h0[ca, j] - sp[ca, j] - (zw - r_out), 0.0)
+                    flux += plough * h * max(v - omega * r_out, 0.0)
+            a = flux * dt / dx
             if sgn > 0:
                 # skid: the rim drags the ground's top layer forwards from under the wheel's
                 # bottom (slip sinkage) and pushes it ahead as the bow wave (loose soil)

@@ -87,10 +87,11 @@ class SoilParams(_Frozen):
         0.0,
         ge=0.0,
         lt=1.0,
-        description="Fraction of the soil in a skidding wheel's path above its lowest point "
-        "(the front face's height below the ground ahead) that the rim pushes ahead instead of "
-        "rolling it under, at full skid [-]; taken from under the wheel like the dragged layer "
-        "(bulldozing, Wong & Reece 1967 part II); 0 = off, the paper's SCM",
+        description="Fraction of a skidding wheel's path above its lowest point that the front "
+        "face pushes ahead as a blade, of the part the rim does not roll under (flux "
+        "h (v - omega r) per width for a path of height h) [-]; taken from under the wheel "
+        "like the dragged layer (bulldozing, Wong & Reece 1967 part II); 0 = off, the paper's "
+        "SCM",
     )
 
     @property

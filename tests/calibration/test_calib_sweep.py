@@ -24,7 +24,7 @@ def test_sweep_load_interpolates_between_the_datasets_and_holds_beyond() -> None
     locked, skid, drive = (
         _terms(s) for s in ("cmu_smooth_sm100", "cmu_smooth_sm050", "cmu_smooth_sp090")
     )
-    w = {n: t.conditions["W"] for n, t in zip(("l", "s", "d"), (locked, skid, drive))}
+    w = {n: t.conditions["W"] for n, t in zip("lsd", (locked, skid, drive), strict=True)}
     loads = sweep_loads([drive, locked, skid])  # any order
     assert loads is not None
     targets = sweep_targets(skid, [-1.0, -0.75, 0.2, 0.95], loads)
