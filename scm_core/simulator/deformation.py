@@ -19,7 +19,9 @@ wheel surface sliding over the soil):
   Continuity in the wheel's frame fixes its net effect: a driven wheel accelerates the layer
   backwards, which thins as it passes under the wheel (taken from every loaded node of the row,
   so the rear of the contact unloads and the front carries the load: the wheel digs itself in,
-  by at most the layer's depth) and leaves behind the wheel. Under a skidding wheel the layer
+  by at most the layer's depth times the slip) and leaves behind the wheel; optionally
+  (``RigConfig.drive_digging = "mobilised"``) the rim carries the layer off to the depth in which
+  its shear is mobilised, whatever the slip. Under a skidding wheel the layer
   cannot thicken: the rim drags it forwards from under the wheel's bottom (the wheel sinks: slip
   sinkage, the skid's counterpart of digging in) and pushes it ahead into the bow wave. Each row
   at its mean slip. Optional ploughing (``SoilParams.ploughing`` kappa > 0): of the path ahead
@@ -46,6 +48,7 @@ from numba import njit
 
 from .layout import (
     P_COMPACTION,
+    P_DIGMOB,
     P_DT,
     P_FLOWDEPTH,
     P_J,
@@ -235,16 +238,45 @@ def _deposit(amount: float, c: int, j: int, dc: int, dj: int, grid, tail: int):
 
 
 @njit(cache=True, inline="always")
-def _conveyed(depth: float, speed: float, sgn: int, v: float) -> float:
-    """Flux [m^2/s] of the dragged layer moving at ``speed`` over ground in direction ``sgn``.
+def _row_mobilised(u: float, v: float, length: float, J: float, disp_form: bool) -> float:
+    """Mean mobilised shear of eq. (8) over a row of contact ``length`` [m] sliding at its mean
+    slip velocity ``u`` [m/s] over ground at carriage speed v [m/s].
 
-    Continuity in the wheel's frame: the ground enters the footprint at the carriage speed v, so
-    a layer accelerated backwards (sgn < 0, a driven wheel) to v + speed thins to
-    depth * v / (v + speed); the wheel sinks by the difference, depth * speed / (v + speed), which
-    saturates at ``depth`` as slip grows. A layer dragged forwards (skid) cannot thicken under the
-    wheel: it keeps its depth, and what it carries is pushed ahead of the wheel.
+    Velocity form: 1 - exp(-|u|/J). Displacement form (Janosi & Hanamoto 1961): the ground
+    under the row has slid j(x) = x |u| / v by the time it is x behind the front of the
+    contact, so the mean over the length L is 1 - (1 - exp(-a)) / a with a = L |u| / (v J);
+    fully mobilised for a wheel spinning in place (v = 0). Vanishes with the slip, so the dug
+    depth is continuous where the row's slip changes sign.
     """
-    if sgn < 0 and v > 0.0:
+    if not disp_form:
+        return 1.0 - math.exp(-abs(u) / J)
+    if v <= 0.0:
+        return 1.0
+    a = length * abs(u) / (v * J)
+    if a < 1e-6:
+        return 0.5 * a
+    return 1.0 - (1.0 - math.exp(-a)) / a
+
+
+@njit(cache=True, inline="always")
+def _conveyed(depth: float, f: float, u: float, v: float, mobilised: bool) -> float:
+    """Flux [m^2/s] of the layer of ``depth`` the rim drags at the mean slip velocity ``u``
+    over ground (< 0: backwards, a driven wheel), f the dragged fraction (slip_flow times the
+    mobilised shear of eq. (8)), v the carriage speed.
+
+    Drive, ``mobilised`` False (thinning): continuity in the wheel's frame; the ground enters
+    the footprint at v, a layer accelerated backwards to v + f|u| thins to depth v / (v + f|u|),
+    and the wheel sinks by the difference, depth f|u| / (v + f|u|), at most depth * slip.
+    Drive, ``mobilised`` True: the rim carries off the layer to the fraction f of its depth in
+    which its shear is mobilised (f from the row's slip, :func:`_row_mobilised`: the soil in the
+    band has failed and escapes backwards and to the sides), dug depth depth * f over the path,
+    flux depth f v, not bounded by the slip. Skid: a layer dragged forwards cannot thicken
+    under the wheel; it keeps its depth and what it carries, depth f|u|, is pushed ahead.
+    """
+    speed = f * abs(u)
+    if u < 0.0 and v > 0.0:
+        if mobilised:
+            return depth * f * v
         return depth * v / (v + speed) * speed
     return depth * speed
 
@@ -291,6 +323,7 @@ def flow_and_erode(
     depth = prm[P_FLOWDEPTH]
     fslip = prm[P_SLIPFLOW]
     plough = prm[P_PLOUGH]
+    dig_mobilised = prm[P_DIGMOB] > 0.5
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
     clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
@@ -406,7 +439,9 @@ def flow_and_erode(
             if u == 0.0:
                 continue
             sgn = 1 if u > 0.0 else -1
-            flux = _conveyed(depth, fslip * mob * abs(u), sgn, v)
+            if dig_mobilised and sgn < 0:
+                mob = _row_mobilised(u, v, nu * dx, J, disp_form)
+            flux = _conveyed(depth, fslip * mob, u, v, dig_mobilised)
             if sgn > 0 and plough > 0.0:
                 # ploughing: in the wheel's frame the path ahead (height h above the wheel's
                 # lowest point) comes at v; the rim rolls it under at its bottom speed

@@ -48,7 +48,8 @@ P_OFF_Z = 32
 P_DYDX = 33
 P_INCL = 34  # exponent of the bearing-capacity inclination factor (0: off)
 P_PLOUGH = 35  # fraction of a skidding wheel's path pushed ahead (0: off)
-N_PARAMS = 36
+P_DIGMOB = 36  # drive digging: 1 mobilised (dug depth d f), 0 thinning
+N_PARAMS = 37
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -102,4 +103,5 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_DYDX] = rig.dy_over_dx
     p[P_INCL] = soil.bearing_inclination
     p[P_PLOUGH] = soil.ploughing
+    p[P_DIGMOB] = 1.0 if rig.drive_digging == "mobilised" else 0.0
     return p

@@ -206,6 +206,14 @@ class RigConfig(_Frozen):
     shear: Literal["velocity", "displacement"] = Field(
         "velocity", description="Janosi form of eq. (8): velocity (SCM) or displacement"
     )
+    drive_digging: Literal["thinning", "mobilised"] = Field(
+        "thinning",
+        description="How deep a driven wheel digs itself in through the layer its rim drags "
+        "(section 3.2 flow fields, docs/simulator.md step 5): 'thinning' (the layer, "
+        "accelerated to f u, thins by continuity: d f u / (v + f u)) or 'mobilised' (the "
+        "layer is carried off to the fraction f of its depth where its shear is mobilised: "
+        "d f; f = slip_flow times the mean mobilised shear of eq. (8))",
+    )
     max_sinkage: float | None = Field(
         None,
         gt=0.0,

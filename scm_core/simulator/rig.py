@@ -68,6 +68,7 @@ class ResolvedRig:
     border_taper: bool
     bulldozing: bool
     shear: str
+    drive_digging: str
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -138,4 +139,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         border_taper=rig.border_taper,
         bulldozing=rig.bulldozing,
         shear=rig.shear,
+        drive_digging=rig.drive_digging,
     )

@@ -160,3 +160,45 @@ def test_ploughing_deepens_and_brakes_a_skid_and_leaves_drive_alone():
     np.testing.assert_array_equal(m[1:, 2], np.repeat(m[:1, 2], 2, axis=0))  # drive untouched
     plain = simulate_batch([SoilParams(**base)], wheel, rigs[0])
     np.testing.assert_array_equal(plain.means[0], m[0, 0])
+
+
+def test_mobilised_digging_saturates_with_the_shear_and_leaves_skid_alone():
+    """A driven smooth wheel digs itself in through the layer its rim drags (docs/simulator.md
+    step 5). Thinning (continuity of the accelerated layer) digs at most the layer depth times
+    the slip; 'mobilised' digs the depth in which the shear is mobilised (Janosi's displacement
+    x |u| / v along the contact), so the slip sinkage saturates with the shear, by slip ~0.75
+    for J = 15 mm, as the CMU smooth wheel's does (increments over the zero-slip sinkage 3.5,
+    8.3, 11.0, 11.3 mm at 0.23, 0.5, 0.75, 0.9: 73 % of the 0.9 value at 0.5). Both dig no
+    deeper than the layer; the mobilised law is continuous through zero slip, and a skidding
+    wheel is the same under both (bit-identical)."""
+    wheel = WheelGeometry(R=0.058, b=0.05, n_grousers=0)
+    layer = 0.015
+    soil = SoilParams(k_phi=5e6, n=1.2, phi=30.0, J=0.015, shear_band=layer)
+    slips = (-0.01, 0.0, 0.01, 0.25, 0.5, 0.9, -0.5)
+    laws = ("thinning", "mobilised")
+    rigs = [
+        RigConfig(
+            W=22.0,
+            slip=s,
+            slip_convention="symmetric",
+            carriage_speed=0.01,
+            shear="displacement",
+            drive_digging=law,
+        )
+        for law in laws
+        for s in slips
+    ]
+    res = simulate_batch([soil] * len(rigs), wheel, rigs)
+    assert res.ok.all()
+    m = res.means.reshape(len(laws), len(slips), 3)
+    z = m[:, :, 2]
+    np.testing.assert_array_equal(m[0, -1], m[1, -1])  # skid untouched
+    dig = z[:, 3:6] - z[:, 1:2]  # sinkage over the zero-slip sinkage at 0.25, 0.5, 0.9
+    assert np.all(np.diff(dig, axis=1) > 0)  # both dig deeper as the slip grows
+    assert np.all(dig[1] > dig[0])  # the mobilised law digs deeper than continuity allows
+    assert np.all(dig < layer)  # neither deeper than the dragged layer
+    share = dig[:, 1] / dig[:, 2]  # how much of the 0.9 slip's digging is done at 0.5
+    assert share[0] < 0.5 < 0.6 < share[1]  # continuity: late; mobilised: early, as measured
+    # continuous through zero slip: neighbouring slips 0.01 apart differ by well under 1 mm
+    # (the jump a drive/skid switch of the dug depth would give: layer * f ~ 1 mm)
+    assert np.all(np.abs(np.diff(z[1, :3])) < 0.3e-3)

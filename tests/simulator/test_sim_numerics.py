@@ -60,6 +60,16 @@ def test_volume_conserved_up_to_compaction(rig, soil):
     assert d["volume_spilled"] <= 1e-3 * d["compacted_volume"]
 
 
+@pytest.mark.parametrize("slip", [0.2, 0.6, 0.95])
+def test_mobilised_digging_conserves_volume(slip):
+    """The mobilised dug depth (docs/simulator.md step 5) moves soil from under the wheel to
+    behind it: only compaction (and spill) removes volume."""
+    d = simulate_swt(rig=RigConfig(slip=slip, drive_digging="mobilised")).diagnostics
+    balance = d["volume_final"] - d["volume_initial"] + d["compacted_volume"] + d["volume_spilled"]
+    assert abs(balance) / d["compacted_volume"] < 1e-9
+    assert d["volume_spilled"] <= 1e-3 * d["compacted_volume"]
+
+
 def test_without_bulldozing_all_displaced_soil_compacts():
     result = simulate_swt(rig=RigConfig(bulldozing=False, duration=25.0))
     d = result.diagnostics
