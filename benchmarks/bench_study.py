@@ -20,7 +20,7 @@ two-sample KS statistic).
 
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
-        [--forms leader accurate accelerated] [--surrogate-steps 10] [--seed 1]
+        [--forms leader accurate accelerated] [--surrogate-steps 10] [--moves M] [--seed 1]
         [--json OUT.json] [--save DIR] [--reference DIR]
 
 ``--save DIR`` writes each run's final samples (``FORM_N.npy``); ``--reference DIR`` compares with
@@ -54,10 +54,14 @@ FORMS = {
 }
 
 
-def run_form(form: str, n_samples: int, seed: int, workers: int, surrogate_steps: int) -> dict:
+def run_form(
+    form: str, n_samples: int, seed: int, workers: int, surrogate_steps: int, moves: int | None
+) -> dict:
     sampler = {"n_samples": n_samples, **FORMS[form]}
     if sampler["delayed_acceptance"]:
         sampler["surrogate_steps"] = surrogate_steps
+        if moves is not None:
+            sampler["n_steps"] = moves
     case = load_case(CASE).with_changes(sampler=sampler)
     data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
     model = StudyModel(case, [data])
@@ -99,6 +103,9 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--surrogate-steps", type=int, default=10)
+    ap.add_argument(
+        "--moves", type=int, default=None, help="accelerated: moves per chain (default adapted)"
+    )
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
     ap.add_argument("--save", type=Path, default=None, help="write each run's samples here")
     ap.add_argument("--reference", type=Path, default=None, help="saved accurate samples")
@@ -110,7 +117,9 @@ def main() -> None:
             ref = np.load(args.reference / f"accurate_{n}.npy")
             rows.append({"form": "accurate", "n_samples": n, "samples": ref, "saved": True})
         for form in args.forms:
-            rows.append(run_form(form, n, args.seed, args.workers, args.surrogate_steps))
+            rows.append(
+                run_form(form, n, args.seed, args.workers, args.surrogate_steps, args.moves)
+            )
             r = rows[-1]
             if args.save is not None:
                 args.save.mkdir(parents=True, exist_ok=True)
