@@ -140,6 +140,10 @@ def test_fingerprint_ignores_what_does_not_change_samples() -> None:
             "simulator: duration 5 s is not longer than",
         ),
         ({"simulator": {"duration": 12.0, "J": 0.1}}, "simulator.J: unknown rig/numerics key"),
+        (
+            {"simulator": {"duration": 12.0, "drive_digging": "deep"}},
+            "drive_digging: Input should be 'thinning' or 'mobilised'",
+        ),
         ({"sampler": {"n_samples": 3}}, "sampler.n_samples: Input should be greater than"),
         ({"sampler": {"moves": "gibbs"}}, "sampler.moves"),
         ({"sampler": {"n_sample": 30}}, "sampler.n_sample: unknown field"),
