@@ -29,7 +29,7 @@ from rich.console import Console
 from rich.table import Table
 from scipy.optimize import least_squares
 
-from scm_core.calibration import RESPONSES, SIGMA_NAMES, StudyModel, load_case
+from scm_core.calibration import RESPONSES, SIGMA_NAMES, CaseError, StudyModel, load_case
 from scm_core.inference.priors import LogUniform
 from scm_core.signals import load_dataset
 
@@ -43,7 +43,10 @@ def main() -> None:
     ap.add_argument("--max-evals", type=int, default=40)
     args = ap.parse_args()
 
-    case = load_case(args.case)
+    try:
+        case = load_case(args.case)
+    except CaseError as exc:
+        ap.error(str(exc))
     fit_files = [args.case.parent / f for f in case.data.files]
     check_files = [f for f in args.check if f.resolve() not in {p.resolve() for p in fit_files}]
     model = StudyModel(case, [load_dataset(f) for f in fit_files + check_files])
@@ -55,9 +58,22 @@ def main() -> None:
     x0 = np.array([float(prior.dists[n].ppf(0.5)) for n in names])
     for item in args.start:
         key, _, value = item.partition("=")
-        x0[names.index(key)] = float(value)
-    weights = dict(kv.split("=") for kv in args.weights.split(","))
-    w = np.array([float(weights[r]) for r in RESPONSES])
+        if key not in names:
+            ap.error(f"--start {item}: {key!r} is not a calibrated parameter of {names}")
+        try:
+            x0[names.index(key)] = float(value)
+        except ValueError:
+            ap.error(f"--start {item}: {value!r} is not a number")
+    try:
+        weights = dict(zip(RESPONSES, (1.0, 1.0, 0.002), strict=True))
+        for kv in args.weights.split(","):
+            key, _, value = kv.partition("=")
+            if key not in RESPONSES or not float(value) > 0:
+                raise ValueError(kv)
+            weights[key] = float(value)
+    except ValueError as exc:
+        ap.error(f"--weights: expected F=..,T=..,z=.. with positive numbers, got {exc}")
+    w = np.array([weights[r] for r in RESPONSES])
     used = list(model.used)
 
     def to_x(u: np.ndarray) -> np.ndarray:
