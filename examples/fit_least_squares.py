@@ -116,10 +116,10 @@ def main() -> None:
         ss = n_tests * (means[0, :n_fit, i][ok] - fitted[ok, i]) ** 2
         if case.trials == "each":
             ss = ss + (n_tests - 1) * np.nan_to_num(sd[ok]) ** 2
-        d = prior.dists[names[col]]
-        x[col] = min(max(math.sqrt(ss.sum() / n_tests.sum()), d.lower + 1e-12), d.upper)
-    fit_model = StudyModel(case, model.datasets[:n_fit])
-    log_l = float(fit_model.log_likelihood_batch(x[None])[0][0])
+        dist = prior.dists[names[col]]
+        x[col] = min(max(math.sqrt(ss.sum() / n_tests.sum()), dist.lower + 1e-12), dist.upper)
+    sigmas = model.sigmas(x[None])
+    log_l = float(model.log_likelihood_from_means(means, sigmas, range(n_fit))[0])
 
     console = Console()
     table = Table(title=f"{case.name}: least squares ({fit.nfev} evaluations), log L {log_l:.2f}")
