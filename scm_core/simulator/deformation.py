@@ -29,7 +29,10 @@ wheel surface sliding over the soil):
   rolls under what its bottom speed omega r takes; the rest, h (v - omega r), meets the front
   face as a blade, which pushes the fraction kappa of it ahead with the dragged layer, taken
   from under the wheel's bottom: the slip sinkage grows with the sinkage itself and with the
-  skid (a locked wheel's faster than 1 / (1 - kappa)).
+  skid (a locked wheel's faster than 1 / (1 - kappa)). Or, without a parameter
+  (``RigConfig.skid_ploughing = "sliding_face"``): the layer a skidding rim drags is the soil met
+  by the part of its front face where the rim slides over the soil (outside the friction cone
+  of angle phi), :func:`sliding_face_height`, instead of the grouser height + shear band.
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -50,13 +53,16 @@ from .layout import (
     P_COMPACTION,
     P_DIGMOB,
     P_DT,
+    P_FACEPLOUGH,
     P_FLOWDEPTH,
+    P_HG,
     P_J,
     P_K,
     P_OMEGA,
     P_PLOUGH,
     P_SHEARDISP,
     P_SLIPFLOW,
+    P_TANPHI,
     P_V,
 )
 
@@ -258,6 +264,29 @@ def _row_mobilised(u: float, v: float, length: float, J: float, disp_form: bool)
     return 1.0 - (1.0 - math.exp(-a)) / a
 
 
+@njit(cache=True)
+def sliding_face_height(v: float, omega: float, r: float, tan_phi: float) -> float:
+    """Height [m] above a skidding wheel's lowest point of the part of its front face where the
+    rim slides over the soil (0 unless omega r < v).
+
+    At the angle theta ahead of the lowest point the rim moves over the ground with a normal
+    component v sin(theta) (into the soil) and a tangential one v cos(theta) - omega r (up the
+    face). It slides where that velocity lies outside the friction cone of the rim-soil
+    interface, whose angle is the soil's phi as in the shear law of eq. (8): v cos(theta) -
+    omega r > tan(phi) v sin(theta), i.e. below theta_s = arccos((1 - f) cos phi) - phi with
+    f = 1 - omega r / v the skid (0: rolling; 1: locked, theta_s = 90 deg - phi). Above
+    theta_s the soil moves with the rim (a wedge pushed ahead, the forward-flow zone of a braked
+    wheel, Wong & Reece 1967 part II); below, the sliding rim shears it out forwards. Height
+    r (1 - cos theta_s) [m]; locked: r (1 - sin phi).
+    """
+    if v <= 0.0 or omega * r >= v:
+        return 0.0
+    f = 1.0 - omega * r / v
+    cos_phi = 1.0 / math.sqrt(1.0 + tan_phi * tan_phi)
+    theta_s = math.acos((1.0 - f) * cos_phi) - math.atan(tan_phi)
+    return r * (1.0 - math.cos(theta_s))
+
+
 @njit(cache=True, inline="always")
 def _conveyed(depth: float, f: float, u: float, v: float, mobilised: bool) -> float:
     """Flux [m^2/s] of the layer of ``depth`` the rim drags at the mean slip velocity ``u``
@@ -323,6 +352,10 @@ def flow_and_erode(
     depth = prm[P_FLOWDEPTH]
     fslip = prm[P_SLIPFLOW]
     plough = prm[P_PLOUGH]
+    face_plough = prm[P_FACEPLOUGH] > 0.5
+    # sliding face: height above the lowest point of the part of a skidding wheel's front face
+    # where the rim slides over the soil (see sliding_face_height)
+    y_slide = sliding_face_height(v, omega, r_out, prm[P_TANPHI]) if face_plough else 0.0
     dig_mobilised = prm[P_DIGMOB] > 0.5
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
@@ -419,7 +452,7 @@ def flow_and_erode(
                 acc_p[k] += 0.5 * side
                 acc_m[k] += 0.5 * side
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
-    if (depth > 0.0 and fslip > 0.0) or plough > 0.0:
+    if (depth > 0.0 and fslip > 0.0) or plough > 0.0 or y_slide > 0.0:
         for j in range(jw0, jw0 + nyw):
             if gmax[j] < 0:
                 continue
@@ -442,7 +475,16 @@ def flow_and_erode(
             if dig_mobilised and sgn < 0:
                 mob = _row_mobilised(u, v, nu * dx, J, disp_form)
             flux = _conveyed(depth, fslip * mob, u, v, dig_mobilised)
-            if sgn > 0 and plough > 0.0:
+            if sgn > 0 and face_plough:
+                # skid: the layer the rim drags forwards is the soil that the sliding part of
+                # its front face meets (its height above the wheel's lowest point, at most the
+                # path's; at least the grousers'), pushed ahead under the wedge that the face
+                # above carries
+                ca = c0 + gmax[j] + 1
+                h = max(h0[ca, j] - sp[ca, j] - (zw - r_out), 0.0) if ca < nx else 0.0
+                layer = max(min(y_slide, h), prm[P_HG])
+                flux = _conveyed(layer, fslip * mob, u, v, dig_mobilised)
+            elif sgn > 0 and plough > 0.0:
                 # ploughing: in the wheel's frame the path ahead (height h above the wheel's
                 # lowest point) comes at v; the rim rolls it under at its bottom speed
                 # omega r, the rest meets the front face as a blade, which pushes the fraction

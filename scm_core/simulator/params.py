@@ -214,6 +214,14 @@ class RigConfig(_Frozen):
         "layer is carried off to the fraction f of its depth where its shear is mobilised: "
         "d f; f = slip_flow times the mean mobilised shear of eq. (8))",
     )
+    skid_ploughing: Literal["kappa", "sliding_face"] = Field(
+        "kappa",
+        description="What a skidding wheel's front face ploughs from under it (docs/simulator.md "
+        "step 5): 'kappa' (the fraction SoilParams.ploughing of its path, 0 = off, the paper's "
+        "SCM) or 'sliding_face' (no parameter: the soil met by the part of the face where the "
+        "rim slides over the soil, outside the friction cone of angle phi, sets the depth of "
+        "the layer a skidding rim drags instead of grouser height + shear_band)",
+    )
     max_sinkage: float | None = Field(
         None,
         gt=0.0,

@@ -69,6 +69,7 @@ class ResolvedRig:
     bulldozing: bool
     shear: str
     drive_digging: str
+    skid_ploughing: str
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -140,4 +141,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         bulldozing=rig.bulldozing,
         shear=rig.shear,
         drive_digging=rig.drive_digging,
+        skid_ploughing=rig.skid_ploughing,
     )

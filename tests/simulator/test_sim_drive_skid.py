@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_batch
+from scm_core.simulator.deformation import sliding_face_height
 
 DRIVE_SLIPS = (0.1, 0.5, 0.95)
 SKIDS = (-0.2, -0.5, -1.0)
@@ -95,13 +96,21 @@ def sand_like_soils(n: int, seed: int, k_range: tuple[float, float]) -> list[Soi
     ],
     ids=["paper-wheel", "small-smooth-wheel"],
 )
-def test_skid_brakes_and_sinks_more_as_it_grows(wheel, load, k_range):
+@pytest.mark.parametrize("ploughing", ["kappa", "sliding_face"])
+def test_skid_brakes_and_sinks_more_as_it_grows(wheel, load, k_range, ploughing):
     """Skids of 0.2 and 0.5 and a locked wheel (lab convention) on 10 synthetic sands: drawbar
     pull negative and falling, sinkage growing (the bow wave is loose soil pushed ahead, which
-    the wheel does not climb). A soft soil may bury the wheel: a named failure, at most 3."""
+    the wheel does not climb), with either skid ploughing law. A soft soil may bury the wheel:
+    a named failure, at most 3."""
     soils = sand_like_soils(10, seed=11, k_range=k_range)
     rigs = [
-        RigConfig(W=load, slip=s, slip_convention="symmetric", carriage_speed=0.01)
+        RigConfig(
+            W=load,
+            slip=s,
+            slip_convention="symmetric",
+            carriage_speed=0.01,
+            skid_ploughing=ploughing,
+        )
         for _ in soils
         for s in SKIDS
     ]
@@ -162,6 +171,28 @@ def test_ploughing_deepens_and_brakes_a_skid_and_leaves_drive_alone():
     np.testing.assert_array_equal(plain.means[0], m[0, 0])
 
 
+def small_wheel_means(soil: SoilParams, slips, variants: list[dict]) -> np.ndarray:
+    """Steady means (variant, slip, F/T/z) of the CMU-sized smooth wheel (R 58 mm, b 50 mm, 22 N,
+    10 mm/s, displacement form) on ``soil`` at lab-convention ``slips``, one row per set of
+    simulator options in ``variants``; every run must be ok."""
+    wheel = WheelGeometry(R=0.058, b=0.05, n_grousers=0)
+    rigs = [
+        RigConfig(
+            W=22.0,
+            slip=s,
+            slip_convention="symmetric",
+            carriage_speed=0.01,
+            shear="displacement",
+            **options,
+        )
+        for options in variants
+        for s in slips
+    ]
+    res = simulate_batch([soil] * len(rigs), wheel, rigs)
+    assert res.ok.all(), res.status
+    return res.means.reshape(len(variants), len(slips), 3)
+
+
 def test_mobilised_digging_saturates_with_the_shear_and_leaves_skid_alone():
     """A driven smooth wheel digs itself in through the layer its rim drags (docs/simulator.md
     step 5). Thinning (continuity of the accelerated layer) digs at most the layer depth times
@@ -171,26 +202,11 @@ def test_mobilised_digging_saturates_with_the_shear_and_leaves_skid_alone():
     8.3, 11.0, 11.3 mm at 0.23, 0.5, 0.75, 0.9: 73 % of the 0.9 value at 0.5). Both dig no
     deeper than the layer; the mobilised law is continuous through zero slip, and a skidding
     wheel is the same under both (bit-identical)."""
-    wheel = WheelGeometry(R=0.058, b=0.05, n_grousers=0)
     layer = 0.015
     soil = SoilParams(k_phi=5e6, n=1.2, phi=30.0, J=0.015, shear_band=layer)
     slips = (-0.01, 0.0, 0.01, 0.25, 0.5, 0.9, -0.5)
     laws = ("thinning", "mobilised")
-    rigs = [
-        RigConfig(
-            W=22.0,
-            slip=s,
-            slip_convention="symmetric",
-            carriage_speed=0.01,
-            shear="displacement",
-            drive_digging=law,
-        )
-        for law in laws
-        for s in slips
-    ]
-    res = simulate_batch([soil] * len(rigs), wheel, rigs)
-    assert res.ok.all()
-    m = res.means.reshape(len(laws), len(slips), 3)
+    m = small_wheel_means(soil, slips, [{"drive_digging": law} for law in laws])
     z = m[:, :, 2]
     np.testing.assert_array_equal(m[0, -1], m[1, -1])  # skid untouched
     dig = z[:, 3:6] - z[:, 1:2]  # sinkage over the zero-slip sinkage at 0.25, 0.5, 0.9
@@ -202,3 +218,49 @@ def test_mobilised_digging_saturates_with_the_shear_and_leaves_skid_alone():
     # continuous through zero slip: neighbouring slips 0.01 apart differ by well under 1 mm
     # (the jump a drive/skid switch of the dug depth would give: layer * f ~ 1 mm)
     assert np.all(np.abs(np.diff(z[1, :3])) < 0.3e-3)
+
+
+@pytest.mark.parametrize("phi", [20.0, 30.0, 40.0])
+def test_sliding_face_height_is_where_the_rim_leaves_the_friction_cone(phi):
+    """The sliding part of a skidding wheel's front face (docs/simulator.md step 5) ends where
+    the rim's velocity over the ground lies on the friction cone of angle phi: tangential
+    v cos(theta) - omega r = tan(phi) times normal v sin(theta). Rolling: no sliding zone;
+    locked: theta_s = 90 deg - phi, height r (1 - sin phi); it rises with the skid."""
+    r, v = 0.058, 0.01
+    tan_phi = math.tan(math.radians(phi))
+    assert sliding_face_height(v, v / r, r, tan_phi) == 0.0  # rolling
+    assert sliding_face_height(v, 2 * v / r, r, tan_phi) == 0.0  # driven
+    locked = sliding_face_height(v, 0.0, r, tan_phi)
+    assert locked == pytest.approx(r * (1.0 - math.sin(math.radians(phi))), rel=1e-12)
+    heights = []
+    for skid in (0.1, 0.3, 0.5, 0.7, 0.9):
+        omega = (1.0 - skid) * v / r
+        y = sliding_face_height(v, omega, r, tan_phi)
+        theta = math.acos(1.0 - y / r)
+        tangential = v * math.cos(theta) - omega * r
+        assert tangential == pytest.approx(tan_phi * v * math.sin(theta), rel=1e-9)
+        heights.append(y)
+    assert np.all(np.diff(heights) > 0) and heights[-1] < locked
+
+
+def test_sliding_face_ploughing_sinks_a_skid_with_its_square_and_leaves_drive_alone():
+    """With the dragged layer of a skidding wheel set by its sliding face (no parameter), a
+    small smooth wheel in sand sinks little at small skids and fast at large ones, as measured
+    (CMU smooth wheel: 9, 36 mm over the zero-slip sinkage at -0.5 and locked, Wong & Reece 1967
+    part II: sinkage grows rapidly towards the locked wheel): the sinkage gained from -0.5 to
+    the locked wheel is over twice that from 0 to -0.5 (the calibrated band's fixed layer: under
+    twice); braking grows with the skid, and a driven wheel is untouched (bit-identical)."""
+    soil = SoilParams(k_phi=5e6, n=1.2, phi=30.0, J=0.012, shear_band=0.015)
+    slips = (0.0, -0.2, -0.5, -0.7, -1.0, 0.5)
+    laws = ("kappa", "sliding_face")
+    m = small_wheel_means(
+        soil, slips, [{"drive_digging": "mobilised", "skid_ploughing": law} for law in laws]
+    )
+    np.testing.assert_array_equal(m[0, [0, -1]], m[1, [0, -1]])  # rolling and drive untouched
+    F, z = m[:, 1:5, 0], m[:, :5, 2]
+    assert np.all(np.diff(F, axis=1) < 0)  # more skid, more braking
+    gain_small = z[:, 2] - z[:, 0]  # from rolling to the 0.5 skid
+    gain_large = z[:, 4] - z[:, 2]  # from the 0.5 skid to the locked wheel
+    assert gain_large[1] > 2.0 * gain_small[1]
+    assert gain_large[0] < 2.0 * gain_small[0]
+    assert np.all(np.diff(z[1, 1:]) > 0)
