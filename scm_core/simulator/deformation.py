@@ -474,25 +474,24 @@ def flow_and_erode(
             sgn = 1 if u > 0.0 else -1
             if dig_mobilised and sgn < 0:
                 mob = _row_mobilised(u, v, nu * dx, J, disp_form)
-            flux = _conveyed(depth, fslip * mob, u, v, dig_mobilised)
-            if sgn > 0 and face_plough:
-                # skid: the layer the rim drags forwards is the soil that the sliding part of
-                # its front face meets (its height above the wheel's lowest point, at most the
-                # path's; at least the grousers'), pushed ahead under the wedge that the face
-                # above carries
-                ca = c0 + gmax[j] + 1
-                h = max(h0[ca, j] - sp[ca, j] - (zw - r_out), 0.0) if ca < nx else 0.0
-                layer = max(min(y_slide, h), prm[P_HG])
-                flux = _conveyed(layer, fslip * mob, u, v, dig_mobilised)
-            elif sgn > 0 and plough > 0.0:
-                # ploughing: in the wheel's frame the path ahead (height h above the wheel's
-                # lowest point) comes at v; the rim rolls it under at its bottom speed
-                # omega r, the rest meets the front face as a blade, which pushes the fraction
-                # `plough` of it ahead with the dragged layer
+            # path ahead of a skidding row: its height above the wheel's lowest point [m]
+            h = 0.0
+            if sgn > 0 and (face_plough or plough > 0.0):
                 ca = c0 + gmax[j] + 1
                 if ca < nx:
                     h = max(h0[ca, j] - sp[ca, j] - (zw - r_out), 0.0)
-                    flux += plough * h * max(v - omega * r_out, 0.0)
+            layer = depth
+            if sgn > 0 and face_plough:
+                # skid: the layer the rim drags forwards is the soil that the sliding part of
+                # its front face meets (at most the path's height; at least the grousers'),
+                # pushed ahead under the wedge that the face above carries
+                layer = max(min(y_slide, h), prm[P_HG])
+            flux = _conveyed(layer, fslip * mob, u, v, dig_mobilised)
+            if sgn > 0 and plough > 0.0 and not face_plough:
+                # ploughing: in the wheel's frame the path ahead comes at v; the rim rolls it
+                # under at its bottom speed omega r, the rest meets the front face as a blade,
+                # which pushes the fraction `plough` of it ahead with the dragged layer
+                flux += plough * h * max(v - omega * r_out, 0.0)
             a = flux * dt / dx
             if sgn > 0:
                 # skid: the rim drags the ground's top layer forwards from under the wheel's
