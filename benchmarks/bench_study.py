@@ -51,6 +51,7 @@ FORMS = {
     "leader": {"moves": "leader", "delayed_acceptance": False},
     "accurate": {"moves": "resample-move", "delayed_acceptance": False},
     "accelerated": {"moves": "resample-move", "delayed_acceptance": True},
+    "waste-free": {"moves": "waste-free", "delayed_acceptance": True},
 }
 
 

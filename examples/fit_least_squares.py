@@ -30,7 +30,7 @@ from rich.table import Table
 from scipy.optimize import least_squares
 
 from scm_core.calibration import RESPONSES, SIGMA_NAMES, CaseError, StudyModel, load_case
-from scm_core.inference.priors import LogUniform
+from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import load_dataset
 
 
@@ -54,7 +54,7 @@ def main() -> None:
     prior = case.prior()
     names = prior.names
     free = list(model.response_inputs)  # simulator parameters and measurement offsets
-    logs = [isinstance(prior.dists[names[j]], LogUniform) for j in free]
+    logs = [prior.dists[names[j]].kind in LOG_SCALE_KINDS for j in free]
     x0 = np.array([float(prior.dists[n].ppf(0.5)) for n in names])
     for item in args.start:
         key, _, value = item.partition("=")

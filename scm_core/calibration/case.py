@@ -24,7 +24,7 @@ the simulator settings, the sampler settings and the datasets. It is written as 
 
     [sampler]
     n_samples = 2000
-    moves = "leader"                   # or "resample-move" (default)
+    moves = "leader"                   # or "resample-move" (default), "waste-free"
 
     [data]
     files = ["wf34_s020.csv"]          # relative to the case file; --data replaces them
@@ -130,13 +130,24 @@ class _Strict(BaseModel):
 class PriorSpec(_Strict):
     """A prior as written in the case: ``dist`` plus its parameters (see
     :func:`scm_core.inference.distribution_from_dict`): uniform / log_uniform need lower and
-    upper; normal (truncated_normal) needs mean, sd, lower and upper. ``unit`` is a label."""
+    upper; normal (truncated_normal) needs mean, sd, lower and upper; log_normal needs median,
+    factor (the geometric sd, > 1), lower and upper. ``unit`` is a label."""
 
-    dist: Literal["uniform", "normal", "truncated_normal", "log_uniform", "loguniform"]
+    dist: Literal[
+        "uniform",
+        "normal",
+        "truncated_normal",
+        "log_uniform",
+        "loguniform",
+        "log_normal",
+        "lognormal",
+    ]
     lower: float | None = None
     upper: float | None = None
     mean: float | None = None
     sd: float | None = None
+    median: float | None = None
+    factor: float | None = None
     unit: str | None = None
 
     def to_distribution(self):
@@ -161,7 +172,7 @@ class SamplerSettings(_Strict):
     """
 
     n_samples: int = Field(2000, ge=10)
-    moves: Literal["resample-move", "leader"] = "resample-move"
+    moves: Literal["resample-move", "leader", "waste-free"] = "resample-move"
     n_steps: int | None = Field(None, ge=1)
     batch_size: int | None = Field(None, ge=1)
     max_stages: int = Field(50, ge=1)
@@ -420,7 +431,7 @@ def load_case(path: str | Path) -> CaseDefinition:
 
 
 def _strip_cls(msg: str) -> str:
-    for prefix in ("Uniform: ", "TruncatedNormal: ", "LogUniform: "):
+    for prefix in ("Uniform: ", "TruncatedNormal: ", "LogUniform: ", "LogNormal: "):
         msg = msg.replace(prefix, "")
     return msg
 

@@ -29,8 +29,10 @@ from scm_core.inference.posterior import (
     summarize_result,
 )
 from scm_core.inference.priors import (
+    LOG_SCALE_KINDS,
     TABLE2_NOMINAL,
     JointPrior,
+    LogNormal,
     LogUniform,
     TruncatedNormal,
     Uniform,
@@ -56,9 +58,11 @@ from scm_core.inference.tmcmc_stage import (
 
 __all__ = [
     "LIKELIHOODS",
+    "LOG_SCALE_KINDS",
     "TABLE2_NOMINAL",
     "ChainBatchResult",
     "JointPrior",
+    "LogNormal",
     "LogUniform",
     "MorrisDesign",
     "MorrisResult",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
 import numpy as np
@@ -18,9 +18,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 __all__ = [
+    "LOG_SCALE_KINDS",
     "TABLE2_NOMINAL",
     "Distribution",
     "JointPrior",
+    "LogNormal",
     "LogUniform",
     "TruncatedNormal",
     "Uniform",
@@ -47,8 +49,23 @@ def _check_kind(cls_name: str, data: Mapping[str, Any], kind: str) -> None:
         raise ValueError(f"{cls_name}.from_dict: 'dist' must be {kind!r}, got {data.get('dist')!r}")
 
 
+class _Serial:
+    """``to_dict``/``from_dict`` from a distribution's init fields: {"dist": kind, field: value}."""
+
+    kind: ClassVar[str]
+
+    def to_dict(self) -> dict[str, Any]:
+        names = [f.name for f in fields(self) if f.init]  # type: ignore[arg-type]
+        return {"dist": self.kind, **{n: getattr(self, n) for n in names}}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Any:
+        _check_kind(cls.__name__, data, cls.kind)
+        return cls(**{f.name: data[f.name] for f in fields(cls) if f.init})  # type: ignore[arg-type]
+
+
 @dataclass(frozen=True)
-class Uniform:
+class Uniform(_Serial):
     """Uniform density on the closed interval [lower, upper]."""
 
     lower: float
@@ -76,17 +93,9 @@ class Uniform:
         """Independent draws."""
         return self.ppf(rng.random(size))
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"dist": self.kind, "lower": self.lower, "upper": self.upper}
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Uniform:
-        _check_kind(cls.__name__, data, cls.kind)
-        return cls(lower=data["lower"], upper=data["upper"])
-
 
 @dataclass(frozen=True)
-class TruncatedNormal:
+class TruncatedNormal(_Serial):
     """Normal(mean, sd) truncated to [lower, upper] (scipy.stats.truncnorm)."""
 
     mean: float
@@ -131,23 +140,9 @@ class TruncatedNormal:
         """Independent draws (inverse-CDF of ``rng.random``)."""
         return self.ppf(rng.random(size))
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "dist": self.kind,
-            "mean": self.mean,
-            "sd": self.sd,
-            "lower": self.lower,
-            "upper": self.upper,
-        }
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> TruncatedNormal:
-        _check_kind(cls.__name__, data, cls.kind)
-        return cls(mean=data["mean"], sd=data["sd"], lower=data["lower"], upper=data["upper"])
-
 
 @dataclass(frozen=True)
-class LogUniform:
+class LogUniform(_Serial):
     """Log-uniform density 1 / (x log(upper/lower)) on [lower, upper], lower > 0.
 
     Useful for moduli spanning decades (e.g. k_phi).
@@ -183,30 +178,80 @@ class LogUniform:
         """Independent draws."""
         return self.ppf(rng.random(size))
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"dist": self.kind, "lower": self.lower, "upper": self.upper}
 
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> LogUniform:
-        _check_kind(cls.__name__, data, cls.kind)
-        return cls(lower=data["lower"], upper=data["upper"])
+@dataclass(frozen=True)
+class LogNormal(_Serial):
+    """Log-normal density truncated to [lower, upper], lower > 0: log x ~ Normal(log median,
+    log factor).
+
+    ``factor`` is the geometric standard deviation (> 1): one sd either side of the median is
+    median / factor .. median * factor, 95 % of the untruncated mass within factor^1.96. The prior
+    of a modulus measured to "a factor of two" (bevameter moduli, paper section 1).
+    """
+
+    median: float
+    factor: float
+    lower: float
+    upper: float
+    kind: ClassVar[str] = "log_normal"
+    _log: TruncatedNormal = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name in ("median", "factor", "lower", "upper"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        _check_finite(
+            "LogNormal", median=self.median, factor=self.factor, lower=self.lower, upper=self.upper
+        )
+        if not self.median > 0:
+            raise ValueError(f"LogNormal: 'median' must be > 0, got {self.median!r}")
+        if not self.factor > 1:
+            raise ValueError(f"LogNormal: 'factor' must be > 1, got {self.factor!r}")
+        if not self.lower > 0:
+            raise ValueError(f"LogNormal: 'lower' must be > 0, got {self.lower!r}")
+        _check_order("LogNormal", self.lower, self.upper)
+        log = TruncatedNormal(
+            math.log(self.median), math.log(self.factor), math.log(self.lower), math.log(self.upper)
+        )
+        object.__setattr__(self, "_log", log)
+
+    def logpdf(self, x: ArrayLike) -> NDArray[np.float64]:
+        """Log density (the normal's in log x, less log x); -inf outside [lower, upper]."""
+        x = np.asarray(x, dtype=float)
+        inside = (x >= self.lower) & (x <= self.upper)
+        safe = np.where(inside, x, self.lower)
+        log_x = np.clip(np.log(safe), self._log.lower, self._log.upper)
+        return np.where(inside, self._log.logpdf(log_x) - np.log(safe), -np.inf)
+
+    def ppf(self, u: ArrayLike) -> NDArray[np.float64]:
+        """Quantile function for u in [0, 1]."""
+        return np.clip(np.exp(self._log.ppf(u)), self.lower, self.upper)
+
+    def sample(self, rng: np.random.Generator, size: int | tuple[int, ...]) -> NDArray[np.float64]:
+        """Independent draws (inverse-CDF of ``rng.random``)."""
+        return self.ppf(rng.random(size))
 
 
-Distribution = Uniform | TruncatedNormal | LogUniform
+Distribution = Uniform | TruncatedNormal | LogUniform | LogNormal
 
-_KINDS: dict[str, type[Uniform] | type[TruncatedNormal] | type[LogUniform]] = {
+LOG_SCALE_KINDS = frozenset({"log_uniform", "log_normal"})
+"""Distribution kinds whose parameter is shown and fitted on a log axis."""
+
+_KINDS: dict[str, type[Distribution]] = {
     "uniform": Uniform,
     "truncated_normal": TruncatedNormal,
     "normal": TruncatedNormal,
     "log_uniform": LogUniform,
     "loguniform": LogUniform,
+    "log_normal": LogNormal,
+    "lognormal": LogNormal,
 }
 
 
 def distribution_from_dict(data: Mapping[str, Any]) -> Distribution:
     """Build a univariate distribution from ``{"dist": kind, ...}``.
 
-    Kinds: "uniform", "truncated_normal" (alias "normal"), "log_uniform" (alias "loguniform").
+    Kinds: "uniform", "truncated_normal" (alias "normal"), "log_uniform" (alias "loguniform"),
+    "log_normal" (alias "lognormal").
     """
     kind = data.get("dist")
     if kind not in _KINDS:
@@ -231,7 +276,7 @@ class JointPrior:
         if len(self.dists) == 0:
             raise ValueError("JointPrior: 'dists' must not be empty")
         for name, dist in self.dists.items():
-            if not isinstance(dist, Uniform | TruncatedNormal | LogUniform):
+            if not isinstance(dist, Uniform | TruncatedNormal | LogUniform | LogNormal):
                 raise ValueError(f"JointPrior: 'dists[{name!r}]' is not a distribution: {dist!r}")
         object.__setattr__(self, "dists", dict(self.dists))
         units = dict(self.units or {})

@@ -297,12 +297,28 @@ def run_chains(
         sur_x[active[acc]] = sur_y[acc]
         return acc
 
-    leader = move_of(settings.moves).keeps_every_step
+    move = move_of(settings.moves)
+    leader = move.keeps_every_step
     if leader:
-        out_x = np.empty((total, d))
-        out_ll = np.empty(total)
-        out_lp = np.empty(total)
-        out_resp = None if resp is None else np.empty((total, resp.shape[1]))
+        # every state after each move is a sample, and the start too where the move keeps it
+        first = int(move.keeps_start)
+        counts = (lengths + first).astype(np.int64)
+        out_off = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        n_out = int(out_off[-1])
+        out_x = np.empty((n_out, d))
+        out_ll = np.empty(n_out)
+        out_lp = np.empty(n_out)
+        out_resp = None if resp is None else np.empty((n_out, resp.shape[1]))
+
+        def emit(active: NDArray[np.int64], rows: NDArray[np.int64]) -> None:
+            out_x[rows] = x[active]
+            out_ll[rows] = ll[active]
+            out_lp[rows] = lp[active]
+            if out_resp is not None:
+                out_resp[rows] = resp[active]
+
+        if first:
+            emit(np.arange(idx.size), out_off[:-1])
 
     n_max = int(lengths.max()) if idx.size else 0
     for t in range(n_max):
@@ -311,15 +327,9 @@ def run_chains(
         accepted[active] += moved
         proposed[active] += 1
         if leader:
-            rows = offsets[active] + t
-            out_x[rows] = x[active]
-            out_ll[rows] = ll[active]
-            out_lp[rows] = lp[active]
-            if out_resp is not None:
-                out_resp[rows] = resp[active]
+            emit(active, out_off[active] + first + t)
 
     if leader:
-        counts = lengths.astype(np.int64)
         samples, log_l, log_p, responses = out_x, out_ll, out_lp, out_resp
     else:
         counts = np.ones(idx.size, dtype=np.int64)

@@ -14,21 +14,34 @@ from numpy.typing import NDArray
 
 from scm_core.inference.tmcmc_types import MOVES, TMCMCSettings
 
-__all__ = ["LeaderMove", "Move", "ResampleMove", "move_of", "steps_for_acceptance"]
+__all__ = [
+    "LeaderMove",
+    "Move",
+    "ResampleMove",
+    "WasteFreeMove",
+    "move_of",
+    "steps_for_acceptance",
+]
 
 
 class Move(Protocol):
     """A move scheme. ``keeps_every_step``: every visited state of a chain is a sample (else
-    only its final state)."""
+    only its final state); ``keeps_start``: so is the chain's starting point."""
 
     name: str
     keeps_every_step: bool
+    keeps_start: bool
+
+    def resample_size(self, n: int, settings: TMCMCSettings) -> int:
+        """How many points the stage resamples from its n weighted samples."""
+        ...
 
     def chains(
-        self, parent: NDArray[np.int64], acceptance_rate: float, settings: TMCMCSettings
+        self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """(start index into the previous population, Metropolis steps) of each chain, from
-        the resampled indices ``parent`` (n,) and the last stage's acceptance rate."""
+        the resampled indices ``parent`` (:meth:`resample_size`,), the population size n and
+        the last stage's acceptance rate."""
         ...
 
 
@@ -58,9 +71,13 @@ class ResampleMove:
 
     name = "resample-move"
     keeps_every_step = False
+    keeps_start = False
+
+    def resample_size(self, n: int, settings: TMCMCSettings) -> int:
+        return n
 
     def chains(
-        self, parent: NDArray[np.int64], acceptance_rate: float, settings: TMCMCSettings
+        self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         # a surrogate transition makes ``surrogate_steps`` Metropolis steps per move
         k = int(settings.surrogate_steps) if settings.delayed_acceptance else 1
@@ -85,14 +102,51 @@ class LeaderMove:
 
     name = "leader"
     keeps_every_step = True
+    keeps_start = False
+
+    def resample_size(self, n: int, settings: TMCMCSettings) -> int:
+        return n
 
     def chains(
-        self, parent: NDArray[np.int64], acceptance_rate: float, settings: TMCMCSettings
+        self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         return np.unique(parent, return_counts=True)
 
 
-_MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove())}
+#: moves per chain of the waste-free form when ``n_steps`` is not set (P = 10 states per chain)
+WASTE_FREE_STEPS = 9
+
+
+class WasteFreeMove:
+    """Waste-free SMC (Dau & Chopin 2022, JRSS B 84(1)): the stage resamples M = ceil(n / P)
+    points, each starts a chain of P - 1 moves (P - 1 = ``n_steps``, default
+    :data:`WASTE_FREE_STEPS`), and all P states of every chain, its start included, are the
+    next stage's n samples. Consistent as M grows for any fixed P (the chains start from the
+    tempered target and leave it invariant); costs n - M model runs per stage (under one per
+    sample, the leader form's budget) where resample-move spends its n_steps runs on every
+    sample and keeps only the last."""
+
+    name = "waste-free"
+    keeps_every_step = True
+    keeps_start = True
+
+    @staticmethod
+    def states_per_chain(settings: TMCMCSettings) -> int:
+        return (WASTE_FREE_STEPS if settings.n_steps is None else int(settings.n_steps)) + 1
+
+    def resample_size(self, n: int, settings: TMCMCSettings) -> int:
+        return -(-n // self.states_per_chain(settings))
+
+    def chains(
+        self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        # the population size is M P unless P does not divide it: the last chain is shorter
+        states = np.full(parent.shape[0], self.states_per_chain(settings))
+        states[-1] = n - int(states[:-1].sum())
+        return parent, states - 1
+
+
+_MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove(), WasteFreeMove())}
 
 
 def move_of(name: str) -> Move:

@@ -28,7 +28,7 @@ __all__ = [
     "TMCMCSettings",
 ]
 
-MOVES = ("resample-move", "leader")
+MOVES = ("resample-move", "leader", "waste-free")
 
 #: X (m, d) -> log L (m,), or (log L, responses (m, k)), or (log L, responses, log b (m,))
 LogLikelihoodBatch = Callable[
@@ -61,9 +61,11 @@ class _Fields:
 class TMCMCSettings(_Fields):
     """Tuning of the sampler; stored with a study so that every stage is reproducible.
 
-    moves: "resample-move" (default, accurate) or "leader" (paper's budget, one run per sample).
+    moves: "resample-move" (default, accurate), "leader" (paper's budget, one run per sample) or
+        "waste-free" (Dau & Chopin 2022: under one run per sample, every chain state kept).
     n_steps: Metropolis steps per chain for resample-move; None adapts it per stage with
         :func:`steps_for_acceptance` (``initial_steps`` for stage 1, where no acceptance is known).
+        For waste-free: the moves of each chain (states per chain less one; None: 9).
     min_steps, max_steps: clip of the adapted n_steps.
     move_probability: adapted n_steps makes P(chain moves at least once) reach this value.
     target_cov: coefficient of variation of the plausibility weights (Ching & Chen: 1.0).

@@ -156,7 +156,7 @@ class StudyCreate(_In):
     name: str | None = Field(None, min_length=1, max_length=200)
     seed: int | None = Field(None, ge=0, le=SEED_MAX)
     n_samples: int | None = Field(None, le=COUNT_MAX, description="Samples per stage (>= 10).")
-    moves: Literal["resample-move", "leader"] | None = None
+    moves: Literal["resample-move", "leader", "waste-free"] | None = None
     n_steps: int | None = Field(
         None, le=COUNT_MAX, description="Metropolis steps per chain (resample-move)."
     )

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from scm_core.calibration import RESPONSES
 from scm_core.inference.posterior import credible_interval, summarize
+from scm_core.inference.priors import LOG_SCALE_KINDS
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 from services.store.records import Page
 from services.studies.kinds import kind_of, study_terms
@@ -155,7 +156,7 @@ def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
                 name=p["name"],
                 lower=p["lower"],
                 upper=p["upper"],
-                log_scale=p["dist"] == "log_uniform",
+                log_scale=p["dist"] in LOG_SCALE_KINDS,
                 unit=p.get("unit"),
             )
             for p in terms.priors["parameters"]

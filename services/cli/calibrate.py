@@ -107,7 +107,7 @@ def _update_inputs(
 )
 @click.option(
     "--moves",
-    type=click.Choice(["leader", "resample-move"]),
+    type=click.Choice(["leader", "resample-move", "waste-free"]),
     default=None,
     help="Override the case's TMCMC moves.",
 )

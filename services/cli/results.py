@@ -28,7 +28,7 @@ from pydantic import ValidationError
 
 from scm_core.calibration import CaseDefinition, StudyModel, study_summary
 from scm_core.calibration.report import finite_or_none
-from scm_core.inference import StageState, TMCMCResult
+from scm_core.inference import LOG_SCALE_KINDS, StageState, TMCMCResult
 from scm_core.signals import SWTDataset
 
 from .common import CLIError
@@ -198,7 +198,7 @@ def write_outputs(
         fig_dir.mkdir(exist_ok=True)
         prior = case.prior()
         units = dict(prior.units or {})
-        log_params = {n for n, d in prior.dists.items() if d.kind == "log_uniform"}
+        log_params = {n for n, d in prior.dists.items() if d.kind in LOG_SCALE_KINDS}
         updated = bool(sections and "update" in sections)
         plot_prior_posterior(
             names,

@@ -105,6 +105,28 @@ def test_fingerprint_ignores_what_does_not_change_samples() -> None:
             "parameters.J: normal prior is missing 'sd'",
         ),
         (
+            {
+                "parameters": {
+                    "K": {"dist": "log_normal", "median": 3e7, "lower": 1e6, "upper": 1e9}
+                }
+            },
+            "parameters.K: log_normal prior is missing 'factor'",
+        ),
+        (
+            {
+                "parameters": {
+                    "K": {
+                        "dist": "log_normal",
+                        "median": 3e7,
+                        "factor": 0.5,
+                        "lower": 1e6,
+                        "upper": 1e9,
+                    }
+                }
+            },
+            "parameters.K: 'factor' must be > 1, got 0.5",
+        ),
+        (
             {"parameters": {"J": {"dist": "gamma", "lower": 0.0, "upper": 1.0}}},
             "parameters.J.dist",
         ),

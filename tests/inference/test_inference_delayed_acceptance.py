@@ -5,7 +5,8 @@ unlike early rejection it is checked against the exact answers, with the toleran
 test_inference_tmcmc_accuracy and test_inference_update (their docstrings give the Monte Carlo
 error budgets), on test likelihoods whose output follows from responses, so the surrogate is
 really used: every test asserts that the surrogate turned proposals down. Each runs with one
-inner step (Christen & Fox's delayed acceptance) and with ten (a surrogate transition, Liu 2001).
+inner step (Christen & Fox's delayed acceptance), with ten (a surrogate transition, Liu 2001),
+and with ten in waste-free chains (Dau & Chopin 2022: every chain state is a sample).
 """
 
 from __future__ import annotations
@@ -31,10 +32,15 @@ from scipy import stats
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
 
 
-@pytest.fixture(params=[1, 10], ids=["da", "stm10"])
+@pytest.fixture(
+    params=[(1, "resample-move"), (10, "resample-move"), (10, "waste-free")],
+    ids=["da", "stm10", "wf-stm10"],
+)
 def da(request) -> TMCMCSettings:
-    """Delayed acceptance with 1 or 10 surrogate steps per model run."""
-    return TMCMCSettings(delayed_acceptance=True, surrogate_steps=request.param)
+    """Delayed acceptance with 1 or 10 surrogate steps per model run; the second also with
+    waste-free chains (every chain state a sample, P = 10 states per chain)."""
+    steps, moves = request.param
+    return TMCMCSettings(delayed_acceptance=True, surrogate_steps=steps, moves=moves)
 
 
 def _screened(res) -> int:
@@ -114,11 +120,12 @@ def test_update_with_surrogate_and_early_rejection_exact_answer(da: TMCMCSetting
     assert abs(old.log_evidence + res.log_evidence - log_z) < 0.2
 
 
-@pytest.mark.parametrize("moves", ["resample-move", "leader"])
-def test_batches_do_not_change_results(moves: str, da: TMCMCSettings) -> None:
+@pytest.mark.parametrize("steps", [1, 10])
+@pytest.mark.parametrize("moves", ["resample-move", "leader", "waste-free"])
+def test_batches_do_not_change_results(moves: str, steps: int) -> None:
     """The surrogate is a function of the stage plan: any batch split gives the same bits."""
     f = parted_5d()
-    settings = dataclasses.replace(da, moves=moves)
+    settings = TMCMCSettings(delayed_acceptance=True, surrogate_steps=steps, moves=moves)
     a = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings)
     b = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings, batch_size=37)
     assert _screened(a) > 0

@@ -13,6 +13,7 @@ from scipy import stats
 from scm_core.inference import (
     TABLE2_NOMINAL,
     JointPrior,
+    LogNormal,
     LogUniform,
     TruncatedNormal,
     Uniform,
@@ -20,11 +21,34 @@ from scm_core.inference import (
     table2_prior,
 )
 
+
+class _TruncatedLogNormal:
+    """Reference: scipy's lognorm (shape log factor, scale median) renormalised on [lo, hi]."""
+
+    def __init__(self, median: float, factor: float, lo: float, hi: float) -> None:
+        self.base = stats.lognorm(math.log(factor), scale=median)
+        self.lo, self.hi = lo, hi
+        self.mass = self.base.cdf(hi) - self.base.cdf(lo)
+
+    def logpdf(self, x):
+        x = np.asarray(x, dtype=float)
+        inside = (x >= self.lo) & (x <= self.hi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(inside, self.base.logpdf(x) - math.log(self.mass), -np.inf)
+
+    def cdf(self, x):
+        x = np.clip(np.asarray(x, dtype=float), self.lo, self.hi)
+        return (self.base.cdf(x) - self.base.cdf(self.lo)) / self.mass
+
+
 DISTS = [
     (Uniform(-2.0, 3.0), stats.uniform(-2.0, 5.0)),
     (TruncatedNormal(1.1, 0.2, 0.8, 2.0), stats.truncnorm(-1.5, 4.5, loc=1.1, scale=0.2)),
     (TruncatedNormal(30.0, 5.7, 11.5, 37.3), stats.truncnorm(-18.5 / 5.7, 7.3 / 5.7, 30, 5.7)),
     (LogUniform(1e3, 1e9), stats.loguniform(1e3, 1e9)),
+    # a plate-test modulus known to a factor of two, truncated on both sides
+    (LogNormal(8e6, 2.0, 1e6, 1e8), _TruncatedLogNormal(8e6, 2.0, 1e6, 1e8)),
+    (LogNormal(0.02, 3.0, 0.0005, 0.05), _TruncatedLogNormal(0.02, 3.0, 0.0005, 0.05)),
 ]
 
 
@@ -75,6 +99,11 @@ def test_dict_roundtrip(dist, _) -> None:
         (lambda: LogUniform(0.0, 1.0), "lower"),
         (lambda: LogUniform(-1.0, 1.0), "lower"),
         (lambda: LogUniform(2.0, 1.0), "upper"),
+        (lambda: LogNormal(0.0, 2.0, 1.0, 2.0), "median"),
+        (lambda: LogNormal(1.0, 1.0, 1.0, 2.0), "factor"),
+        (lambda: LogNormal(1.0, math.nan, 1.0, 2.0), "factor"),
+        (lambda: LogNormal(1.0, 2.0, 0.0, 2.0), "lower"),
+        (lambda: LogNormal(1.0, 2.0, 3.0, 2.0), "upper"),
     ],
 )
 def test_validation_names_the_field(factory, field: str) -> None:
@@ -144,3 +173,13 @@ def test_table2_presets() -> None:
         table2_prior("3")
     X = p1.sample(np.random.default_rng(0), 100)
     assert np.isfinite(p1.log_pdf(X)).all()
+
+
+def test_log_normal_quantiles_are_the_factor() -> None:
+    """Untruncated in effect (bounds 10 sd away): the median and one geometric sd either side."""
+    dist = LogNormal(8e6, 2.0, 8e6 / 2.0**10, 8e6 * 2.0**10)
+    q = dist.ppf(stats.norm.cdf([-1.0, 0.0, 1.0]))
+    assert np.allclose(q, [4e6, 8e6, 16e6], rtol=1e-9)
+    # the density integrates to one over its support (log-spaced trapezoid)
+    x = np.geomspace(dist.lower, dist.upper, 200001)
+    assert np.trapezoid(np.exp(dist.logpdf(x)), x) == pytest.approx(1.0, abs=1e-6)

@@ -131,7 +131,7 @@ def test_leader_scheme_is_batch_invariant() -> None:
     assert _same(r1, r2)
 
 
-@pytest.mark.parametrize("moves", ["resample-move", "leader"])
+@pytest.mark.parametrize("moves", ["resample-move", "leader", "waste-free"])
 def test_resume_from_saved_stages_is_bit_identical(tmp_path, moves: str) -> None:
     saved: list[dict] = []
     kw = dict(n_samples=1000, seed=21, settings=TMCMCSettings(moves=moves))

@@ -186,3 +186,50 @@ def test_stage_diagnostics_are_exposed() -> None:
         assert s.beta > 0.0
         assert s.model_runs == s.proposals - s.out_of_support
     assert res.log_evidence == res.stages[-1].log_evidence
+
+
+def test_waste_free_chains_keep_every_state_and_cost_n_minus_m_runs() -> None:
+    """Waste-free (Dau & Chopin 2022): ceil(n / P) resampled points start chains of P - 1
+    moves; all P states of a chain, its start first, are samples, so a stage makes at most
+    n - M model runs (out-of-support proposals are not run)."""
+    from scm_core.inference import plan_stage
+    from scm_core.inference.tmcmc_stage import _chain_sizes
+
+    prior = JointPrior({"x": Uniform(-1.0, 1.0), "y": Uniform(-1.0, 1.0)})
+
+    def gauss(X: np.ndarray) -> np.ndarray:
+        return -0.5 * ((X[:, 0] - 0.2) ** 2 + (X[:, 1] + 0.1) ** 2) / 0.05**2
+
+    n = 503  # P = 10 does not divide it: the last chain has 3 states
+    settings = TMCMCSettings(moves="waste-free")
+    res = run_tmcmc(gauss, prior, n_samples=n, seed=0, settings=settings)
+    assert res.status == "completed" and res.exponents[-1] == 1.0
+    m = 51
+    for prev, s in zip(res.stages[:-1], res.stages[1:], strict=True):
+        plan = plan_stage(prev, prior, settings)
+        assert plan.parent.shape == (m,) and plan.n_chains == m
+        assert np.array_equal(plan.chain_length, [9] * 50 + [2])
+        assert s.samples.shape == (n, 2) and s.n_chains == m
+        # every chain's first sample is its resampled start, unchanged
+        first = np.concatenate([[0], np.cumsum(plan.chain_length + 1)[:-1]])
+        assert np.array_equal(s.samples[first], prev.samples[plan.parent])
+        assert s.model_runs == s.proposals - s.out_of_support <= n - m
+        assert np.array_equal(_chain_sizes(s, settings), [10] * 50 + [3])
+    assert _chain_sizes(res.stages[0], settings) is None  # prior draws are independent
+    # a rough check of the answer (the exact-answer tests are in test_inference_delayed_acceptance)
+    assert abs(res.samples[:, 0].mean() - 0.2) < 0.01 and abs(res.samples[:, 1].mean() + 0.1) < 0.01
+
+
+def test_evidence_variance_counts_chains_as_the_independent_units() -> None:
+    from scm_core.inference.tmcmc_stage import _log_mean_weight_var
+
+    w = np.random.default_rng(0).random(60)
+    w /= w.sum()
+    iid = float(np.sum(w * w)) - 1.0 / 60
+    assert _log_mean_weight_var(w, None) == pytest.approx(iid, rel=1e-12)
+    assert _log_mean_weight_var(w, np.ones(60, dtype=np.int64)) == pytest.approx(iid, rel=1e-12)
+    # ten chains whose six states share one weight: the variance of 10 independent draws
+    wc = np.repeat(w[:10] / w[:10].sum(), 6) / 6.0
+    want = float(np.sum((w[:10] / w[:10].sum()) ** 2)) - 0.1
+    assert _log_mean_weight_var(wc, np.full(10, 6, dtype=np.int64)) == pytest.approx(want)
+    assert _log_mean_weight_var(wc, None) == pytest.approx(want / 6.0)  # iid understates it

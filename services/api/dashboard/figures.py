@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from scm_core.calibration import CaseDefinition, StudyModel
 from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
 from scm_core.inference.posterior import map_sample, pool_samples
+from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import SWTDataset
 from services.plots.figures import render
 from services.plots.fit import fit_figure
@@ -94,7 +95,7 @@ def _stage_data(store: Store, study: StudyRecord, stage: int) -> StageData:
 
 
 def _log_params(case: CaseDefinition) -> set[str]:
-    return {n for n, d in case.prior().dists.items() if d.kind == "log_uniform"}
+    return {n for n, d in case.prior().dists.items() if d.kind in LOG_SCALE_KINDS}
 
 
 def _map(data: StageData) -> np.ndarray:
