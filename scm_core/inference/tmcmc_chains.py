@@ -298,8 +298,8 @@ def run_chains(
         return acc
 
     move = move_of(settings.moves)
-    leader = move.keeps_every_step
-    if leader:
+    keep_all = move.keeps_every_step
+    if keep_all:
         # every state after each move is a sample, and the start too where the move keeps it
         first = int(move.keeps_start)
         counts = (lengths + first).astype(np.int64)
@@ -326,10 +326,10 @@ def run_chains(
         moved = surrogate_move(active, t) if sur is not None else plain_move(active, t)
         accepted[active] += moved
         proposed[active] += 1
-        if leader:
+        if keep_all:
             emit(active, out_off[active] + first + t)
 
-    if leader:
+    if keep_all:
         samples, log_l, log_p, responses = out_x, out_ll, out_lp, out_resp
     else:
         counts = np.ones(idx.size, dtype=np.int64)

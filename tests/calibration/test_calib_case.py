@@ -63,6 +63,21 @@ def build(**changes):
     return CaseDefinition.from_dict(doc)
 
 
+def test_cmu_case_takes_k_star_from_the_plate_tests_as_a_log_normal_prior() -> None:
+    from scipy import stats
+
+    case = load_case(EXAMPLES / "cmu_smooth.toml")
+    k = case.prior().dists["k_phi"]
+    assert k.kind == "log_normal" and (k.median, k.factor) == (8.0e6, 2.0)
+    # the plate tests' value is the median, one geometric sd a factor of two (the truncation
+    # at 1e8, 3.6 geometric sd above, moves the quantiles by ~1e-4)
+    assert k.ppf(0.5) == pytest.approx(8.0e6, rel=1e-3)
+    assert k.ppf(stats.norm.cdf(1.0)) == pytest.approx(16.0e6, rel=1e-3)
+    assert case.to_dict()["parameters"]["k_phi"]["dist"] == "log_normal"
+    again = CaseDefinition.from_dict(case.to_dict(), EXAMPLES)
+    assert again.fingerprint() == case.fingerprint()
+
+
 def test_toml_case_parses_in_order(tmp_path: Path) -> None:
     (tmp_path / "c.toml").write_text(TOML)
     case = load_case(tmp_path / "c.toml")
