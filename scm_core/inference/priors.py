@@ -276,7 +276,7 @@ class JointPrior:
         if len(self.dists) == 0:
             raise ValueError("JointPrior: 'dists' must not be empty")
         for name, dist in self.dists.items():
-            if not isinstance(dist, Uniform | TruncatedNormal | LogUniform | LogNormal):
+            if not isinstance(dist, Distribution):
                 raise ValueError(f"JointPrior: 'dists[{name!r}]' is not a distribution: {dist!r}")
         object.__setattr__(self, "dists", dict(self.dists))
         units = dict(self.units or {})

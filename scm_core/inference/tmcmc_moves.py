@@ -36,6 +36,13 @@ class Move(Protocol):
         """How many points the stage resamples from its n weighted samples."""
         ...
 
+    def chain_sizes(
+        self, n: int, n_chains: int, settings: TMCMCSettings
+    ) -> NDArray[np.int64] | None:
+        """Sizes of the consecutive blocks of a stage's n samples that one chain made, where
+        they are correlated enough to count as one unit (None: independent samples)."""
+        ...
+
     def chains(
         self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -76,6 +83,9 @@ class ResampleMove:
     def resample_size(self, n: int, settings: TMCMCSettings) -> int:
         return n
 
+    def chain_sizes(self, n: int, n_chains: int, settings: TMCMCSettings) -> None:
+        return None
+
     def chains(
         self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -107,6 +117,9 @@ class LeaderMove:
     def resample_size(self, n: int, settings: TMCMCSettings) -> int:
         return n
 
+    def chain_sizes(self, n: int, n_chains: int, settings: TMCMCSettings) -> None:
+        return None
+
     def chains(
         self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -136,6 +149,17 @@ class WasteFreeMove:
 
     def resample_size(self, n: int, settings: TMCMCSettings) -> int:
         return -(-n // self.states_per_chain(settings))
+
+    def chain_sizes(
+        self, n: int, n_chains: int, settings: TMCMCSettings
+    ) -> NDArray[np.int64] | None:
+        per = self.states_per_chain(settings)
+        m = -(-n // per)
+        if n_chains != m:
+            return None
+        sizes = np.full(m, per, dtype=np.int64)
+        sizes[-1] = n - per * (m - 1)
+        return sizes
 
     def chains(
         self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings

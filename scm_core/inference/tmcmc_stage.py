@@ -55,7 +55,7 @@ from scm_core.inference.early_rejection import n_parts
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc_chains import chain_rng, run_chains
 from scm_core.inference.tmcmc_eval import call_batch
-from scm_core.inference.tmcmc_moves import WasteFreeMove, move_of, steps_for_acceptance
+from scm_core.inference.tmcmc_moves import move_of, steps_for_acceptance
 from scm_core.inference.tmcmc_types import (
     MOVES,
     ChainBatchResult,
@@ -219,17 +219,11 @@ def stage_status(state: StageState, settings: TMCMCSettings) -> str | None:
 
 
 def _chain_sizes(state: StageState, settings: TMCMCSettings) -> NDArray[np.int64] | None:
-    """Sizes of the consecutive blocks of ``state``'s samples that one waste-free chain made
-    (None: the samples are treated as independent draws: stage 0, the other move forms)."""
-    if settings.moves != "waste-free" or state.stage < 1:
+    """Sizes of the consecutive blocks of ``state``'s samples that one chain made (None: the
+    samples are treated as independent draws: stage 0, resample-move, leader)."""
+    if state.stage < 1:
         return None
-    n, per = state.n_samples, WasteFreeMove.states_per_chain(settings)
-    m = -(-n // per)
-    if state.n_chains != m:
-        return None
-    sizes = np.full(m, per, dtype=np.int64)
-    sizes[-1] = n - per * (m - 1)
-    return sizes
+    return move_of(settings.moves).chain_sizes(state.n_samples, state.n_chains, settings)
 
 
 def _log_mean_weight_var(
