@@ -21,7 +21,7 @@ two-sample KS statistic).
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
         [--forms leader accurate accelerated] [--surrogate-steps 10] [--moves M] [--seed 1]
-        [--json OUT.json] [--save DIR] [--reference DIR]
+        [--proposal-scale linear|log] [--json OUT.json] [--save DIR] [--reference DIR]
 
 ``--save DIR`` writes each run's final samples (``FORM_N.npy``); ``--reference DIR`` compares with
 the accurate form's samples saved there instead of running it again (the unaccelerated form's
@@ -41,8 +41,10 @@ from rich.table import Table
 from scipy.stats import ks_2samp
 
 from scm_core.calibration import StudyModel, load_case, run_tmcmc
+from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import load_dataset
 from services.cli.pool import batch_map
+from services.studies.batching import local_batch_size
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "case1.toml"
@@ -56,9 +58,17 @@ FORMS = {
 
 
 def run_form(
-    form: str, n_samples: int, seed: int, workers: int, surrogate_steps: int, moves: int | None
+    form: str,
+    n_samples: int,
+    seed: int,
+    workers: int,
+    surrogate_steps: int,
+    moves: int | None,
+    proposal_scale: str = "linear",
 ) -> dict:
     sampler = {"n_samples": n_samples, **FORMS[form]}
+    if sampler["delayed_acceptance"]:  # the accelerated forms; leader and accurate as they are
+        sampler["proposal_scale"] = proposal_scale
     if sampler["delayed_acceptance"]:
         sampler["surrogate_steps"] = surrogate_steps
         if moves is not None:
@@ -66,7 +76,7 @@ def run_form(
     case = load_case(CASE).with_changes(sampler=sampler)
     data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
     model = StudyModel(case, [data])
-    batch = max(1, n_samples // (4 * workers))
+    batch = local_batch_size(stage_chains(n_samples, case.tmcmc_settings()), workers)
     t0 = time.perf_counter()
     with batch_map(workers) as mapper:
         res = run_tmcmc(
@@ -107,6 +117,12 @@ def main() -> None:
     ap.add_argument(
         "--moves", type=int, default=None, help="accelerated: moves per chain (default adapted)"
     )
+    ap.add_argument(
+        "--proposal-scale",
+        choices=["linear", "log"],
+        default="linear",
+        help="random-walk coordinates of the accelerated forms",
+    )
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
     ap.add_argument("--save", type=Path, default=None, help="write each run's samples here")
     ap.add_argument("--reference", type=Path, default=None, help="saved accurate samples")
@@ -119,7 +135,15 @@ def main() -> None:
             rows.append({"form": "accurate", "n_samples": n, "samples": ref, "saved": True})
         for form in args.forms:
             rows.append(
-                run_form(form, n, args.seed, args.workers, args.surrogate_steps, args.moves)
+                run_form(
+                    form,
+                    n,
+                    args.seed,
+                    args.workers,
+                    args.surrogate_steps,
+                    args.moves,
+                    args.proposal_scale,
+                )
             )
             r = rows[-1]
             if args.save is not None:

@@ -21,7 +21,8 @@ update's total log evidence (base + increment) estimates the joint one.
 
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_update.py [--seeds 7 8 9] [--workers 2] [--samples 500]
-        [--moves resample-move|leader] [--surrogate-steps K]
+        [--moves resample-move|leader|waste-free] [--surrogate-steps K]
+        [--proposal-scale linear|log]
 """
 
 from __future__ import annotations
@@ -37,8 +38,10 @@ from rich.table import Table
 from scipy.stats import ks_2samp
 
 from scm_core.calibration import StudyModel, UpdateLikelihood, load_case, run_tmcmc
+from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import load_dataset
 from services.cli.pool import batch_map
+from services.studies.batching import local_batch_size
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "quick.toml"
@@ -57,6 +60,7 @@ def _run(func, case, seed, mapper, batch_size, start=None):
         batch_size=batch_size,
         stage0_samples=None if start is None else start.samples,
         stage0_tuning=None if start is None else (start.beta, start.acceptance_rate),
+        stage0_known_parts=None if start is None else func.base_parts(start.responses),
     )
     return result, time.perf_counter() - t0
 
@@ -74,7 +78,7 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=500)
     ap.add_argument(
         "--moves",
-        choices=["leader", "resample-move"],
+        choices=["leader", "resample-move", "waste-free"],
         default="resample-move",
         help="TMCMC moves (the quick case's own are the leader form's)",
     )
@@ -84,16 +88,24 @@ def main() -> None:
         default=0,
         help="surrogate transitions with this many surrogate steps per model run (0: off)",
     )
+    ap.add_argument(
+        "--proposal-scale",
+        choices=["linear", "log"],
+        default="linear",
+        help="random-walk coordinates (log: of every positive parameter)",
+    )
     args = ap.parse_args()
 
     sampler = {"n_samples": args.samples, "moves": args.moves}
+    sampler["proposal_scale"] = args.proposal_scale
     if args.surrogate_steps:
         sampler |= {"delayed_acceptance": True, "surrogate_steps": args.surrogate_steps}
     case = load_case(CASE).with_changes(sampler=sampler)
     data = [load_dataset(p, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz) for p in LOGS]
     names = list(case.parameter_names)
-    batch = max(1, args.samples // (4 * args.workers))
+    batch = local_batch_size(stage_chains(args.samples, case.tmcmc_settings()), args.workers)
     accel = f", surrogate steps {args.surrogate_steps}" if args.surrogate_steps else ""
+    accel += f", {args.proposal_scale} walk"
     runs = Table(title=f"quick case, {args.samples} samples, {case.sampler.moves} moves{accel}")
     cols = ("seed", "study", "stages", "model runs", "simulations", "saved by ER", "wall s")
     cols = (*cols, "log Z")

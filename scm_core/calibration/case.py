@@ -168,7 +168,9 @@ class SamplerSettings(_Strict):
     :mod:`scm_core.inference.early_rejection`). ``delayed_acceptance``: move with a surrogate
     of the responses fitted on the stage's starting states before simulating (exact, other
     samples; :mod:`scm_core.inference.surrogate`): ``surrogate_steps`` Metropolis steps on the
-    surrogate per model run (1: Christen & Fox's delayed acceptance).
+    surrogate per model run (1: Christen & Fox's delayed acceptance). ``proposal_scale``:
+    "log" walks the log of every strictly positive parameter (exact; SCM's multiplicative
+    trade-offs become straight ridges, :mod:`scm_core.inference.walk_space`).
     """
 
     n_samples: int = Field(2000, ge=10)
@@ -180,6 +182,7 @@ class SamplerSettings(_Strict):
     early_rejection: bool = True
     delayed_acceptance: bool = False
     surrogate_steps: int = Field(1, ge=1, le=100)
+    proposal_scale: Literal["linear", "log"] = "linear"
 
     def tmcmc_settings(self) -> TMCMCSettings:
         return TMCMCSettings(
@@ -190,6 +193,7 @@ class SamplerSettings(_Strict):
             early_rejection=self.early_rejection,
             delayed_acceptance=self.delayed_acceptance,
             surrogate_steps=self.surrogate_steps,
+            proposal_scale=self.proposal_scale,
         )
 
 

@@ -47,6 +47,18 @@ class UpdateLikelihood:
         new = self.model.log_likelihood_from_means(means, sigma, range(self.n_old, n))
         return new, means.reshape(X.shape[0], -1), old
 
+    def base_parts(self, responses: ArrayLike) -> dict[int, NDArray[np.float64]]:
+        """The old datasets' parts {k: lab-side means (m, 3)} from the responses (m, >= 3 n_old)
+        the earlier study returned at its population (its datasets are the first n_old, in
+        order): stage 0 of the update then runs the new datasets only (``known_parts`` of
+        :func:`~scm_core.inference.tmcmc_stage.evaluate_points`), with the same result."""
+        R = np.asarray(responses, dtype=float)
+        if R.ndim != 2 or R.shape[1] < 3 * self.n_old:
+            raise ValueError(
+                f"responses of shape {R.shape} do not hold {self.n_old} datasets' 3 means"
+            )
+        return {k: R[:, 3 * k : 3 * k + 3] for k in range(self.n_old)}
+
     # surrogate (delayed acceptance): the model's responses
     @property
     def response_inputs(self) -> tuple[int, ...]:

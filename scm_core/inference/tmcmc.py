@@ -10,7 +10,7 @@ Results are bit-identical for a given seed whatever the map and batch size.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
@@ -185,6 +185,15 @@ def _check_resume(stages: Sequence[StageState], prior: JointPrior, n: int, seed:
         )
 
 
+def _evaluate_rows(
+    rows: tuple[NDArray[np.float64], dict[int, NDArray[np.float64]]],
+    log_likelihood_batch: LogLikelihoodBatch,
+):
+    """Stage 0 of one batch: its points and the responses known at them (picklable)."""
+    X, known = rows
+    return evaluate_points(X, log_likelihood_batch, known or None)
+
+
 def run_tmcmc(
     log_likelihood_batch: LogLikelihoodBatch,
     prior: JointPrior,
@@ -197,6 +206,7 @@ def run_tmcmc(
     resume_from: Sequence[StageState] | None = None,
     stage0_samples: NDArray[np.float64] | None = None,
     stage0_tuning: tuple[float, float] | None = None,
+    stage0_known_parts: Mapping[int, NDArray[np.float64]] | None = None,
     on_stage_start: Callable[[StageStart], Any] | None = None,
     on_batch: Callable[[int], Any] | None = None,
     on_stage: Callable[[StageState], Any] | None = None,
@@ -219,7 +229,10 @@ def run_tmcmc(
     earlier posterior's population with a likelihood that gives log b = log L(earlier data)
     (see :mod:`.tmcmc_stage`), and the log evidence is then the incremental one;
     ``stage0_tuning`` (beta, acceptance rate of that population's last stage) starts stage 1
-    with the proposal scale and step count adapted to it (see :func:`initial_state`).
+    with the proposal scale and step count adapted to it (see :func:`initial_state`);
+    ``stage0_known_parts`` {part k: responses (n_samples, r_k)}: parts of a parted likelihood
+    already simulated at those points (an update: the old datasets, from the earlier
+    population's responses), not run again (see :func:`evaluate_points`).
     """
     settings = settings or TMCMCSettings()
     seed = int(seed)
@@ -241,9 +254,14 @@ def run_tmcmc(
         batches = chain_batches(n_samples, batch_size)
         if on_stage_start is not None:
             on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))
-        func = partial(evaluate_points, log_likelihood_batch=log_likelihood_batch)
+        known = dict(stage0_known_parts or {})
+        func = partial(_evaluate_rows, log_likelihood_batch=log_likelihood_batch)
+        rows = [
+            (X[r.start : r.stop], {k: v[r.start : r.stop] for k, v in known.items()})
+            for r in batches
+        ]
         evals = []
-        for r, ev in zip(batches, map(func, [X[r.start : r.stop] for r in batches]), strict=True):
+        for r, ev in zip(batches, map(func, rows), strict=True):
             evals.append(ev)
             if on_batch is not None:
                 on_batch(len(r))

@@ -16,6 +16,7 @@ from scm_core.inference.surrogate import ResponseSurrogate, fit_surrogate, suppo
 from scm_core.inference.tmcmc_eval import batch_output, tempered
 from scm_core.inference.tmcmc_moves import move_of
 from scm_core.inference.tmcmc_types import ChainBatchResult, LogLikelihoodBatch, StagePlan
+from scm_core.inference.walk_space import from_walk, log_columns, log_proposal_ratio, to_walk
 
 __all__ = ["chain_rng", "run_chains", "surrogate_floor"]
 
@@ -176,13 +177,24 @@ def run_chains(
         floor = surrogate_floor(plan)
         sur_x, _ = _surrogate_target(sur, f, x, np.asarray(prior.log_pdf(x), float), p, floor)
 
+    logs = log_columns(prior, settings.proposal_scale)
+
     def propose(y: NDArray[np.float64], rows: NDArray[np.int64]):
-        """(x', log prior at x' (-inf outside the support), inside) for states y."""
-        y_prop = y + _apply_factor(plan.proposal_chol, Z[rows])
+        """(x', log prior at x' (-inf outside the support), inside, log q(x | x') -
+        log q(x' | x)) for states y: a random-walk step in walk coordinates
+        (:mod:`scm_core.inference.walk_space`)."""
+        if logs.any():
+            u = to_walk(y, logs)
+            u_prop = u + _apply_factor(plan.proposal_chol, Z[rows])
+            y_prop = from_walk(u_prop, logs)
+            q_ratio = log_proposal_ratio(u_prop, u, logs)
+        else:
+            y_prop = y + _apply_factor(plan.proposal_chol, Z[rows])
+            q_ratio = np.zeros(y.shape[0])
         lp_prop = np.asarray(prior.log_pdf(y_prop), dtype=float)
         ok = np.isfinite(lp_prop) & np.asarray(prior.in_support(y_prop))
         n["out_of_support"] += ok.size - int(np.count_nonzero(ok))
-        return y_prop, np.where(ok, lp_prop, -np.inf), ok
+        return y_prop, np.where(ok, lp_prop, -np.inf), ok, q_ratio
 
     def model_step(
         active: NDArray[np.int64],
@@ -260,8 +272,8 @@ def run_chains(
         moved = np.zeros(active.size, dtype=bool)
         for j in range(K):
             rows = (offsets[active] + t) * K + j
-            x_prop, lp_prop, ok = propose(x[active], rows)
-            acc = model_step(active, x_prop, lp_prop, ok, log_u[rows], np.zeros(active.size), None)
+            x_prop, lp_prop, ok, q_ratio = propose(x[active], rows)
+            acc = model_step(active, x_prop, lp_prop, ok, log_u[rows], -q_ratio, None)
             moved |= acc
             if settings.delayed_acceptance:
                 n["inner_proposed"] += active.size
@@ -276,11 +288,11 @@ def run_chains(
         sur_ll = np.full(active.size, np.nan)
         for j in range(K):
             rows = (offsets[active] + t) * K + j
-            y_prop, lp_prop, ok = propose(y, rows)
+            y_prop, lp_prop, ok, q_ratio = propose(y, rows)
             s_prop = np.full(active.size, -np.inf)
             ll_tilde = np.full(active.size, np.nan)
             s_prop[ok], ll_tilde[ok] = _surrogate_target(sur, f, y_prop[ok], lp_prop[ok], p, floor)
-            acc = ok & (log_u1[rows] < s_prop - sur_y)
+            acc = ok & (log_u1[rows] < s_prop - sur_y + q_ratio)
             y[acc], lp_y[acc], sur_y[acc], sur_ll[acc] = (
                 y_prop[acc],
                 lp_prop[acc],

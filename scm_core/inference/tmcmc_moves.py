@@ -20,6 +20,7 @@ __all__ = [
     "ResampleMove",
     "WasteFreeMove",
     "move_of",
+    "stage_chains",
     "steps_for_acceptance",
 ]
 
@@ -171,6 +172,12 @@ class WasteFreeMove:
 
 
 _MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove(), WasteFreeMove())}
+
+
+def stage_chains(n: int, settings: TMCMCSettings) -> int:
+    """The most Metropolis chains a stage of n samples runs (what to cut into work batches):
+    n for resample-move and leader, ceil(n / P) for waste-free."""
+    return move_of(settings.moves).resample_size(n, settings)
 
 
 def move_of(name: str) -> Move:

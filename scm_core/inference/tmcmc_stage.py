@@ -46,15 +46,15 @@ Two move schemes (``TMCMCSettings.moves``):
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from scm_core.inference.early_rejection import n_parts
+from scm_core.inference.early_rejection import is_parted, n_parts
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc_chains import chain_rng, run_chains
-from scm_core.inference.tmcmc_eval import call_batch
+from scm_core.inference.tmcmc_eval import batch_output, call_batch
 from scm_core.inference.tmcmc_moves import move_of, steps_for_acceptance
 from scm_core.inference.tmcmc_types import (
     MOVES,
@@ -73,6 +73,7 @@ from scm_core.inference.tmcmc_weights import (
     systematic_resample,
     weighted_covariance,
 )
+from scm_core.inference.walk_space import log_columns, to_walk, walk_bounds
 
 __all__ = [
     "MOVES",
@@ -121,14 +122,35 @@ def initial_samples(prior: JointPrior, n_samples: int, seed: int) -> NDArray[np.
     return prior.sample(_stage_rng(seed, 0), n_samples)
 
 
-def evaluate_points(X: ArrayLike, log_likelihood_batch: LogLikelihoodBatch) -> PointEvaluation:
-    """Evaluate the batch likelihood at fixed points (m, d); non-finite values -> -inf, counted."""
+def evaluate_points(
+    X: ArrayLike,
+    log_likelihood_batch: LogLikelihoodBatch,
+    known_parts: Mapping[int, NDArray[np.float64]] | None = None,
+) -> PointEvaluation:
+    """Evaluate the batch likelihood at fixed points (m, d); non-finite values -> -inf, counted.
+
+    ``known_parts`` {part k: its responses (m, r_k)}: parts of a parted likelihood (see
+    :mod:`.early_rejection`) already simulated at these points, e.g. the old datasets of a
+    posterior update at the earlier posterior's population; only the other parts run and the
+    output is assembled from both, bit-identical to the full evaluation (a part's responses do
+    not depend on the others). A known part with a non-finite response runs again."""
     X = np.asarray(X, dtype=float)
-    if X.shape[0] == 0:
+    m = X.shape[0]
+    if m == 0:
         return PointEvaluation(np.empty(0), None, 0)
-    ll, resp, n_failed, base = call_batch(log_likelihood_batch, X)
-    parts = n_parts(log_likelihood_batch)
-    return PointEvaluation(ll, resp, n_failed, base, part_runs=X.shape[0] * parts)
+    f = log_likelihood_batch
+    if not known_parts or not is_parted(f):
+        ll, resp, n_failed, base = call_batch(f, X)
+        return PointEvaluation(ll, resp, n_failed, base, part_runs=m * n_parts(f))
+    responses, runs = [], 0
+    for k in range(n_parts(f)):
+        r = known_parts.get(k)
+        if r is None or r.shape[0] != m or not np.all(np.isfinite(r)):
+            r = f.run_part(X, k)[1]
+            runs += m
+        responses.append(np.asarray(r, dtype=float))
+    ll, resp, n_failed, base = batch_output(f.assemble(X, responses), X)
+    return PointEvaluation(ll, resp, n_failed, base, part_runs=runs)
 
 
 def initial_state(
@@ -266,8 +288,9 @@ def plan_stage(
     parent = systematic_resample(
         weights, move.resample_size(n, settings), _stage_rng(state.seed, stage)
     )
-    cov = state.beta**2 * weighted_covariance(state.samples, weights)
-    cov, chol = proposal_factor(cov, prior.bounds)
+    logs = log_columns(prior, settings.proposal_scale)
+    cov = state.beta**2 * weighted_covariance(to_walk(state.samples, logs), weights)
+    cov, chol = proposal_factor(cov, walk_bounds(prior.bounds, logs))
 
     chain_start, chain_length = move.chains(parent, n, state.acceptance_rate, settings)
     chain_start = chain_start.astype(np.int64)

@@ -86,6 +86,9 @@ class TMCMCSettings(_Fields):
         surrogate_neighbors and surrogate_smoothing: the surrogate's local RBF interpolant's
         neighbours and smoothing (standardised); surrogate_memory: the newest model-evaluated
         states (with their responses) carried from stage to stage as its training set.
+    proposal_scale: "linear" (the random walk moves the parameters) or "log" (it moves the log
+        of every parameter with a strictly positive prior support: SCM's multiplicative
+        trade-offs become straight ridges; exact, see :mod:`scm_core.inference.walk_space`).
     """
 
     moves: str = "resample-move"
@@ -109,6 +112,7 @@ class TMCMCSettings(_Fields):
     surrogate_smoothing: float = 1e-3
     surrogate_steps: int = 1
     surrogate_memory: int = 20_000
+    proposal_scale: str = "linear"
 
     def __post_init__(self) -> None:
         if self.moves not in MOVES:
@@ -139,6 +143,10 @@ class TMCMCSettings(_Fields):
             raise ValueError(f"'max_stages' must be >= 1, got {self.max_stages!r}")
         if self.stall_stages < 1:
             raise ValueError(f"'stall_stages' must be >= 1, got {self.stall_stages!r}")
+        if self.proposal_scale not in ("linear", "log"):
+            raise ValueError(
+                f"'proposal_scale' must be 'linear' or 'log', got {self.proposal_scale!r}"
+            )
         if self.surrogate_memory < 0:
             raise ValueError(f"'surrogate_memory' must be >= 0, got {self.surrogate_memory!r}")
         if self.surrogate_steps < 1:

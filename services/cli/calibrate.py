@@ -30,6 +30,7 @@ from scm_core.calibration import (
     run_tmcmc,
 )
 from scm_core.inference import StageState
+from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import SWTDataset
 from services.studies.batching import local_batch_size
 from services.studies.kinds.checks import prior_medians
@@ -180,7 +181,11 @@ def calibrate(
     prior = case.prior()
     settings = case.tmcmc_settings()
     n = case.sampler.n_samples
-    bs = batch_size or case.sampler.batch_size or local_batch_size(n, workers)
+    bs = (
+        batch_size
+        or case.sampler.batch_size
+        or local_batch_size(stage_chains(n, settings), workers)
+    )
 
     if out is None:
         out = Path(f"{update_of.name}_update" if update_of else f"{case_file.stem}_results")
@@ -223,6 +228,9 @@ def calibrate(
         display.batch(k)
 
     likelihood = UpdateLikelihood(model, n_old) if parent else model
+    known = None
+    if parent is not None and parent.final.responses is not None:
+        known = likelihood.base_parts(parent.final.responses)  # old datasets: not run again
     # in-process, Ctrl-C is noticed before every simulator call (between Metropolis steps);
     # with workers, when a batch comes back
     func = likelihood if workers is not None else CheckedLikelihood(stop, likelihood)
@@ -243,6 +251,7 @@ def calibrate(
                 on_stage=on_stage,
                 stage0_samples=parent.final.samples if parent else None,
                 stage0_tuning=parent.tuning if parent else None,
+                stage0_known_parts=known,
             )
     except BaseException as exc:
         if not is_interrupt(exc):

@@ -25,8 +25,9 @@ def batch_size_of(requested: int | None, configured: int | None, default: int) -
 
 def local_batch_size(n: int, workers: int | None) -> int:
     """Chains per batch of a study run on this machine (``scm-calib calibrate``): four batches
-    per process (``workers``; None: in-process on numba's threads), so that a slow batch
-    leaves the others little to wait for and progress is reported often."""
+    of a stage's n chains (``stage_chains``: n / P for waste-free moves) per process
+    (``workers``; None: in-process on numba's threads), so that a slow batch leaves the others
+    little to wait for and progress is reported often."""
     parts = 4 if workers is None else 4 * workers
     return max(1, math.ceil(n / parts))
 

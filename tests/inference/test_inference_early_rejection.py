@@ -29,6 +29,7 @@ from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
 from scm_core.inference.early_rejection import evaluate_staged, is_parted
+from scm_core.inference.tmcmc_stage import evaluate_points
 
 LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -160,6 +161,31 @@ def test_update_with_base_parts_same_bits_and_exact_answer() -> None:
     assert np.all(np.abs(on.samples.mean(axis=0) - mean) < 0.1 * sd)
     assert np.all(np.abs(on.samples.std(axis=0) / sd - 1.0) < 0.07)
     assert abs(old.log_evidence + on.log_evidence - log_z) < 0.2
+
+
+def test_update_stage0_reuses_the_old_parts_same_bits() -> None:
+    """Stage 0 of an update given the old parts' responses at the earlier population (its own
+    responses there) runs only the new parts and gives the same bits as running them all; a
+    known part with a non-finite response is run again."""
+    prior, old_f, f, _, _, _ = update_problem()
+    old = run_tmcmc(old_f, prior, 1000, seed=3)
+    known = {k: old.final.responses[:, 2 * k : 2 * k + 2] for k in range(2)}
+    full = run_tmcmc(f, prior, 1000, seed=4, stage0_samples=old.samples)
+    reused = run_tmcmc(f, prior, 1000, seed=4, stage0_samples=old.samples, stage0_known_parts=known)
+    for a, b in zip(full.stages, reused.stages, strict=True):
+        assert np.array_equal(a.samples, b.samples)
+        assert np.array_equal(a.log_likelihood, b.log_likelihood)
+        assert np.array_equal(a.log_prior, b.log_prior)
+        assert np.array_equal(a.responses, b.responses)
+        assert a.log_evidence == b.log_evidence
+    assert full.stages[0].part_runs == 4 * 1000 and reused.stages[0].part_runs == 2 * 1000
+    X = old.samples[:5]
+    bad = {0: known[0][:5].copy(), 1: known[1][:5]}
+    bad[0][2, 1] = np.nan
+    f.calls.clear()
+    ev = evaluate_points(X, f, bad)
+    assert sorted(f.calls) == [(0, 5), (2, 5), (3, 5)] and ev.part_runs == 15
+    assert np.array_equal(ev.log_likelihood, evaluate_points(X, f).log_likelihood)
 
 
 # --- the staged evaluation itself ---------------------------------------------------------

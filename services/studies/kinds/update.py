@@ -21,14 +21,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.calibration import CaseDefinition, StudyModel, UpdateLikelihood
-from scm_core.inference.tmcmc_stage import StageState
+from scm_core.inference.tmcmc_stage import StageState, evaluate_points
 from services.config import Settings
 from services.limits import INT64_MAX
-from services.store import NotFoundError, Store, StudyRecord, StudySpec
+from services.store import BatchLease, BatchOutput, NotFoundError, Store, StudyRecord, StudySpec
 
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
+from .base import batch_output
 from .calibration import (
     CalibrationKind,
     CalibrationRun,
@@ -118,6 +119,7 @@ class UpdateRun(CalibrationRun):
     the old datasets in the base density."""
 
     parent_samples: NDArray[np.float64] | None = None
+    parent_responses: NDArray[np.float64] | None = None
     parent_tuning: tuple[float, float] | None = None
     likelihood: UpdateLikelihood | None = None
     parent_id: int = 0
@@ -136,6 +138,16 @@ class UpdateRun(CalibrationRun):
     def model_function(self):
         """Points (m, d) -> (log L(new), responses, log L(old))."""
         return self.likelihood
+
+    def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
+        """Stage 0 runs the new datasets only: the old ones' responses at the parent's
+        population are the parent's (bit-identical to running them again)."""
+        if lease.key.stage_index != 0 or self.parent_responses is None:
+            return super().compute(store, lease, model_function)
+        rows = slice(lease.chain_start, lease.chain_stop)
+        known = self.likelihood.base_parts(self.parent_responses[rows])
+        X = self.initial_points[rows]
+        return batch_output(lease, evaluate_points(X, model_function, known))
 
     def result(self, final: StageState) -> dict[str, Any]:
         increment = float(final.log_evidence)
@@ -166,6 +178,7 @@ class UpdateKind(CalibrationKind):
             n_samples=study.n_samples,
             seed=study.seed,
             parent_samples=final.samples,
+            parent_responses=final.responses,
             parent_tuning=(float(final.beta), float(final.acceptance_rate)),
             likelihood=UpdateLikelihood(model, len(old)),
             parent_id=parent.id,
