@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from parted_targets import A5, S5, Y5, PartedLinearGaussian, exact_linear
 from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, run_tmcmc
@@ -42,11 +43,7 @@ def test_log_walk_lognormal_conjugate(moves: str) -> None:
     settings = TMCMCSettings(moves=moves, proposal_scale="log")
     assert log_columns(prior, "log").tolist() == [True]
     res = run_tmcmc(loglik_lognormal, prior, 2000, seed=0, settings=settings)
-    mu0 = math.log(M0)
-    post_var = 1.0 / (1.0 + 1.0 / S_LOG**2)
-    post_mean = post_var * (mu0 + Y_LOG / S_LOG**2)
-    tau = math.sqrt(post_var)
-    log_z = stats.norm.logpdf(Y_LOG, mu0, math.sqrt(1.0 + S_LOG**2))
+    post_mean, tau, log_z = exact_lognormal()
     u = np.log(res.samples[:, 0])
     print(
         f"log walk {moves}: mean err/sd {(u.mean() - post_mean) / tau:+.3f}, sd rel err "
@@ -60,11 +57,25 @@ def test_log_walk_lognormal_conjugate(moves: str) -> None:
 
 # --- the 5-D linear-Gaussian target moved to positive support ------------------------------
 
-_rng = np.random.default_rng(1)
-A5 = _rng.normal(size=(8, 5))
-S5 = 0.1
-Y5 = A5 @ _rng.normal(size=5) + S5 * _rng.normal(size=8)
 SHIFT = 3.0
+#: N(3, 1) per axis truncated to [0.01, 13]: strictly positive support, so every column walks in log
+PRIOR_SHIFTED = JointPrior(
+    {f"t{j}": TruncatedNormal(SHIFT, 1.0, 0.01, SHIFT + 10.0) for j in range(5)}
+)
+
+
+def exact_shifted() -> tuple[np.ndarray, np.ndarray, float]:
+    """Posterior mean, sd and log evidence of the 5-D target moved by SHIFT."""
+    mean, sd, log_z = exact_linear(A5, Y5, S5)
+    return SHIFT + mean, sd, log_z
+
+
+def exact_lognormal() -> tuple[float, float, float]:
+    """Posterior mean and sd of log theta and the log evidence of the log-normal target."""
+    mu0 = math.log(M0)
+    post_var = 1.0 / (1.0 + 1.0 / S_LOG**2)
+    log_z = stats.norm.logpdf(Y_LOG, mu0, math.sqrt(1.0 + S_LOG**2))
+    return post_var * (mu0 + Y_LOG / S_LOG**2), math.sqrt(post_var), float(log_z)
 
 
 def loglik_shifted(X: np.ndarray) -> np.ndarray:
@@ -82,15 +93,11 @@ def test_log_walk_linear_gaussian_5d_on_positive_support() -> None:
     """Gaussian in x, so curved in the walk's log coordinates: still exact (prior N(3, 1)
     truncated to [0.01, 13]: the lower cut is 3 sd out, mass 1.4e-3 per axis, and the
     likelihood puts the posterior ~0.1 from 3, so the truncation is immaterial)."""
-    prior = JointPrior({f"t{j}": TruncatedNormal(SHIFT, 1.0, 0.01, SHIFT + 10.0) for j in range(5)})
-    assert log_columns(prior, "log").all()
+    assert log_columns(PRIOR_SHIFTED, "log").all()
     res = run_tmcmc(
-        loglik_shifted, prior, 2000, seed=0, settings=TMCMCSettings(proposal_scale="log")
+        loglik_shifted, PRIOR_SHIFTED, 2000, seed=0, settings=TMCMCSettings(proposal_scale="log")
     )
-    cov = np.linalg.inv(np.eye(5) + A5.T @ A5 / S5**2)
-    mean = SHIFT + cov @ A5.T @ Y5 / S5**2
-    sd = np.sqrt(np.diag(cov))
-    log_z = stats.multivariate_normal.logpdf(Y5, np.zeros(8), A5 @ A5.T + S5**2 * np.eye(8))
+    mean, sd, log_z = exact_shifted()
     err_mean = np.abs(res.samples.mean(axis=0) - mean) / sd
     err_sd = np.abs(res.samples.std(axis=0) / sd - 1.0)
     print(
@@ -99,7 +106,7 @@ def test_log_walk_linear_gaussian_5d_on_positive_support() -> None:
     )
     assert res.status == "completed"
     assert err_mean.max() < 0.1 and err_sd.max() < 0.10
-    corr = cov / np.outer(sd, sd)
+    corr = np.linalg.inv(np.eye(5) + A5.T @ A5 / S5**2) / np.outer(sd, sd)
     assert np.abs(np.corrcoef(res.samples, rowvar=False) - corr).max() < 0.05
     assert abs(res.log_evidence - log_z) < 0.25
 
@@ -170,10 +177,7 @@ def test_log_walk_with_surrogate_transitions_in_waste_free_chains(states: int) -
     )
     prior = JointPrior({"theta": LogNormal(M0, F0, M0 * F0**-20, M0 * F0**20)})
     res = run_tmcmc(LogNormalWithResponse(), prior, 2000, seed=0, settings=settings)
-    mu0 = math.log(M0)
-    post_var = 1.0 / (1.0 + 1.0 / S_LOG**2)
-    post_mean, tau = post_var * (mu0 + Y_LOG / S_LOG**2), math.sqrt(post_var)
-    log_z = stats.norm.logpdf(Y_LOG, mu0, math.sqrt(1.0 + S_LOG**2))
+    post_mean, tau, log_z = exact_lognormal()
     u = np.log(res.samples[:, 0])
     screened = sum(s.first_stage_rejections for s in res.stages)
     print(
@@ -188,17 +192,9 @@ def test_log_walk_with_surrogate_transitions_in_waste_free_chains(states: int) -
     assert abs(u.std() / tau - 1.0) < 0.10
     assert abs(res.log_evidence - log_z) < 0.25
 
-    from parted_targets import PartedLinearGaussian
-
     f = PartedLinearGaussian(A5, Y5 + A5 @ np.full(5, SHIFT), S5, [(0, 1), (2, 3), (4, 5), (6, 7)])
-    prior5 = JointPrior(
-        {f"t{j}": TruncatedNormal(SHIFT, 1.0, 0.01, SHIFT + 10.0) for j in range(5)}
-    )
-    res = run_tmcmc(f, prior5, 2000, seed=0, settings=settings)
-    cov = np.linalg.inv(np.eye(5) + A5.T @ A5 / S5**2)
-    mean = SHIFT + cov @ A5.T @ Y5 / S5**2
-    sd = np.sqrt(np.diag(cov))
-    log_z = stats.multivariate_normal.logpdf(Y5, np.zeros(8), A5 @ A5.T + S5**2 * np.eye(8))
+    res = run_tmcmc(f, PRIOR_SHIFTED, 2000, seed=0, settings=settings)
+    mean, sd, log_z = exact_shifted()
     err_mean = np.abs(res.samples.mean(axis=0) - mean) / sd
     err_sd = np.abs(res.samples.std(axis=0) / sd - 1.0)
     screened = sum(s.first_stage_rejections for s in res.stages)

@@ -230,6 +230,11 @@ class CalibrationRun:
         """(beta, acceptance rate) stage 1 starts from (None: the settings' beta0, steps)."""
         return None
 
+    def known_parts(self, rows: slice) -> dict[int, Any] | None:
+        """Likelihood parts already simulated at stage-0 points ``rows`` (see
+        ``evaluate_points``; a calibration: none)."""
+        return None
+
     @property
     def model_function(self):
         """Points (m, d) -> log-likelihoods (and responses): the simulator's time; the model
@@ -239,8 +244,11 @@ class CalibrationRun:
     def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
         """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""
         if lease.key.stage_index == 0:
-            X = self.initial_points[lease.chain_start : lease.chain_stop]
-            return batch_output(lease, evaluate_points(X, model_function))
+            rows = slice(lease.chain_start, lease.chain_stop)
+            known = self.known_parts(rows)
+            return batch_output(
+                lease, evaluate_points(self.initial_points[rows], model_function, known)
+            )
         result = run_chains(self.plan(store, lease.key), lease.chains, model_function)
         return batch_output(lease, result)
 

@@ -21,15 +21,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.calibration import CaseDefinition, StudyModel, UpdateLikelihood
-from scm_core.inference.tmcmc_stage import StageState, evaluate_points
+from scm_core.inference.tmcmc_stage import StageState
 from services.config import Settings
 from services.limits import INT64_MAX
-from services.store import BatchLease, BatchOutput, NotFoundError, Store, StudyRecord, StudySpec
+from services.store import NotFoundError, Store, StudyRecord, StudySpec
 
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import batch_output
 from .calibration import (
     CalibrationKind,
     CalibrationRun,
@@ -139,15 +138,12 @@ class UpdateRun(CalibrationRun):
         """Points (m, d) -> (log L(new), responses, log L(old))."""
         return self.likelihood
 
-    def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
+    def known_parts(self, rows: slice) -> dict[int, Any] | None:
         """Stage 0 runs the new datasets only: the old ones' responses at the parent's
         population are the parent's (bit-identical to running them again)."""
-        if lease.key.stage_index != 0 or self.parent_responses is None:
-            return super().compute(store, lease, model_function)
-        rows = slice(lease.chain_start, lease.chain_stop)
-        known = self.likelihood.base_parts(self.parent_responses[rows])
-        X = self.initial_points[rows]
-        return batch_output(lease, evaluate_points(X, model_function, known))
+        if self.parent_responses is None:
+            return None
+        return self.likelihood.base_parts(self.parent_responses[rows])
 
     def result(self, final: StageState) -> dict[str, Any]:
         increment = float(final.log_evidence)
