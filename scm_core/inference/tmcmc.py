@@ -25,6 +25,7 @@ from scm_core.inference.tmcmc_stage import (
     TMCMCSettings,
     chain_batches,
     evaluate_points,
+    first_occurrences,
     initial_samples,
     initial_state,
     plan_stage,
@@ -186,12 +187,13 @@ def _check_resume(stages: Sequence[StageState], prior: JointPrior, n: int, seed:
 
 
 def _evaluate_rows(
-    rows: tuple[NDArray[np.float64], dict[int, NDArray[np.float64]]],
+    rows: tuple[NDArray[np.float64], dict[int, NDArray[np.float64]], NDArray[np.bool_]],
     log_likelihood_batch: LogLikelihoodBatch,
 ):
-    """Stage 0 of one batch: its points and the responses known at them (picklable)."""
-    X, known = rows
-    return evaluate_points(X, log_likelihood_batch, known or None)
+    """Stage 0 of one batch: its points, the responses known at them and which are repeats
+    of earlier points (picklable)."""
+    X, known, copies = rows
+    return evaluate_points(X, log_likelihood_batch, known or None, copies)
 
 
 def run_tmcmc(
@@ -232,7 +234,8 @@ def run_tmcmc(
     with the proposal scale and step count adapted to it (see :func:`initial_state`);
     ``stage0_known_parts`` {part k: responses (n_samples, r_k)}: parts of a parted likelihood
     already simulated at those points (an update: the old datasets, from the earlier
-    population's responses), not run again (see :func:`evaluate_points`).
+    population's responses), not run again (see :func:`evaluate_points`). A point repeated in
+    stage 0 (an earlier population keeps a state once per rejected move) runs once.
     """
     settings = settings or TMCMCSettings()
     seed = int(seed)
@@ -255,9 +258,15 @@ def run_tmcmc(
         if on_stage_start is not None:
             on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))
         known = dict(stage0_known_parts or {})
+        source = first_occurrences(X)
+        copies = source != np.arange(n_samples)
         func = partial(_evaluate_rows, log_likelihood_batch=log_likelihood_batch)
         rows = [
-            (X[r.start : r.stop], {k: v[r.start : r.stop] for k, v in known.items()})
+            (
+                X[r.start : r.stop],
+                {k: v[r.start : r.stop] for k, v in known.items()},
+                copies[r.start : r.stop],
+            )
             for r in batches
         ]
         evals = []
@@ -265,7 +274,7 @@ def run_tmcmc(
             evals.append(ev)
             if on_batch is not None:
                 on_batch(len(r))
-        stages = [initial_state(prior, X, evals, seed, settings, stage0_tuning)]
+        stages = [initial_state(prior, X, evals, seed, settings, stage0_tuning, source)]
         if on_stage is not None:
             on_stage(stages[0])
 

@@ -321,11 +321,12 @@ class ChainBatchResult(_Fields):
 @dataclass(frozen=True, eq=False)
 class PointEvaluation(_Fields):
     """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures,
-    log b (m,) where the likelihood gives a base density (else None; see the module doc), and
-    the likelihood parts run (m x parts)."""
+    log b (m,) where the likelihood gives a base density (else None; see the module doc), the
+    likelihood parts run (m x parts) and the points run (m less repeated ones; None: m)."""
 
     log_likelihood: NDArray[np.float64]
     responses: NDArray[np.float64] | None
     failed_runs: int
     log_base: NDArray[np.float64] | None = None
     part_runs: int = 0
+    model_runs: int | None = None

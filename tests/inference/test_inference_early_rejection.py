@@ -29,7 +29,7 @@ from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
 from scm_core.inference.early_rejection import evaluate_staged, is_parted
-from scm_core.inference.tmcmc_stage import evaluate_points
+from scm_core.inference.tmcmc_stage import evaluate_points, first_occurrences, initial_state
 
 LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -186,6 +186,47 @@ def test_update_stage0_reuses_the_old_parts_same_bits() -> None:
     ev = evaluate_points(X, f, bad)
     assert sorted(f.calls) == [(0, 5), (2, 5), (3, 5)] and ev.part_runs == 15
     assert np.array_equal(ev.log_likelihood, evaluate_points(X, f).log_likelihood)
+
+
+def test_update_stage0_runs_a_repeated_point_once_same_bits() -> None:
+    """An earlier population repeats points (a rejected move keeps its state): stage 0 runs
+    each distinct point once, for any batching, and builds the state a full evaluation of every
+    row builds; its model_runs and part runs count the distinct points."""
+    prior, old_f, f, _, _, _ = update_problem()
+    old = run_tmcmc(old_f, prior, 400, seed=3)
+    rows = np.random.default_rng(5).integers(0, 400, 400)  # with replacement: ~63 % distinct
+    X = old.samples[rows]
+    known = {k: old.final.responses[rows, 2 * k : 2 * k + 2] for k in range(2)}
+    distinct = len({row.tobytes() for row in X})
+    assert distinct < 300
+    settings = TMCMCSettings()
+    runs = []
+    for batch_size in (None, 1, 7, 64):
+        runs.append(
+            run_tmcmc(
+                f,
+                prior,
+                400,
+                seed=4,
+                settings=settings,
+                batch_size=batch_size,
+                stage0_samples=X,
+                stage0_known_parts=known,
+            )
+        )
+    s0 = runs[0].stages[0]
+    assert s0.model_runs == distinct and s0.part_runs == 2 * distinct
+    reference = initial_state(prior, X, [evaluate_points(X, f)], 4, settings)
+    for name in ("log_likelihood", "log_prior", "responses", "samples"):
+        assert np.array_equal(getattr(s0, name), getattr(reference, name))
+    for other in runs[1:]:
+        for a, b in zip(runs[0].stages, other.stages, strict=True):
+            assert a.equals(b)
+    f.calls.clear()
+    copies = first_occurrences(X) != np.arange(400)
+    ev = evaluate_points(X, f, known, copies)
+    assert sorted(f.calls) == [(2, distinct), (3, distinct)] and ev.model_runs == distinct
+    assert np.isnan(ev.log_likelihood[copies]).all()
 
 
 # --- the staged evaluation itself ---------------------------------------------------------

@@ -97,14 +97,16 @@ def test_api_and_two_celery_workers(
         assert client.wait(update["id"], timeout=TIMEOUT, poll=0.5)["status"] == "completed"
         updated = client.get_study(update["id"])
         got_update = _final_samples(client, update["id"])
-        # its stage 0 ran the new log only (the old one's responses are the parent's)
+        # its stage 0 ran the new log only (the old one's responses are the parent's), once
+        # per distinct point of the parent's population
         update_stage0 = client.stages(update["id"])[0]
         assert client.wait(pred["id"], timeout=TIMEOUT, poll=0.5)["status"] == "completed"
         predicted = client.read("predictions", pred["id"])["result"]
     assert got.tobytes() == reference_samples.samples.tobytes()
     assert got_update.tobytes() == reference_update.samples.tobytes()
     assert updated["result"]["log_evidence_increment"] == updated["log_evidence"]
-    assert update_stage0["part_runs"] == updated["n_samples"]
+    distinct = len(np.unique(reference_samples.samples, axis=0))
+    assert update_stage0["part_runs"] == update_stage0["model_runs"] == distinct
     assert predicted["predictions"] == reference_prediction["datasets"]
     case = load_case(CASE_FILE)
     meta = json.loads(LOG_FILE.with_suffix(".json").read_text())

@@ -17,6 +17,7 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from scm_core.calibration import CaseDefinition, StudyModel
 from scm_core.inference.tmcmc_stage import (
@@ -26,6 +27,7 @@ from scm_core.inference.tmcmc_stage import (
     StageState,
     TMCMCSettings,
     evaluate_points,
+    first_occurrences,
     initial_samples,
     initial_state,
     plan_stage,
@@ -225,6 +227,11 @@ class CalibrationRun:
         """Stage-0 prior draws (all chains), drawn once per process."""
         return initial_samples(self.prior, self.n_samples, self.seed)
 
+    @cached_property
+    def initial_source(self) -> NDArray[np.int64]:
+        """Each stage-0 point's first occurrence (a repeated point runs once)."""
+        return first_occurrences(self.initial_points)
+
     @property
     def initial_tuning(self) -> tuple[float, float] | None:
         """(beta, acceptance rate) stage 1 starts from (None: the settings' beta0, steps)."""
@@ -246,9 +253,9 @@ class CalibrationRun:
         if lease.key.stage_index == 0:
             rows = slice(lease.chain_start, lease.chain_stop)
             known = self.known_parts(rows)
-            return batch_output(
-                lease, evaluate_points(self.initial_points[rows], model_function, known)
-            )
+            copies = self.initial_source[rows] != np.arange(rows.start, rows.stop)
+            points = evaluate_points(self.initial_points[rows], model_function, known, copies)
+            return batch_output(lease, points)
         result = run_chains(self.plan(store, lease.key), lease.chains, model_function)
         return batch_output(lease, result)
 
@@ -284,6 +291,7 @@ class CalibrationRun:
                     study.seed,
                     self.settings,
                     self.initial_tuning,
+                    self.initial_source,
                 )
             else:
                 chains = [decode(b, ChainBatchResult) for b in inp.results]
