@@ -21,11 +21,12 @@ two-sample KS statistic).
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
         [--forms leader accurate accelerated] [--surrogate-steps 10] [--moves M] [--seed 1]
-        [--proposal-scale linear|log] [--json OUT.json] [--save DIR] [--reference DIR]
+        [--proposal-scale linear|log] [--json OUT.json] [--save DIR] [--reference DIR [DIR ...]]
 
 ``--save DIR`` writes each run's final samples (``FORM_N.npy``); ``--reference DIR`` compares with
 the accurate form's samples saved there instead of running it again (the unaccelerated form's
-result does not change with the acceleration's settings).
+result does not change with the acceleration's settings); several DIRs (runs with different
+seeds) are pooled into one reference, whose own run-to-run noise is then smaller.
 """
 
 from __future__ import annotations
@@ -125,13 +126,15 @@ def main() -> None:
     )
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
     ap.add_argument("--save", type=Path, default=None, help="write each run's samples here")
-    ap.add_argument("--reference", type=Path, default=None, help="saved accurate samples")
+    ap.add_argument(
+        "--reference", type=Path, nargs="+", default=None, help="saved accurate samples (pooled)"
+    )
     args = ap.parse_args()
 
     rows = []
     for n in args.samples:
         if args.reference is not None and "accurate" not in args.forms:
-            ref = np.load(args.reference / f"accurate_{n}.npy")
+            ref = np.concatenate([np.load(d / f"accurate_{n}.npy") for d in args.reference])
             rows.append({"form": "accurate", "n_samples": n, "samples": ref, "saved": True})
         for form in args.forms:
             rows.append(
