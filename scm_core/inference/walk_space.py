@@ -57,11 +57,7 @@ def from_walk(U: NDArray[np.float64], logs: NDArray[np.bool_]) -> NDArray[np.flo
 
 def walk_bounds(bounds: NDArray[np.float64], logs: NDArray[np.bool_]) -> NDArray[np.float64]:
     """The prior box (d, 2) in walk coordinates."""
-    out = np.array(bounds, dtype=float, copy=True)
-    if logs.any():
-        with np.errstate(divide="ignore"):
-            out[logs] = np.log(out[logs])
-    return out
+    return np.ascontiguousarray(to_walk(np.asarray(bounds, dtype=float).T, logs).T)
 
 
 def log_proposal_ratio(
