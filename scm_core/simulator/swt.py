@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import kernel
+from .jit_cache import ensure_fresh_cache
 from .layout import STATUS_NAMES, STATUS_OK, pack_resolved
 from .params import RigConfig, SoilParams, WheelGeometry
 from .rig import ResolvedRig, resolve_rig
@@ -66,6 +67,7 @@ def simulate_swt(
     rig = rig or RigConfig()
     resolved = resolve_rig(wheel, rig)
     prm = pack_resolved(soil, wheel, resolved)
+    ensure_fresh_cache()
     t0 = time.perf_counter()
     series, n_out, status, h, diag = kernel.run_swt(prm)
     means_arr = kernel.steady_means(series, prm)
@@ -157,6 +159,7 @@ def simulate_batch(
 
 def simulate_packed(prms: np.ndarray) -> BatchResult:
     """:func:`simulate_batch` on an already packed parameter matrix."""
+    ensure_fresh_cache()
     t0 = time.perf_counter()
     means, status, _ = kernel.run_batch(np.ascontiguousarray(prms, dtype=np.float64))
     wall = time.perf_counter() - t0
