@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import ctypes
 import logging
-import multiprocessing
 import os
 import signal
-import sys
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -15,6 +12,7 @@ from services.config import Settings, get_settings
 from services.store import Store
 from services.store.records import BatchKey
 
+from .lifetime import exit_with_parent
 from .orchestrator import ContextCache, Dispatcher, execute_batch
 
 
@@ -48,24 +46,6 @@ def local_worker_id(owner: str) -> str:
     """The lease holder name of an embedded pool process: ``<owner>/<pid>``, where ``owner``
     (``local/<host>/<server instance>``) names the server that started it."""
     return f"{owner}/{os.getpid()}"
-
-
-def exit_with_parent() -> None:
-    """Linux: have the kernel send SIGTERM to this process when the thread that started it
-    (the embedded runtime's loop thread) ends, even by the server's SIGKILL, so that no
-    orphaned pool process is left behind (elsewhere: no-op)."""
-    parent = multiprocessing.parent_process()
-    if not sys.platform.startswith("linux") or parent is None:
-        return
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        return
-    # the server died before prctl took effect (compare pids: the server may itself be pid 1,
-    # as in the Docker image)
-    if os.getppid() != parent.pid:
-        os._exit(0)
 
 
 def pool_process_main(conn, store_args: tuple[str, float, int], owner: str) -> None:

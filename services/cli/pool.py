@@ -7,7 +7,9 @@
   ``simulate_packed`` call on numba's threads (all cores);
 * ``workers=N``: N worker processes (spawned, so no numba thread pool is forked), each with one
   numba thread; batches are sent to them and come back in order. Ctrl-C is handled by the parent
-  only (workers ignore SIGINT); leaving the block cancels batches not yet started.
+  only (workers ignore SIGINT); leaving the block cancels batches not yet started. On Linux a
+  worker is also sent SIGTERM when the parent dies, however it dies (``kill -9`` included), so
+  no worker keeps simulating an orphaned batch.
 
 Every simulated row is independent of the others and of the batch it is in, so results are
 bit-identical for any ``workers``.
@@ -22,10 +24,13 @@ from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Any
 
+from worker.lifetime import exit_with_parent
+
 MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
 
 
 def _init_worker() -> None:
+    exit_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     import numba
 
@@ -41,7 +46,11 @@ def batch_map(workers: int | None) -> Iterator[MapFn]:
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     ctx = multiprocessing.get_context("spawn")
-    executor = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
+    executor = ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=ctx,
+        initializer=_init_worker,
+    )
     try:
         yield executor.map
     finally:
