@@ -6,6 +6,8 @@ log at slip 0.2 (``examples/wf34_s020.csv``) with the default simulator, sampled
 
 * leader: the paper's form (Ching & Chen 2007), one model run per sample and stage;
 * accurate: resample-move, 10-50 Metropolis steps per sample and stage (the default form);
+* accurate-log: the same with the random walk in log coordinates for the positive parameters
+  (``proposal_scale = "log"``; exact, no surrogate);
 * accelerated: the accurate form with surrogate transitions (``--surrogate-steps`` K Metropolis
   steps on a surrogate of the responses, fitted on each stage's starting states, then one model
   run corrects; K = 1 is Christen & Fox's delayed acceptance; ``scm_core/inference/surrogate.py``;
@@ -22,11 +24,14 @@ Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
         [--forms leader accurate accelerated] [--surrogate-steps 10] [--moves M] [--seed 1]
         [--proposal-scale linear|log] [--json OUT.json] [--save DIR] [--reference DIR [DIR ...]]
+        [--reference-form accurate|accurate-log]
 
 ``--save DIR`` writes each run's final samples (``FORM_N.npy``); ``--reference DIR`` compares with
 the accurate form's samples saved there instead of running it again (the unaccelerated form's
 result does not change with the acceleration's settings); several DIRs (runs with different
 seeds) are pooled into one reference, whose own run-to-run noise is then smaller.
+``--reference-form`` names the unaccelerated form the others are compared with (``accurate``, or
+``accurate-log``, saved as ``accurate-log_N.npy``).
 """
 
 from __future__ import annotations
@@ -53,6 +58,11 @@ LOG = ROOT / "examples" / "wf34_s020.csv"
 FORMS = {
     "leader": {"moves": "leader", "delayed_acceptance": False},
     "accurate": {"moves": "resample-move", "delayed_acceptance": False},
+    "accurate-log": {
+        "moves": "resample-move",
+        "delayed_acceptance": False,
+        "proposal_scale": "log",
+    },
     "accelerated": {"moves": "resample-move", "delayed_acceptance": True},
     "waste-free": {"moves": "waste-free", "delayed_acceptance": True},
 }
@@ -66,6 +76,7 @@ def run_form(
     surrogate_steps: int,
     moves: int | None,
     proposal_scale: str = "linear",
+    case_path: Path = CASE,
 ) -> dict:
     sampler = {"n_samples": n_samples, **FORMS[form]}
     if sampler["delayed_acceptance"]:  # the accelerated forms; leader and accurate as they are
@@ -74,7 +85,7 @@ def run_form(
         sampler["surrogate_steps"] = surrogate_steps
         if moves is not None:
             sampler["n_steps"] = moves
-    case = load_case(CASE).with_changes(sampler=sampler)
+    case = load_case(case_path).with_changes(sampler=sampler)
     data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
     model = StudyModel(case, [data])
     batch = local_batch_size(stage_chains(n_samples, case.tmcmc_settings()), workers)
@@ -124,18 +135,28 @@ def main() -> None:
         default="linear",
         help="random-walk coordinates of the accelerated forms",
     )
+    ap.add_argument(
+        "--case", type=Path, default=CASE, help="another case on the same log (e.g. other priors)"
+    )
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
     ap.add_argument("--save", type=Path, default=None, help="write each run's samples here")
     ap.add_argument(
         "--reference", type=Path, nargs="+", default=None, help="saved accurate samples (pooled)"
     )
+    ap.add_argument(
+        "--reference-form",
+        choices=["accurate", "accurate-log"],
+        default="accurate",
+        help="the unaccelerated form the others are compared with",
+    )
     args = ap.parse_args()
 
     rows = []
     for n in args.samples:
-        if args.reference is not None and "accurate" not in args.forms:
-            ref = np.concatenate([np.load(d / f"accurate_{n}.npy") for d in args.reference])
-            rows.append({"form": "accurate", "n_samples": n, "samples": ref, "saved": True})
+        ref_form = args.reference_form
+        if args.reference is not None and ref_form not in args.forms:
+            ref = np.concatenate([np.load(d / f"{ref_form}_{n}.npy") for d in args.reference])
+            rows.append({"form": ref_form, "n_samples": n, "samples": ref, "saved": True})
         for form in args.forms:
             rows.append(
                 run_form(
@@ -146,6 +167,7 @@ def main() -> None:
                     args.surrogate_steps,
                     args.moves,
                     args.proposal_scale,
+                    args.case,
                 )
             )
             r = rows[-1]
@@ -163,14 +185,15 @@ def main() -> None:
         runs.add_column(col, justify="right")
     for col in ("wall s", "log Z"):
         runs.add_column(col, justify="right")
-    post = Table(title="posterior mean (sd); vs accurate: |d mean| / sd_accurate, KS")
+    ref_form = args.reference_form
+    post = Table(title=f"posterior mean (sd); vs {ref_form}: |d mean| / sd_{ref_form}, KS")
     post.add_column("samples", justify="right")
     post.add_column("form")
     for name in names:
         post.add_column(name, justify="right")
     for r in rows:
         if r.get("saved"):
-            runs.add_row(str(r["n_samples"]), "accurate (saved)", *["-"] * 6)
+            runs.add_row(str(r["n_samples"]), f"{r['form']} (saved)", *["-"] * 6)
         else:
             runs.add_row(
                 str(r["n_samples"]),
@@ -183,7 +206,7 @@ def main() -> None:
                 f"{r['log_evidence']:.3f} +- {r['log_evidence_se']:.3f}",
             )
         ref = next(
-            (a for a in rows if a["form"] == "accurate" and a["n_samples"] == r["n_samples"]),
+            (a for a in rows if a["form"] == ref_form and a["n_samples"] == r["n_samples"]),
             None,
         )
         cells = []
