@@ -20,15 +20,11 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from bench_study import CASE, load_model
 from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import StudyModel, load_case
-from scm_core.signals import load_dataset
-
-ROOT = Path(__file__).resolve().parents[1]
-CASE = ROOT / "examples" / "case1.toml"
-LOG = ROOT / "examples" / "wf34_s020.csv"
 
 
 def spread(
@@ -55,8 +51,7 @@ def main() -> None:
     args = ap.parse_args()
 
     case = load_case(CASE)
-    data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
-    model = StudyModel(case, [data])
+    model = load_model(case)
     samples = np.load(args.population)
     states, copies = np.unique(samples, axis=0, return_counts=True)
     rng = np.random.default_rng(args.seed)

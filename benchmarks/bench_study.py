@@ -46,7 +46,7 @@ from rich.console import Console
 from rich.table import Table
 from scipy.stats import ks_2samp
 
-from scm_core.calibration import StudyModel, load_case, run_tmcmc
+from scm_core.calibration import CaseDefinition, StudyModel, load_case, run_tmcmc
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import load_dataset
 from services.cli.pool import batch_map
@@ -68,6 +68,12 @@ FORMS = {
 }
 
 
+def load_model(case: CaseDefinition) -> StudyModel:
+    """The study model of ``case`` on the example log (averaged as the case says)."""
+    data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
+    return StudyModel(case, [data])
+
+
 def run_form(
     form: str,
     n_samples: int,
@@ -86,8 +92,7 @@ def run_form(
         if moves is not None:
             sampler["n_steps"] = moves
     case = load_case(case_path).with_changes(sampler=sampler)
-    data = load_dataset(LOG, offset=case.data.offset, cutoff_hz=case.data.cutoff_hz)
-    model = StudyModel(case, [data])
+    model = load_model(case)
     batch = local_batch_size(stage_chains(n_samples, case.tmcmc_settings()), workers)
     t0 = time.perf_counter()
     with batch_map(workers) as mapper:
@@ -145,15 +150,15 @@ def main() -> None:
     )
     ap.add_argument(
         "--reference-form",
-        choices=["accurate", "accurate-log"],
+        choices=[f for f in FORMS if f.startswith("accurate")],
         default="accurate",
         help="the unaccelerated form the others are compared with",
     )
     args = ap.parse_args()
 
+    ref_form = args.reference_form
     rows = []
     for n in args.samples:
-        ref_form = args.reference_form
         if args.reference is not None and ref_form not in args.forms:
             ref = np.concatenate([np.load(d / f"{ref_form}_{n}.npy") for d in args.reference])
             rows.append({"form": ref_form, "n_samples": n, "samples": ref, "saved": True})
@@ -185,7 +190,6 @@ def main() -> None:
         runs.add_column(col, justify="right")
     for col in ("wall s", "log Z"):
         runs.add_column(col, justify="right")
-    ref_form = args.reference_form
     post = Table(title=f"posterior mean (sd); vs {ref_form}: |d mean| / sd_{ref_form}, KS")
     post.add_column("samples", justify="right")
     post.add_column("form")
