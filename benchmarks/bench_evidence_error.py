@@ -6,11 +6,13 @@ log density of y under N(0, s^2 I + A A^T), exact. Each form runs ``--replicates
 0..R-1); the table gives the mean error of log Z, its empirical sd over the replicates, the root
 mean square of the standard errors the runs report, their ratio (1 if the reported errors are
 right; the ratio's own relative error is about 1 / sqrt(2 (R - 1))) and the replicates whose
-error exceeds two reported standard errors (about 5 % of them if the errors are right).
+error exceeds two reported standard errors (about 5 % of them if the errors are right). The
+``-multinomial`` forms resample with independent draws and report Lee & Whiteley's genealogy
+estimate; the others the sum of per-stage terms.
 
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_evidence_error.py [--replicates 12] [--samples 2000]
-        [--forms resample-move waste-free-da]
+        [--forms resample-move waste-free-da resample-move-multinomial]
 """
 
 from __future__ import annotations
@@ -26,11 +28,14 @@ from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, run_tmcmc
 
+WASTE_FREE_DA = {"moves": "waste-free", "n_steps": 4, "delayed_acceptance": True}
 FORMS = {
     "resample-move": TMCMCSettings(),
     "leader": TMCMCSettings(moves="leader"),
-    "waste-free-da": TMCMCSettings(
-        moves="waste-free", n_steps=4, delayed_acceptance=True, surrogate_steps=10
+    "waste-free-da": TMCMCSettings(**WASTE_FREE_DA, surrogate_steps=10),
+    "resample-move-multinomial": TMCMCSettings(resampling="multinomial"),
+    "waste-free-da-multinomial": TMCMCSettings(
+        **WASTE_FREE_DA, surrogate_steps=10, resampling="multinomial"
     ),
 }
 

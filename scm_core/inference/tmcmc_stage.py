@@ -4,7 +4,8 @@ One stage j -> j+1 is three steps, each a pure function of its inputs:
 
 1. :func:`plan_stage` (once, anywhere): next tempering exponent p_{j+1} from the coefficient of
    variation of the plausibility weights w_i = L(theta_i)^(p_{j+1} - p_j), evidence increment
-   log mean(w), systematic resampling, proposal covariance beta^2 * Cov_w and the chains to run.
+   log mean(w) and its variance, resampling, proposal covariance beta^2 * Cov_w
+   and the chains to run.
 2. :func:`run_chains` (any batch of chains, anywhere, in any order, possibly twice): Metropolis
    chains targeting log prior + p_{j+1} log L. Chain c of stage j draws its random numbers from
    ``SeedSequence(seed, spawn_key=(j, c))``, so results do not depend on how chains are batched.
@@ -73,6 +74,8 @@ from scm_core.inference.tmcmc_types import (
 )
 from scm_core.inference.tmcmc_weights import (
     adapt_beta,
+    genealogy_log_evidence_var,
+    multinomial_resample,
     next_exponent,
     plausibility_weights,
     proposal_factor,
@@ -80,6 +83,9 @@ from scm_core.inference.tmcmc_weights import (
     weighted_covariance,
 )
 from scm_core.inference.walk_space import log_columns, to_walk, walk_bounds
+
+#: resampling schemes of TMCMCSettings.resampling
+RESAMPLERS = {"systematic": systematic_resample, "multinomial": multinomial_resample}
 
 __all__ = [
     "MOVES",
@@ -96,6 +102,7 @@ __all__ = [
     "first_occurrences",
     "initial_samples",
     "initial_state",
+    "multinomial_resample",
     "next_exponent",
     "plan_stage",
     "plausibility_weights",
@@ -162,9 +169,12 @@ def plan_stage(
 
     Evidence increment log S = log mean_i w_i (Ching & Chen 2007); its variance by the delta
     method, Var(log S) ~ Var(w) / (n mean(w)^2) = sum_i wn_i^2 - 1/n for normalised weights wn
-    (treats the n samples as independent, so it is a lower bound when samples are duplicated;
-    waste-free chains are the independent units instead, see :func:`_log_mean_weight_var`).
-    Resampling is systematic with SeedSequence(seed, spawn_key=(stage,)).
+    (waste-free chains are the independent units, see :func:`_log_mean_weight_var`); the
+    variance of the accumulated log Z is the sum of these terms, a lower bound that leaves out
+    the correlation resampling carries between stages. With multinomial resampling it is the
+    genealogy estimate :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`
+    instead, which counts it (never less than the sum). Resampling (``settings.resampling``)
+    draws with SeedSequence(seed, spawn_key=(stage,)).
     """
     settings = settings or TMCMCSettings()
     if state.dim != prior.dim:
@@ -179,9 +189,13 @@ def plan_stage(
     log_s_var = _log_mean_weight_var(weights, _chain_sizes(state, settings))
 
     move = move_of(settings.moves)
-    parent = systematic_resample(
-        weights, move.resample_size(n, settings), stage_rng(state.seed, stage)
-    )
+    draws = move.resample_size(n, settings)
+    resample = RESAMPLERS[settings.resampling]
+    parent = resample(weights, draws, stage_rng(state.seed, stage))
+    log_z_var = float(state.log_evidence_var) + log_s_var
+    if settings.resampling == "multinomial" and state.eve is not None:
+        genealogy = genealogy_log_evidence_var(weights, state.eve, stage, n, max(draws, 2))
+        log_z_var = max(log_z_var, genealogy)
     logs = log_columns(prior, settings.proposal_scale)
     cov = state.beta**2 * weighted_covariance(to_walk(state.samples, logs), weights)
     cov, chol = proposal_factor(cov, walk_bounds(prior.bounds, logs))
@@ -213,6 +227,8 @@ def plan_stage(
         start_log_likelihood=state.log_likelihood[chain_start].copy(),
         start_log_prior=state.log_prior[chain_start].copy(),
         start_responses=None if resp is None else resp[chain_start].copy(),
+        start_eve=None if state.eve is None else state.eve[chain_start].copy(),
+        log_evidence_var=log_z_var,
         proposal_cov=cov,
         proposal_chol=chol,
         prev_beta=float(state.beta),
@@ -285,7 +301,11 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
         beta=adapt_beta(plan.prev_beta, step_acceptance, plan.settings),
         acceptance_rate=float(acceptance),
         log_evidence=plan.prev_log_evidence + plan.log_evidence_increment,
-        log_evidence_var=plan.prev_log_evidence_var + plan.log_evidence_increment_var,
+        log_evidence_var=(
+            plan.prev_log_evidence_var + plan.log_evidence_increment_var
+            if math.isnan(plan.log_evidence_var)
+            else plan.log_evidence_var
+        ),
         model_runs=int(sum(r.model_runs for r in results)),
         failed_runs=int(sum(r.failed_runs for r in results)),
         proposals=proposed,
@@ -304,6 +324,7 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
         surrogate_error_sum=float(np.sum(_chain_ordered(results, "surrogate_error"))),
         inner_accepted=inner_accepted,
         inner_proposed=inner_proposed,
+        eve=None if plan.start_eve is None else plan.start_eve[row_chain[order]],
         **_training_set(plan, results),
     )
 

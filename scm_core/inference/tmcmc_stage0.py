@@ -173,6 +173,7 @@ def initial_state(
         n_chains=0,
         n_steps=0,
         ess=float(n),
+        eve=pick.astype(np.int64),  # a repeated point is one draw
         stall_count=0,
         seed=int(seed),
         part_runs=int(sum(e.part_runs for e in evaluations)),

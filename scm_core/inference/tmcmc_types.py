@@ -29,6 +29,7 @@ __all__ = [
 ]
 
 MOVES = ("resample-move", "leader", "waste-free")
+RESAMPLING = ("systematic", "multinomial")
 
 #: X (m, d) -> log L (m,), or (log L, responses (m, k)), or (log L, responses, log b (m,))
 LogLikelihoodBatch = Callable[
@@ -89,6 +90,11 @@ class TMCMCSettings(_Fields):
     proposal_scale: "linear" (the random walk moves the parameters) or "log" (it moves the log
         of every parameter with a strictly positive prior support: SCM's multiplicative
         trade-offs become straight ridges; exact, see :mod:`scm_core.inference.walk_space`).
+    resampling: "systematic" (less resampling noise: the more accurate posterior and evidence,
+        but the reported evidence standard error, a sum of per-stage terms, is 1.3-1.4 times
+        too small) or "multinomial" (independent draws, as Ching & Chen; the standard error is
+        then Lee & Whiteley's genealogy estimate and right, the answers somewhat noisier); see
+        :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`.
     """
 
     moves: str = "resample-move"
@@ -113,6 +119,7 @@ class TMCMCSettings(_Fields):
     surrogate_steps: int = 1
     surrogate_memory: int = 20_000
     proposal_scale: str = "linear"
+    resampling: str = "systematic"
 
     def __post_init__(self) -> None:
         if self.moves not in MOVES:
@@ -147,6 +154,8 @@ class TMCMCSettings(_Fields):
             raise ValueError(
                 f"'proposal_scale' must be 'linear' or 'log', got {self.proposal_scale!r}"
             )
+        if self.resampling not in RESAMPLING:
+            raise ValueError(f"'resampling' must be one of {RESAMPLING}, got {self.resampling!r}")
         if self.surrogate_memory < 0:
             raise ValueError(f"'surrogate_memory' must be >= 0, got {self.surrogate_memory!r}")
         if self.surrogate_steps < 1:
@@ -169,11 +178,12 @@ class StageState(_Fields):
     responses (n, k) simulated responses returned with the likelihood, or None.
     beta: proposal scale for the *next* stage (already adapted). acceptance_rate: of the moves
     that produced this stage (NaN at stage 0). log_evidence, log_evidence_var: running sum of the
-    log-evidence increments and of their delta-method variances. model_runs, failed_runs,
-    proposals, accepted, out_of_support: counts for this stage only. n_chains, n_steps: chains
-    run and Metropolis steps per chain (longest chain for "leader"). ess: effective sample size of
-    the plausibility weights used to resample into this stage (n at stage 0). stall_count:
-    consecutive stages with an exponent increment below the stall tolerance. seed: study seed.
+    log-evidence increments and the estimated variance of that sum (see :func:`plan_stage`).
+    model_runs, failed_runs, proposals, accepted, out_of_support: counts for this stage only.
+    n_chains, n_steps: chains run and Metropolis steps per chain (longest chain for "leader").
+    ess: effective sample size of the plausibility weights used to resample into this stage
+    (n at stage 0). stall_count: consecutive stages with an exponent increment below the stall
+    tolerance. seed: study seed.
     part_runs: likelihood parts run this stage (a study's parts are its datasets: simulator
     runs); early_rejections: proposals rejected before their last part; part_runs_saved: parts
     not run thanks to early rejection (0 when it is off or the likelihood has one part).
@@ -183,7 +193,10 @@ class StageState(_Fields):
     |difference| (untempered). inner_accepted, inner_proposed: Metropolis steps of the
     surrogate transitions (delayed acceptance; beta adapts on their rate). train_samples,
     train_responses: with delayed acceptance, the newest ``surrogate_memory`` states the model
-    evaluated up to this stage, in chain and step order (else None).
+    evaluated up to this stage, in chain and step order (else None). eve (n,): the stage-0
+    sample each sample descends from through the resampling (its Eve; at stage 0 the first
+    occurrence of the sample, a repeated point being one draw), for the log evidence's
+    variance; None in states stored before it was kept.
     """
 
     stage: int
@@ -216,6 +229,7 @@ class StageState(_Fields):
     inner_proposed: int = 0
     train_samples: NDArray[np.float64] | None = None
     train_responses: NDArray[np.float64] | None = None
+    eve: NDArray[np.int64] | None = None
 
     @property
     def n_samples(self) -> int:
@@ -236,13 +250,15 @@ class StagePlan(_Fields):
     """Everything needed to run the chains of stage ``stage`` and reduce them.
 
     weights (n,): normalised plausibility weights of the previous samples. parent (n,): indices
-    picked by systematic resampling. chain_start (c,): index into the previous samples where each
+    picked by multinomial resampling. chain_start (c,): index into the previous samples where each
     chain starts; chain_length (c,): its number of Metropolis steps. start_* are the starting
     states (copied so that the previous state is not needed by :func:`run_chains`).
     proposal_cov (d, d) = beta^2 Cov_w (+ jitter) and its lower Cholesky factor proposal_chol.
     train_samples, train_responses: states the model evaluated in earlier stages and their
     responses, the delayed-acceptance surrogate's training set with the starting states (None
-    without delayed acceptance).
+    without delayed acceptance). start_eve (c,): the chain starts' Eves (see
+    :class:`StageState`). log_evidence_var: the variance of log Z-hat through this stage (NaN in
+    plans stored before it was kept: then the previous variance plus the increment's).
     """
 
     stage: int
@@ -271,6 +287,8 @@ class StagePlan(_Fields):
     n_samples: int
     train_samples: NDArray[np.float64] | None = None
     train_responses: NDArray[np.float64] | None = None
+    start_eve: NDArray[np.int64] | None = None
+    log_evidence_var: float = math.nan
 
     @property
     def n_chains(self) -> int:

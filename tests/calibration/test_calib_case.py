@@ -183,6 +183,10 @@ def test_fingerprint_ignores_what_does_not_change_samples() -> None:
         ),
         ({"sampler": {"n_samples": 3}}, "sampler.n_samples: Input should be greater than"),
         ({"sampler": {"moves": "gibbs"}}, "sampler.moves"),
+        (
+            {"sampler": {"resampling": "stratified"}},
+            "sampler.resampling: Input should be 'systematic' or 'multinomial'",
+        ),
         ({"sampler": {"n_sample": 30}}, "sampler.n_sample: unknown field"),
         ({"likelihood": "laplace"}, "likelihood"),
         ({"responses": ["F", "F"]}, "responses: must be distinct"),
@@ -198,6 +202,19 @@ def test_validation_errors_name_the_field(changes: dict, needle: str) -> None:
     msg = str(info.value)
     assert needle in msg, msg
     assert "\n" not in msg
+
+
+def test_sampler_resampling_reaches_the_tmcmc_settings() -> None:
+    """The default leaves the stored case and its fingerprint as they were before the key."""
+    base = build()
+    assert base.tmcmc_settings().resampling == "systematic"
+    assert "resampling" not in base.to_dict()["sampler"]
+    same = build(sampler={"resampling": "systematic"})
+    assert same.fingerprint() == base.fingerprint()
+    multi = build(sampler={"resampling": "multinomial"})
+    assert multi.tmcmc_settings().resampling == "multinomial"
+    assert multi.fingerprint() != base.fingerprint()
+    assert CaseDefinition.from_dict(multi.to_dict()) == multi
 
 
 def test_toml_errors_are_one_line(tmp_path: Path) -> None:

@@ -11,12 +11,14 @@ from scipy import stats
 from scm_core.inference import JointPrior, TMCMCSettings, Uniform, run_tmcmc
 from scm_core.inference.tmcmc_stage import (
     adapt_beta,
+    multinomial_resample,
     next_exponent,
     plausibility_weights,
     steps_for_acceptance,
     systematic_resample,
     weighted_covariance,
 )
+from scm_core.inference.tmcmc_weights import genealogy_log_evidence_var
 
 
 def _cov(logl: np.ndarray, dp: float) -> float:
@@ -68,6 +70,74 @@ def test_systematic_resampling_counts() -> None:
     w = np.random.default_rng(1).dirichlet(np.ones(50))
     counts = np.bincount(systematic_resample(w, 1000, np.random.default_rng(2)), minlength=50)
     assert np.all(np.abs(counts - 1000 * w) < 1.0 + 1e-9)
+
+
+def test_multinomial_resampling_draws_independently_in_proportion_to_the_weights() -> None:
+    w = np.array([0.5, 0.0, 0.25, 0.125, 0.125])
+    idx = multinomial_resample(w, 8, np.random.default_rng(0))
+    assert idx.shape == (8,) and np.all(np.diff(idx) >= 0) and not np.any(idx == 1)
+    assert np.array_equal(idx, multinomial_resample(w, 8, np.random.default_rng(0)))
+    # counts of 20,000 draws over 50 categories against the multinomial: chi-square test
+    w = np.random.default_rng(1).dirichlet(np.ones(50))
+    counts = np.bincount(multinomial_resample(w, 20_000, np.random.default_rng(2)), minlength=50)
+    assert stats.chisquare(counts, 20_000 * w).pvalue > 1e-3
+
+
+def test_genealogy_variance_closed_forms() -> None:
+    """Lee & Whiteley's estimate in the cases it reduces to something known."""
+    w = np.random.default_rng(0).random(60)
+    w /= w.sum()
+    # first weighting, every sample its own Eve: the unbiased form of the delta method,
+    # 1 - n / (n - 1) (1 - sum w^2) = (n sum w^2 - 1) / (n - 1)
+    got = genealogy_log_evidence_var(w, np.arange(60), 1, 60, 60)
+    assert got == pytest.approx((60 * np.sum(w * w) - 1.0) / 59.0, rel=1e-12)
+    # equal weights on n independent draws: no error
+    assert genealogy_log_evidence_var(np.full(60, 1 / 60), np.arange(60), 1, 60, 60) == (
+        pytest.approx(0.0, abs=1e-12)
+    )
+    # a population descended from one Eve: Z-hat rests on one draw, relative variance 1
+    assert genealogy_log_evidence_var(w, np.zeros(60, np.int64), 5, 60, 12) == pytest.approx(1.0)
+    # ten Eves of six samples after three weightings (waste-free-like: 12 draws each later)
+    eve = np.repeat(np.arange(10), 6)
+    w_eve = np.bincount(eve, weights=w)
+    want = 1.0 - 60 / 59 * (12 / 11) ** 2 * (1.0 - np.sum(w_eve**2))
+    assert genealogy_log_evidence_var(w, eve, 3, 60, 12) == pytest.approx(want, rel=1e-12)
+
+
+def test_evidence_variance_sums_stage_terms_unless_resampling_is_multinomial() -> None:
+    """Systematic resampling (and a state stored before Eves were kept) accumulate the
+    previous variance plus the increment's; multinomial resampling uses the genealogy estimate,
+    never below that sum. Eves follow the resampling: every sample descends from the Eve of
+    its chain's start."""
+    import dataclasses
+
+    from scm_core.inference import plan_stage
+
+    prior = JointPrior({"x": Uniform(-1.0, 1.0)})
+
+    def f(X: np.ndarray) -> np.ndarray:
+        return -0.5 * (X[:, 0] / 0.1) ** 2
+
+    multi = TMCMCSettings(resampling="multinomial")
+    for settings in (TMCMCSettings(), multi):
+        res = run_tmcmc(f, prior, n_samples=200, seed=0, settings=settings)
+        assert np.array_equal(res.stages[0].eve, np.arange(200))
+        for prev, state in zip(res.stages[:-1], res.stages[1:], strict=True):
+            plan = plan_stage(prev, prior, settings)
+            assert np.array_equal(np.unique(state.eve), np.unique(prev.eve[plan.parent]))
+            summed = prev.log_evidence_var + plan.log_evidence_increment_var
+            if settings is multi:
+                assert state.log_evidence_var >= summed
+            else:
+                assert state.log_evidence_var == pytest.approx(summed, rel=1e-12)
+        stored = dataclasses.replace(res.stages[1], eve=None)
+        plan = plan_stage(stored, prior, settings)
+        assert plan.start_eve is None
+        assert plan.log_evidence_var == pytest.approx(
+            stored.log_evidence_var + plan.log_evidence_increment_var, rel=1e-12
+        )
+    with pytest.raises(ValueError, match="resampling"):
+        TMCMCSettings(resampling="stratified")
 
 
 def test_weighted_covariance_matches_numpy() -> None:

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.calibration import CaseDefinition, StudyModel
+from scm_core.inference._serial import encode_array
 from scm_core.inference.tmcmc_stage import (
     ChainBatchResult,
     PointEvaluation,
@@ -94,8 +95,10 @@ _UNIQUE = "unique_samples"
 
 
 def reduced_stage(state: StageState) -> ReducedStage:
-    """A TMCMC stage's population as the store keeps it (``meta``: the state's scalars)."""
+    """A TMCMC stage's population as the store keeps it (``meta``: the state's scalars and its
+    samples' Eves)."""
     meta, _ = split(state)
+    meta["eve"] = encode_array(state.eve)
     return ReducedStage(
         stage=state.stage,
         population=SampleArrays(
