@@ -24,7 +24,7 @@ Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
         [--forms leader accurate accelerated] [--surrogate-steps 10] [--moves M] [--seed 1]
         [--proposal-scale linear|log] [--json OUT.json] [--save DIR] [--reference DIR [DIR ...]]
-        [--reference-form accurate|accurate-log]
+        [--reference-form accurate|accurate-log] [--resampling systematic|multinomial]
 
 ``--save DIR`` writes each run's final samples (``FORM_N.npy``); ``--reference DIR`` compares with
 the accurate form's samples saved there instead of running it again (the unaccelerated form's
@@ -83,8 +83,9 @@ def run_form(
     moves: int | None,
     proposal_scale: str = "linear",
     case_path: Path = CASE,
+    resampling: str = "systematic",
 ) -> dict:
-    sampler = {"n_samples": n_samples, **FORMS[form]}
+    sampler = {"n_samples": n_samples, **FORMS[form], "resampling": resampling}
     if sampler["delayed_acceptance"]:  # the accelerated forms; leader and accurate as they are
         sampler["proposal_scale"] = proposal_scale
     if sampler["delayed_acceptance"]:
@@ -143,6 +144,12 @@ def main() -> None:
     ap.add_argument(
         "--case", type=Path, default=CASE, help="another case on the same log (e.g. other priors)"
     )
+    ap.add_argument(
+        "--resampling",
+        choices=["systematic", "multinomial"],
+        default="systematic",
+        help="resampling of every form run (multinomial: right log-evidence errors)",
+    )
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
     ap.add_argument("--save", type=Path, default=None, help="write each run's samples here")
     ap.add_argument(
@@ -173,6 +180,7 @@ def main() -> None:
                     args.moves,
                     args.proposal_scale,
                     args.case,
+                    args.resampling,
                 )
             )
             r = rows[-1]

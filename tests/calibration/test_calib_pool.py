@@ -18,7 +18,7 @@ import os, sys, time
 from services.cli.pool import batch_map
 
 def pid_then_sleep(i):
-    print(os.getpid(), flush=True)
+    os.write(1, f"{os.getpid()}\\n".encode())  # one write: the two workers' lines cannot mix
     time.sleep(120)  # a long batch
     return i
 
