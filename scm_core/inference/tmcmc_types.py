@@ -250,9 +250,10 @@ class StagePlan(_Fields):
     """Everything needed to run the chains of stage ``stage`` and reduce them.
 
     weights (n,): normalised plausibility weights of the previous samples. parent (n,): indices
-    picked by multinomial resampling. chain_start (c,): index into the previous samples where each
-    chain starts; chain_length (c,): its number of Metropolis steps. start_* are the starting
-    states (copied so that the previous state is not needed by :func:`run_chains`).
+    picked by the resampling (``settings.resampling``). chain_start (c,): index into the previous
+    samples where each chain starts; chain_length (c,): its number of Metropolis steps. start_*
+    are the starting states (copied so that the previous state is not needed by
+    :func:`run_chains`).
     proposal_cov (d, d) = beta^2 Cov_w (+ jitter) and its lower Cholesky factor proposal_chol.
     train_samples, train_responses: states the model evaluated in earlier stages and their
     responses, the delayed-acceptance surrogate's training set with the starting states (None

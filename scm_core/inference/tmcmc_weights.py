@@ -1,8 +1,8 @@
 """The tempering arithmetic of a TMCMC stage (Ching & Chen 2007): plausibility weights and the
 next exponent from their coefficient of variation, systematic or multinomial resampling, the log
-evidence's
-variance from the population's genealogy, the weighted sample covariance and its Cholesky factor
-for the proposal, and the adaptation of the proposal scale. Pure functions of arrays."""
+evidence's variance from the population's genealogy, the weighted sample covariance and its
+Cholesky factor for the proposal, and the adaptation of the proposal scale. Pure functions of
+arrays."""
 
 from __future__ import annotations
 
@@ -88,29 +88,28 @@ def next_exponent(log_likelihood: ArrayLike, p_prev: float, target_cov: float = 
     return min(p_prev + hi, 1.0)
 
 
-def systematic_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
-    """Systematic resampling: n sorted indices, index i drawn ~ n * w_i times (±1)."""
+def _pick(weights: ArrayLike, positions: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Indices whose cumulative-weight intervals hold the sorted ``positions`` in [0, 1)."""
     w = np.asarray(weights, dtype=float)
     cw = np.cumsum(w)
     cw /= cw[-1]
     cw[-1] = 1.0
-    positions = (rng.random() + np.arange(n)) / n
     idx = np.searchsorted(cw, positions, side="right")
     return np.minimum(idx, w.shape[0] - 1).astype(np.int64)
+
+
+def systematic_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
+    """Systematic resampling: n sorted indices, index i drawn ~ n * w_i times (±1)."""
+    return _pick(weights, (rng.random() + np.arange(n)) / n)
 
 
 def multinomial_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
     """Multinomial resampling: n independent draws of an index with probabilities ``weights``,
     sorted (Ching & Chen's TMCMC draws the next stage's seeds this way). Independent draws are
-    what :func:`genealogy_log_evidence_var` assumes: with systematic resampling, which has less
-    variance of its own, that estimate comes out 1.5 times too small (``bench_evidence_error.py``).
-    """
-    w = np.asarray(weights, dtype=float)
-    cw = np.cumsum(w)
-    cw /= cw[-1]
-    cw[-1] = 1.0
-    idx = np.searchsorted(cw, np.sort(rng.random(n)), side="right")
-    return np.minimum(idx, w.shape[0] - 1).astype(np.int64)
+    what :func:`genealogy_log_evidence_var` assumes: after systematic resampling, which has less
+    variance of its own, that estimate comes out 1.5 times too small for resample-move and
+    negative for waste-free (``bench_evidence_error.py``, docs/calibration.md)."""
+    return _pick(weights, np.sort(rng.random(n)))
 
 
 def genealogy_log_evidence_var(
