@@ -48,6 +48,7 @@ from scipy.stats import ks_2samp
 
 from scm_core.calibration import CaseDefinition, StudyModel, load_case, run_tmcmc
 from scm_core.inference.tmcmc_moves import stage_chains
+from scm_core.inference.tmcmc_types import RESAMPLING
 from scm_core.signals import load_dataset
 from services.cli.pool import batch_map
 from services.studies.batching import local_batch_size
@@ -146,8 +147,8 @@ def main() -> None:
     )
     ap.add_argument(
         "--resampling",
-        choices=["systematic", "multinomial"],
-        default="systematic",
+        choices=RESAMPLING,
+        default=RESAMPLING[0],
         help="resampling of every form run (multinomial: right log-evidence errors)",
     )
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")

@@ -73,6 +73,10 @@ def _lower_equals_upper(doc: dict) -> None:
     doc["parameters"]["phi"] = {"dist": "uniform", "lower": 30.0, "upper": 30.0}
 
 
+def _unknown_resampling(doc: dict) -> None:
+    doc.setdefault("sampler", {})["resampling"] = "stratified"
+
+
 def _bad_log() -> bytes:
     return LOG.read_bytes().replace(b"torque [Nm]", b"torque [furlong]")
 
@@ -123,6 +127,9 @@ CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] =
     ("prior-lower-equals-upper", "POST", "/studies",
      lambda e: {"json": {"case": _case(e, _lower_equals_upper), "dataset_ids": [e.dataset_id]}},
      422, ("case.parameters.phi",)),
+    ("unknown-resampling", "POST", "/studies",
+     lambda e: {"json": {"case": _case(e, _unknown_resampling), "dataset_ids": [e.dataset_id]}},
+     422, ("case.sampler.resampling", "'systematic' or 'multinomial'")),
     ("unknown-dataset-id", "POST", "/studies",
      lambda e: {"json": {"preset": "1", "dataset_ids": [e.dataset_id + 1000]}}, 422,
      ("dataset_ids", str(1000 + 1))),
