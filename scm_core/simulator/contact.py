@@ -89,28 +89,35 @@ def build_patches(
     jw0: int,
     nyw: int,
     e: np.ndarray,
+    eb: np.ndarray,
     z_low: float,
     pc: np.ndarray,
     pj0: np.ndarray,
     pj1: np.ndarray,
     pst: np.ndarray,
+    gtop: np.ndarray,
 ) -> tuple[int, float]:
     """Group the nodes under the wheel into patches of identical state.
 
     Only columns that the wheel can touch with its axle at or above ``z_low`` (the free-fall
     height of this step, a lower bound of the solution) are kept. Returns (number of patches,
     highest axle height at which any node touches the wheel); pst[p] = (h0, sp, sy, ke, js).
+    gtop[k]: highest ground level h0 - sp of column k under the wheel's width [m] (-inf beyond the
+    tip circle ``eb``), from which evaluate_contact finds the tip circle's footprint.
     """
     npatch = 0
     ztop = -np.inf
+    gtop[ncw:] = -np.inf
     for k in range(ncw):
-        if not np.isfinite(e[k]):
+        gtop[k] = -np.inf
+        if not np.isfinite(min(e[k], eb[k])):
             continue
         c = c0 + k
         top = -np.inf
         for j in range(jw0, jw0 + nyw):
             top = max(top, h0[c, j] - sp[c, j])
-        if z_low + e[k] >= top:
+        gtop[k] = top
+        if not np.isfinite(e[k]) or z_low + e[k] >= top:
             continue  # the wheel stays above every node of this column
         j = 0
         while j < nyw:
@@ -147,6 +154,39 @@ def build_patches(
     return npatch, ztop
 
 
+@njit(cache=True, inline="always")
+def tip_footprint_length(
+    zw: float, xi: np.ndarray, eb: np.ndarray, gtop: np.ndarray, dx: float
+) -> float:
+    """Length along x of the tip circle's footprint with the axle at height zw [m].
+
+    The penetration d_k = gtop[k] - (zw + eb[k]) of the circle through the grouser tips into each
+    column's ground is interpolated linearly between column centres, so the front and rear edges
+    (its zero crossings) and the length move continuously with zw and the soil state; one column
+    (dx) at least once anything is penetrated, 0 before. Columns outside this step's window have
+    gtop = -inf (build_patches).
+    """
+    ncw = gtop.shape[0]
+    kf = -1
+    kr = -1
+    for k in range(ncw):
+        if gtop[k] - (zw + eb[k]) > 0.0:
+            if kr < 0:
+                kr = k
+            kf = k
+    if kf < 0:
+        return 0.0
+    d = gtop[kf] - (zw + eb[kf])
+    x_front = xi[kf] + 0.5 * dx
+    if kf + 1 < ncw and np.isfinite(gtop[kf + 1]) and np.isfinite(eb[kf + 1]):
+        x_front = xi[kf] + dx * d / (d - (gtop[kf + 1] - (zw + eb[kf + 1])))
+    d = gtop[kr] - (zw + eb[kr])
+    x_rear = xi[kr] - 0.5 * dx
+    if kr > 0 and np.isfinite(gtop[kr - 1]) and np.isfinite(eb[kr - 1]):
+        x_rear = xi[kr] - dx * d / (d - (gtop[kr - 1] - (zw + eb[kr - 1])))
+    return max(x_front - x_rear, dx)
+
+
 @njit(cache=True)
 def evaluate_contact(
     zw: float,
@@ -159,6 +199,8 @@ def evaluate_contact(
     pst: np.ndarray,
     xi: np.ndarray,
     e: np.ndarray,
+    eb: np.ndarray,
+    gtop: np.ndarray,
     fx: np.ndarray,
     fz: np.ndarray,
     dx: float,
@@ -174,9 +216,16 @@ def evaluate_contact(
     """Stresses and resultant soil forces for the axle at height zw moving down at -vz.
 
     Fills ``res`` (see R_* indices), ``pflag`` (0 free, 1 elastic contact, 2 yielding) and ``psig``
-    (untapered stress of eq. (7) per patch, Pa). Footprint area A and contour length L (of the
-    footprint's bounding box) give b_eff = 2A/L; the border taper gamma_i (separable half sines over
-    the bounding box, normalised to mean one over the loaded nodes) is evaluated on this footprint.
+    (untapered stress of eq. (7) per patch, Pa). The plate width of Bekker's law is b_eff = 2A/L of
+    the *tip circle's footprint*, a rectangle of the wheel's width w and the length l over which
+    ``eb``, the circle through the grouser tips (the rim for a smooth wheel), is below the ground
+    ``gtop``: b_eff = l w / (l + w). The soil between grousers is trapped and moves with the wheel
+    (Wong & Reece's effective radius r + h_g), so a grousered wheel presses on the soil as one
+    plate of that footprint, not as a few grouser tips one grid cell wide; l is interpolated
+    between columns (tip_footprint_length), so k* = k_c / b_eff + k_phi is continuous in the axle
+    height and the parameters instead of stepping with node counts. The border taper
+    gamma_i (separable half sines over the bounding box of the loaded nodes, normalised to mean one
+    over them) is evaluated on the loaded footprint.
     eq. (9)-(10) with the node's cell area dA = dx dy.
 
     With ``freeze`` the footprint quantities (k*, taper extent and normalisation) of the previous
@@ -203,8 +252,7 @@ def evaluate_contact(
     jmax = -1
     for p in range(npatch):
         k = pc[p]
-        hit = zw + e[k]
-        if hit < pst[p, 0] - pst[p, 1]:
+        if zw + e[k] < pst[p, 0] - pst[p, 1]:
             pflag[p] = 1
             ncont += pj1[p] - pj0[p]
             cmin = min(cmin, k)
@@ -225,9 +273,10 @@ def evaluate_contact(
         cmin = int(res[R_CMIN])
         cmax = int(res[R_CMAX])
     else:
-        area = ncont * dA
-        perim = 2.0 * ((cmax - cmin + 1) * dx + (jmax - jmin + 1) * dy)
-        beff = 2.0 * area / perim
+        # Bekker's plate: the tip circle's footprint, length l by the wheel's width w
+        length = tip_footprint_length(zw, xi, eb, gtop, dx)
+        width = nyw * dy
+        beff = length * width / (length + width)  # 2A/L of the l x w rectangle
         kstar = prm[P_KC] / beff + prm[P_KPHI]
         res[R_NCONTACT] = ncont
         res[R_BEFF] = beff

@@ -154,3 +154,15 @@ def wheel_envelope(
             if nrm > 0.0:
                 fx_out[k] = fxs / nrm
                 fz_out[k] = fzs / nrm
+
+
+@njit(cache=True)
+def tip_circle(xi: np.ndarray, r_out: float, eb_out: np.ndarray) -> None:
+    """Lowest point of the circle through the grouser tips at relative positions ``xi`` [m].
+
+    eb_out: height relative to the axle [m] (+inf beyond the circle). For a smooth wheel r_out = R
+    and this is the rim of ``wheel_envelope`` exactly. Bekker's plate width is taken on this
+    envelope (see contact.evaluate_contact).
+    """
+    for k in range(xi.shape[0]):
+        eb_out[k] = _rim_point(xi[k], r_out)[0]

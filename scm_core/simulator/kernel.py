@@ -23,13 +23,14 @@ from .contact import (
     R_DFZ,
     R_FX,
     R_FZ,
+    R_KSTAR,
     R_NCONTACT,
     R_T,
     build_patches,
     evaluate_contact,
 )
 from .deformation import commit_contact, flow_and_erode
-from .geometry import wheel_envelope
+from .geometry import tip_circle, wheel_envelope
 from .layout import (
     P_B,
     P_BULLDOZE,
@@ -114,7 +115,7 @@ def grid_shape(prm: np.ndarray):
 @njit(cache=True)
 def _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, freeze, diag):
     """Contact forces at axle height z (vertical velocity from the backward-Euler step)."""
-    pc, pj0, pj1, pst, xi, e, fx, fz, gx, gyc, pflag, psig, res = work
+    pc, pj0, pj1, pst, xi, e, eb, gtop, fx, fz, gx, gyc, pflag, psig, res = work
     evaluate_contact(
         z,
         (z - zn) / dt,
@@ -126,6 +127,8 @@ def _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, freeze, diag):
         pst,
         xi,
         e,
+        eb,
+        gtop,
         fx,
         fz,
         dx,
@@ -235,7 +238,7 @@ def _newton(
             side = -1
         if hi - lo < Z_TOL:
             return z, True
-        dg = c_in - work[12][R_DFZ]
+        dg = c_in - work[14][R_DFZ]
         z_new = z - g / dg if dg > 0.0 else lo - 1.0
         if not (lo < z_new < hi) or abs(g) > 0.5 * abs(g_prev):
             # Newton left the bracket or stalled at a kink: regula falsi step
@@ -307,6 +310,8 @@ def run_swt(prm: np.ndarray):
     ncw_max = int(math.ceil(2.0 * r_out / dx)) + 4
     xi = np.zeros(ncw_max)
     e = np.zeros(ncw_max)
+    eb = np.zeros(ncw_max)
+    gtop = np.full(ncw_max, -np.inf)  # ground top per column under the wheel (build_patches)
     fx = np.zeros(ncw_max)
     fz = np.zeros(ncw_max)
     gx = np.zeros(ncw_max)
@@ -322,17 +327,19 @@ def run_swt(prm: np.ndarray):
     cflag = np.zeros((ncw_max + 2, ny), np.int8)
     dsp = np.zeros((ncw_max + 2, ny))
     fwork = np.zeros((8, max(ncw_max, ny)))
-    work = (pc, pj0, pj1, pst, xi, e, fx, fz, gx, gyc, pflag, psig, res)
+    work = (pc, pj0, pj1, pst, xi, e, eb, gtop, fx, fz, gx, gyc, pflag, psig, res)
     queue = np.zeros(nx * ny, np.int64)
     inq = np.zeros(nx * ny, np.int8)
     bulldoze = prm[P_BULLDOZE] > 0.5
     for k in range(ncw_max):
         e[k] = np.inf
+        eb[k] = np.inf
     tan_repose = prm[P_TANREPOSE]
     zw = r_out  # wheel resting on the undisturbed surface (level 0), a grouser straight down
     vz = 0.0
     status = STATUS_OK
     n_out = 0
+    t_steady = min(prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z])  # the first averaged sample [s]
     for step in range(n_steps):
         t = (step + 1) * dt
         xw = v * t
@@ -345,14 +352,19 @@ def run_swt(prm: np.ndarray):
         for k in range(ncw):
             xi[k] = x0 + (c0 + k) * dx - xw
         wheel_envelope(xi[:ncw], dx, R, ng, hg, tg, theta, e, fx, fz)
+        tip_circle(xi[:ncw], r_out, eb)  # the Bekker footprint's envelope
         z_low = zw + dt * vz - prm[P_W] * dt * dt / prm[P_MASS]  # free fall: lowest possible
         npatch, ztop = build_patches(
-            h0, sp, sy, ke, js, c0, ncw, n_margin, nyw, e, z_low, pc, pj0, pj1, pst
+            h0, sp, sy, ke, js, c0, ncw, n_margin, nyw, e, eb, z_low, pc, pj0, pj1, pst, gtop
         )
         diag[D_PATCH_STEPS] += npatch
         z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag)
         if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
             status = STATUS_UNSTABLE
+            break
+        if t >= t_steady and res[R_NCONTACT] > 0 and res[R_KSTAR] <= 0.0:
+            # the soil does not bear the wheel's own footprint in the averaging windows
+            status = STATUS_NONPOSITIVE_STIFFNESS
             break
         vz = (z_new - zw) / dt
         zw = z_new
