@@ -162,8 +162,9 @@ def tip_footprint_length(
 
     The penetration d_k = gtop[k] - (zw + eb[k]) of the circle through the grouser tips into each
     column's ground is interpolated linearly between column centres, so the front and rear edges
-    (its zero crossings) and the length move continuously with zw and the soil state; one column
-    (dx) at least once anything is penetrated, 0 before. Columns outside this step's window have
+    (its zero crossings) and the length move continuously with zw and the soil state. One column
+    (dx) at least: evaluate_contact asks only when the wheel touches, and a grouser's corner (just
+    outside the circle) can touch before the circle does. Columns outside this step's window have
     gtop = -inf (build_patches).
     """
     ncw = gtop.shape[0]
@@ -175,7 +176,7 @@ def tip_footprint_length(
                 kr = k
             kf = k
     if kf < 0:
-        return 0.0
+        return dx
     d = gtop[kf] - (zw + eb[kf])
     x_front = xi[kf] + 0.5 * dx
     if kf + 1 < ncw and np.isfinite(gtop[kf + 1]) and np.isfinite(eb[kf + 1]):
