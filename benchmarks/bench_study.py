@@ -85,12 +85,14 @@ def run_form(
     proposal_scale: str = "linear",
     case_path: Path = CASE,
     resampling: str = "systematic",
+    jumps: float = 0.0,
 ) -> dict:
     sampler = {"n_samples": n_samples, **FORMS[form], "resampling": resampling}
     if sampler["delayed_acceptance"]:  # the accelerated forms; leader and accurate as they are
         sampler["proposal_scale"] = proposal_scale
     if sampler["delayed_acceptance"]:
         sampler["surrogate_steps"] = surrogate_steps
+        sampler["surrogate_jumps"] = jumps
         if moves is not None:
             sampler["n_steps"] = moves
     case = load_case(case_path).with_changes(sampler=sampler)
@@ -108,6 +110,23 @@ def run_form(
             batch_size=batch,
         )
     wall = time.perf_counter() - t0
+    stages = [
+        {
+            "stage": s.stage,
+            "exponent": float(s.exponent),
+            "model_runs": int(s.model_runs),
+            "acceptance": float(s.acceptance_rate),
+            "inner_acceptance": s.inner_accepted / s.inner_proposed if s.inner_proposed else None,
+            "first_stage_rejections": int(s.first_stage_rejections),
+            "surrogate_error": s.surrogate_error_sum / s.surrogate_checks
+            if s.surrogate_checks
+            else None,
+            "ess": float(s.ess),
+            "distinct": int(np.unique(s.samples, axis=0).shape[0]),
+            "beta": float(s.beta),
+        }
+        for s in res.stages
+    ]
     screened = sum(s.first_stage_rejections for s in res.stages)
     inner = sum(s.inner_proposed for s in res.stages)
     return {
@@ -123,6 +142,7 @@ def run_form(
         "log_evidence_se": float(res.log_evidence_se),
         "names": list(res.names),
         "samples": res.samples,
+        "stage_rows": stages,
     }
 
 
@@ -151,6 +171,13 @@ def main() -> None:
         default=RESAMPLING[0],
         help="resampling of every form run (multinomial: right log-evidence errors)",
     )
+    ap.add_argument(
+        "--jumps",
+        type=float,
+        default=0.0,
+        help="accelerated: probability of a population jump per surrogate step",
+    )
+    ap.add_argument("--stages", action="store_true", help="also print each run's stages")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")
     ap.add_argument("--save", type=Path, default=None, help="write each run's samples here")
     ap.add_argument(
@@ -182,6 +209,7 @@ def main() -> None:
                     args.proposal_scale,
                     args.case,
                     args.resampling,
+                    args.jumps,
                 )
             )
             r = rows[-1]
@@ -235,8 +263,40 @@ def main() -> None:
     console = Console(width=220)
     console.print(runs)
     console.print(post)
+    if args.stages:
+        for r in rows:
+            if r.get("saved"):
+                continue
+            st = Table(title=f"{r['form']} {r['n_samples']}: stages")
+            for col in (
+                "stage",
+                "exponent",
+                "model runs",
+                "acceptance",
+                "inner acc.",
+                "screened out",
+                "mean |log L~ - log L|",
+                "ESS",
+                "distinct states",
+                "beta",
+            ):
+                st.add_column(col, justify="right")
+            for s in r["stage_rows"]:
+                st.add_row(
+                    str(s["stage"]),
+                    f"{s['exponent']:.4g}",
+                    str(s["model_runs"]),
+                    f"{s['acceptance']:.3f}",
+                    "-" if s["inner_acceptance"] is None else f"{s['inner_acceptance']:.3f}",
+                    str(s["first_stage_rejections"]),
+                    "-" if s["surrogate_error"] is None else f"{s['surrogate_error']:.3g}",
+                    f"{s['ess']:.0f}",
+                    str(s["distinct"]),
+                    f"{s['beta']:.3g}",
+                )
+            console.print(st)
     if args.json is not None:
-        out = [{k: v for k, v in r.items() if k != "samples"} for r in rows if "names" in r]
+        out = [{k: v for k, v in r.items() if k not in ("samples",)} for r in rows if "names" in r]
         for r, o in zip([r for r in rows if "names" in r], out, strict=True):
             o["mean"] = np.mean(r["samples"], axis=0).tolist()
             o["sd"] = np.std(r["samples"], axis=0, ddof=1).tolist()

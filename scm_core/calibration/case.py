@@ -158,6 +158,10 @@ class PriorSpec(_Strict):
         return self.model_dump(exclude_none=True)
 
 
+#: the sampler's defaults (a case's ``[sampler]`` table leaves out what it keeps)
+_DEFAULT = TMCMCSettings()
+
+
 class SamplerSettings(_Strict):
     """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
 
@@ -168,7 +172,9 @@ class SamplerSettings(_Strict):
     :mod:`scm_core.inference.early_rejection`). ``delayed_acceptance``: move with a surrogate
     of the responses fitted on the stage's starting states before simulating (exact, other
     samples; :mod:`scm_core.inference.surrogate`): ``surrogate_steps`` Metropolis steps on the
-    surrogate per model run (1: Christen & Fox's delayed acceptance). ``proposal_scale``:
+    surrogate per model run (1: Christen & Fox's delayed acceptance), of which a fraction
+    ``surrogate_jumps`` are independence proposals from the population's t
+    (:mod:`scm_core.inference.population_jump`). ``proposal_scale``:
     "log" walks the log of every strictly positive parameter (exact; SCM's multiplicative
     trade-offs become straight ridges, :mod:`scm_core.inference.walk_space`). ``resampling``:
     "systematic" (the more accurate answers; the evidence's standard error is a lower bound,
@@ -176,16 +182,17 @@ class SamplerSettings(_Strict):
     """
 
     n_samples: int = Field(2000, ge=10)
-    moves: Literal["resample-move", "leader", "waste-free"] = "resample-move"
-    n_steps: int | None = Field(None, ge=1)
+    moves: Literal["resample-move", "leader", "waste-free"] = _DEFAULT.moves
+    n_steps: int | None = Field(_DEFAULT.n_steps, ge=1)
     batch_size: int | None = Field(None, ge=1)
-    max_stages: int = Field(50, ge=1)
-    target_cov: float = Field(1.0, gt=0.0)
-    early_rejection: bool = True
-    delayed_acceptance: bool = False
-    surrogate_steps: int = Field(1, ge=1, le=100)
-    proposal_scale: Literal["linear", "log"] = "linear"
-    resampling: Literal["systematic", "multinomial"] = "systematic"
+    max_stages: int = Field(_DEFAULT.max_stages, ge=1)
+    target_cov: float = Field(_DEFAULT.target_cov, gt=0.0)
+    early_rejection: bool = _DEFAULT.early_rejection
+    delayed_acceptance: bool = _DEFAULT.delayed_acceptance
+    surrogate_steps: int = Field(_DEFAULT.surrogate_steps, ge=1, le=100)
+    surrogate_jumps: float = Field(_DEFAULT.surrogate_jumps, ge=0.0, lt=1.0)
+    proposal_scale: Literal["linear", "log"] = _DEFAULT.proposal_scale
+    resampling: Literal["systematic", "multinomial"] = _DEFAULT.resampling
 
     def tmcmc_settings(self) -> TMCMCSettings:
         return TMCMCSettings(
@@ -196,6 +203,7 @@ class SamplerSettings(_Strict):
             early_rejection=self.early_rejection,
             delayed_acceptance=self.delayed_acceptance,
             surrogate_steps=self.surrogate_steps,
+            surrogate_jumps=self.surrogate_jumps,
             proposal_scale=self.proposal_scale,
             resampling=self.resampling,
         )

@@ -12,11 +12,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.inference.early_rejection import evaluate_staged, n_parts
+from scm_core.inference.population_jump import JUMP_DOF, jump_log_density, jump_proposal
 from scm_core.inference.surrogate import ResponseSurrogate, fit_surrogate, supports_surrogate
 from scm_core.inference.tmcmc_eval import batch_output, tempered
 from scm_core.inference.tmcmc_moves import move_of
 from scm_core.inference.tmcmc_types import ChainBatchResult, LogLikelihoodBatch, StagePlan
-from scm_core.inference.walk_space import from_walk, log_columns, log_proposal_ratio, to_walk
+from scm_core.inference.walk_space import (
+    from_walk,
+    log_columns,
+    log_proposal_ratio,
+    rows_times,
+    to_walk,
+)
 
 __all__ = ["chain_rng", "run_chains", "surrogate_floor"]
 
@@ -30,14 +37,6 @@ def chain_rng(seed: int, stage: int, chain: int) -> np.random.Generator:
     return np.random.Generator(
         np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(stage, chain)))
     )
-
-
-def _apply_factor(chol: NDArray[np.float64], Z: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rows of Z @ chol.T by explicit column accumulation (row results independent of len(Z))."""
-    out = np.zeros_like(Z)
-    for j in range(Z.shape[1]):
-        out = out + Z[:, j : j + 1] * chol[:, j]
-    return out
 
 
 def _surrogate_for(plan: StagePlan, f: LogLikelihoodBatch) -> ResponseSurrogate | None:
@@ -107,13 +106,16 @@ def run_chains(
     Metropolis steps on the surrogate target pi~ take x to y (no model run), then y is accepted
     with min(1, pi(y) pi~(x) / (pi(x) pi~(y))) after one model run, skipped when the inner
     steps did not move; K steps of a pi~-reversible kernel are pi~-reversible, so the move is
-    pi-reversible whatever the surrogate's error (:mod:`scm_core.inference.surrogate`). Where
-    the surrogate cannot be fitted, a move is K plain steps. With early rejection a model
-    run's parts run one by one (:mod:`scm_core.inference.early_rejection`). Each chain draws
-    all its random numbers from :func:`chain_rng` (steps, acceptance numbers, then the inner
-    steps' numbers), and every row operation is independent of the batch size, so the result
-    of a chain is bit-identical however chains are batched. Pure apart from calling the
-    likelihood; picklable via ``functools.partial(run_chains, plan, log_likelihood_batch=f)``
+    pi-reversible whatever the surrogate's error (:mod:`scm_core.inference.surrogate`). With
+    ``surrogate_jumps`` > 0 each inner step is, with that probability, a population jump
+    instead of a walk step (:mod:`scm_core.inference.population_jump`). Where the surrogate
+    cannot be fitted, a move is K plain steps. With early rejection a model run's parts run one
+    by one (:mod:`scm_core.inference.early_rejection`). Each chain draws all its random numbers
+    from :func:`chain_rng` (steps, acceptance numbers, then the inner steps' numbers, then the
+    jumps' choices and chi-square variates), and every row operation is independent of the
+    batch size, so the result of a chain is bit-identical however chains are batched. Pure
+    apart from calling the likelihood; picklable via
+    ``functools.partial(run_chains, plan, log_likelihood_batch=f)``
     when ``f`` is.
     """
     idx = np.asarray(chain_indices, dtype=np.int64).reshape(-1)
@@ -132,9 +134,12 @@ def run_chains(
     sur = _surrogate_for(plan, f)
     K = int(settings.surrogate_steps) if settings.delayed_acceptance else 1
 
+    jumps = sur is not None and settings.surrogate_jumps > 0.0 and plan.jump_chol is not None
     Z = np.empty((total * K, d))
     log_u = np.empty(total * K)
     log_u1 = np.empty(total * K)
+    jump_at = np.zeros(total * K, dtype=bool)
+    chi2 = np.ones(total * K)
     for k, c in enumerate(idx):
         rng = chain_rng(plan.seed, plan.stage, int(c))
         a, b = offsets[k] * K, offsets[k + 1] * K
@@ -143,6 +148,9 @@ def run_chains(
             log_u[a:b] = np.log(rng.random(b - a))
             if settings.delayed_acceptance:
                 log_u1[a:b] = np.log(rng.random(b - a))
+        if jumps:  # drawn last: the other numbers are those of a chain without jumps
+            jump_at[a:b] = rng.random(b - a) < settings.surrogate_jumps
+            chi2[a:b] = rng.chisquare(JUMP_DOF, b - a)
 
     x = plan.start_samples[idx].copy()
     ll = plan.start_log_likelihood[idx].copy()
@@ -162,6 +170,8 @@ def run_chains(
             "surrogate_checks",
             "inner_accepted",
             "inner_proposed",
+            "jump_accepted",
+            "jump_proposed",
         ),
         0,
     )
@@ -185,12 +195,26 @@ def run_chains(
         (:mod:`scm_core.inference.walk_space`)."""
         if logs.any():
             u = to_walk(y, logs)
-            u_prop = u + _apply_factor(plan.proposal_chol, Z[rows])
+            u_prop = u + rows_times(plan.proposal_chol, Z[rows])
             y_prop = from_walk(u_prop, logs)
             q_ratio = log_proposal_ratio(u_prop, u, logs)
         else:
-            y_prop = y + _apply_factor(plan.proposal_chol, Z[rows])
+            y_prop = y + rows_times(plan.proposal_chol, Z[rows])
             q_ratio = np.zeros(y.shape[0])
+        if jumps:
+            jump = jump_at[rows]
+            if jump.any():
+                # population jumps: an independence proposal from the t of the population
+                u_old = to_walk(y[jump], logs)
+                u_new = jump_proposal(
+                    plan.jump_mean, plan.jump_chol, Z[rows[jump]], chi2[rows[jump]]
+                )
+                y_prop[jump] = from_walk(u_new, logs)
+                q_ratio[jump] = (
+                    jump_log_density(u_old, plan.jump_mean, plan.jump_inv)
+                    - jump_log_density(u_new, plan.jump_mean, plan.jump_inv)
+                    + log_proposal_ratio(u_new, u_old, logs)
+                )
         lp_prop = np.asarray(prior.log_pdf(y_prop), dtype=float)
         ok = np.isfinite(lp_prop) & np.asarray(prior.in_support(y_prop))
         n["out_of_support"] += ok.size - int(np.count_nonzero(ok))
@@ -293,6 +317,9 @@ def run_chains(
             ll_tilde = np.full(active.size, np.nan)
             s_prop[ok], ll_tilde[ok] = _surrogate_target(sur, f, y_prop[ok], lp_prop[ok], p, floor)
             acc = ok & (log_u1[rows] < s_prop - sur_y + q_ratio)
+            if jumps:
+                n["jump_proposed"] += int(np.count_nonzero(jump_at[rows]))
+                n["jump_accepted"] += int(np.count_nonzero(acc & jump_at[rows]))
             y[acc], lp_y[acc], sur_y[acc], sur_ll[acc] = (
                 y_prop[acc],
                 lp_prop[acc],

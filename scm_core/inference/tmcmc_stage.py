@@ -197,8 +197,18 @@ def plan_stage(
         genealogy = genealogy_log_evidence_var(weights, state.eve, stage, n, max(draws, 2))
         log_z_var = max(log_z_var, genealogy)
     logs = log_columns(prior, settings.proposal_scale)
-    cov = state.beta**2 * weighted_covariance(to_walk(state.samples, logs), weights)
-    cov, chol = proposal_factor(cov, walk_bounds(prior.bounds, logs))
+    walk = to_walk(state.samples, logs)
+    pop_cov = weighted_covariance(walk, weights)
+    cov, chol = proposal_factor(state.beta**2 * pop_cov, walk_bounds(prior.bounds, logs))
+    jump = {}
+    if settings.delayed_acceptance and settings.surrogate_jumps > 0.0:
+        # the population jumps' t proposal: the weighted population in walk coordinates
+        _, jump_chol = proposal_factor(pop_cov, walk_bounds(prior.bounds, logs))
+        jump = {
+            "jump_mean": weights @ walk,
+            "jump_chol": jump_chol,
+            "jump_inv": np.linalg.inv(jump_chol),
+        }
 
     chain_start, chain_length = move.chains(parent, n, state.acceptance_rate, settings)
     chain_start = chain_start.astype(np.int64)
@@ -238,6 +248,7 @@ def plan_stage(
         n_samples=n,
         train_samples=train_x,
         train_responses=train_r,
+        **jump,
     )
 
 
@@ -287,9 +298,14 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
     acceptance = accepted / proposed if proposed else math.nan
     inner_accepted = int(sum(r.inner_accepted for r in results))
     inner_proposed = int(sum(r.inner_proposed for r in results))
-    # the proposal scale follows the Metropolis steps it drives: a surrogate transition's
-    # inner steps when there are any, else the moves themselves
-    step_acceptance = inner_accepted / inner_proposed if inner_proposed else acceptance
+    jump_accepted = int(sum(r.jump_accepted for r in results))
+    jump_proposed = int(sum(r.jump_proposed for r in results))
+    # the proposal scale follows the random-walk steps it drives: a surrogate transition's
+    # inner steps (less its population jumps) when there are any, else the moves themselves
+    walk_proposed = inner_proposed - jump_proposed
+    step_acceptance = (
+        (inner_accepted - jump_accepted) / walk_proposed if walk_proposed else acceptance
+    )
     stalled = (plan.exponent - plan.prev_exponent) < plan.settings.stall_tol
     return StageState(
         stage=plan.stage,
@@ -324,6 +340,8 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
         surrogate_error_sum=float(np.sum(_chain_ordered(results, "surrogate_error"))),
         inner_accepted=inner_accepted,
         inner_proposed=inner_proposed,
+        jump_accepted=jump_accepted,
+        jump_proposed=jump_proposed,
         eve=None if plan.start_eve is None else plan.start_eve[row_chain[order]],
         **_training_set(plan, results),
     )

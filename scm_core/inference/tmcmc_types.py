@@ -62,6 +62,11 @@ class _Fields:
 class TMCMCSettings(_Fields):
     """Tuning of the sampler; stored with a study so that every stage is reproducible.
 
+    The defaults are the unaccelerated accurate form (resample-move without a surrogate);
+    the accelerated accurate form of issue 12 (docs/calibration.md) is ``moves="waste-free",
+    n_steps=4, delayed_acceptance=True, surrogate_steps=10, proposal_scale="log"``, with
+    ``resampling="multinomial"`` for a right evidence standard error. Each part is exact.
+
     moves: "resample-move" (default, accurate), "leader" (paper's budget, one run per sample) or
         "waste-free" (Dau & Chopin 2022: under one run per sample, every chain state kept).
     n_steps: Metropolis steps per chain for resample-move; None adapts it per stage with
@@ -87,13 +92,17 @@ class TMCMCSettings(_Fields):
         surrogate_neighbors and surrogate_smoothing: the surrogate's local RBF interpolant's
         neighbours and smoothing (standardised); surrogate_memory: the newest model-evaluated
         states (with their responses) carried from stage to stage as its training set.
+        surrogate_jumps: the probability that an inner step is a population jump instead of a
+        random-walk step: an independence proposal from a Student t fitted to the stage's
+        weighted population (:mod:`scm_core.inference.population_jump`; exact, only on pi~,
+        so it costs no model run; beta adapts on the random-walk steps alone).
     proposal_scale: "linear" (the random walk moves the parameters) or "log" (it moves the log
         of every parameter with a strictly positive prior support: SCM's multiplicative
         trade-offs become straight ridges; exact, see :mod:`scm_core.inference.walk_space`).
-    resampling: "systematic" (less resampling noise: the more accurate posterior and evidence,
-        but the reported evidence standard error, a sum of per-stage terms, is 1.3-1.4 times
-        too small) or "multinomial" (independent draws, as Ching & Chen; the standard error is
-        then Lee & Whiteley's genealogy estimate and right, the answers somewhat noisier); see
+    resampling: "systematic" (default; less resampling noise, but the reported evidence
+        standard error, a sum of per-stage terms, is 1.3-1.4 times too small) or "multinomial"
+        (independent draws, as Ching & Chen; the standard error is then Lee & Whiteley's
+        genealogy estimate and right); see
         :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`.
     """
 
@@ -118,6 +127,7 @@ class TMCMCSettings(_Fields):
     surrogate_smoothing: float = 1e-3
     surrogate_steps: int = 1
     surrogate_memory: int = 20_000
+    surrogate_jumps: float = 0.0
     proposal_scale: str = "linear"
     resampling: str = "systematic"
 
@@ -158,6 +168,8 @@ class TMCMCSettings(_Fields):
             raise ValueError(f"'resampling' must be one of {RESAMPLING}, got {self.resampling!r}")
         if self.surrogate_memory < 0:
             raise ValueError(f"'surrogate_memory' must be >= 0, got {self.surrogate_memory!r}")
+        if not (math.isfinite(self.surrogate_jumps) and 0.0 <= self.surrogate_jumps < 1.0):
+            raise ValueError(f"'surrogate_jumps' must be in [0, 1), got {self.surrogate_jumps!r}")
         if self.surrogate_steps < 1:
             raise ValueError(f"'surrogate_steps' must be >= 1, got {self.surrogate_steps!r}")
         if self.surrogate_neighbors < 2:
@@ -191,7 +203,8 @@ class StageState(_Fields):
     steps did not move, no model run); surrogate_checks, surrogate_error_sum: full evaluations
     where the surrogate's log-likelihood was compared with the model's, and the sum of
     |difference| (untempered). inner_accepted, inner_proposed: Metropolis steps of the
-    surrogate transitions (delayed acceptance; beta adapts on their rate). train_samples,
+    surrogate transitions (delayed acceptance), of which jump_accepted, jump_proposed were
+    population jumps (beta adapts on the rate of the others). train_samples,
     train_responses: with delayed acceptance, the newest ``surrogate_memory`` states the model
     evaluated up to this stage, in chain and step order (else None). eve (n,): the stage-0
     sample each sample descends from through the resampling (its Eve; at stage 0 the first
@@ -230,6 +243,8 @@ class StageState(_Fields):
     train_samples: NDArray[np.float64] | None = None
     train_responses: NDArray[np.float64] | None = None
     eve: NDArray[np.int64] | None = None
+    jump_accepted: int = 0
+    jump_proposed: int = 0
 
     @property
     def n_samples(self) -> int:
@@ -290,6 +305,9 @@ class StagePlan(_Fields):
     train_responses: NDArray[np.float64] | None = None
     start_eve: NDArray[np.int64] | None = None
     log_evidence_var: float = math.nan
+    jump_mean: NDArray[np.float64] | None = None
+    jump_chol: NDArray[np.float64] | None = None
+    jump_inv: NDArray[np.float64] | None = None
 
     @property
     def n_chains(self) -> int:
@@ -305,11 +323,12 @@ class ChainBatchResult(_Fields):
     one per step, for leader). accepted, proposed (c,): per-chain Metropolis counts (proposals
     outside the prior support count as proposed and rejected). model_runs, failed_runs,
     out_of_support, part_runs, early_rejections, part_runs_saved, first_stage_rejections,
-    surrogate_checks, inner_accepted, inner_proposed: batch totals (see :class:`StageState`);
-    evaluated_counts (c,), evaluated_samples, evaluated_responses: with delayed acceptance, the
-    states each chain's model runs evaluated with finite responses, chain by chain in step
-    order (the surrogate's next training states; else None). surrogate_error (c,): per chain,
-    the sum of |log L~ - log L| over its checked evaluations (None without a surrogate).
+    surrogate_checks, inner_accepted, inner_proposed, jump_accepted, jump_proposed: batch
+    totals (see :class:`StageState`); evaluated_counts (c,), evaluated_samples,
+    evaluated_responses: with delayed acceptance, the states each chain's model runs evaluated
+    with finite responses, chain by chain in step order (the surrogate's next training states;
+    else None). surrogate_error (c,): per chain, the sum of |log L~ - log L| over its checked
+    evaluations (None without a surrogate).
     """
 
     stage: int
@@ -332,6 +351,8 @@ class ChainBatchResult(_Fields):
     surrogate_error: NDArray[np.float64] | None = None
     inner_accepted: int = 0
     inner_proposed: int = 0
+    jump_accepted: int = 0
+    jump_proposed: int = 0
     evaluated_counts: NDArray[np.int64] | None = None
     evaluated_samples: NDArray[np.float64] | None = None
     evaluated_responses: NDArray[np.float64] | None = None

@@ -22,7 +22,14 @@ from numpy.typing import NDArray
 
 from scm_core.inference.priors import JointPrior
 
-__all__ = ["PROPOSAL_SCALES", "from_walk", "log_columns", "log_proposal_ratio", "to_walk"]
+__all__ = [
+    "PROPOSAL_SCALES",
+    "from_walk",
+    "log_columns",
+    "log_proposal_ratio",
+    "rows_times",
+    "to_walk",
+]
 
 #: accepted values of ``TMCMCSettings.proposal_scale``
 PROPOSAL_SCALES = ("linear", "log")
@@ -68,4 +75,13 @@ def log_proposal_ratio(
     out = np.zeros(U_new.shape[0])
     for j in np.flatnonzero(logs):
         out = out + (U_new[:, j] - U_old[:, j])
+    return out
+
+
+def rows_times(M: NDArray[np.float64], Z: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rows of Z @ M.T (m, M.shape[0]) by explicit column accumulation: each row's result is
+    independent of the other rows (a matrix product's rounding is not)."""
+    out = np.zeros((Z.shape[0], M.shape[0]))
+    for j in range(Z.shape[1]):
+        out = out + Z[:, j : j + 1] * M[:, j]
     return out

@@ -372,9 +372,13 @@ class StageOut(BaseModel):
     surrogate_steps: int | None = Field(
         None, description="Metropolis steps on the surrogate (delayed acceptance's inner steps)."
     )
-    surrogate_steps_accepted: int | None = Field(
-        None, description="Of those, the accepted ones (the proposal scale adapts on their rate)."
+    surrogate_steps_accepted: int | None = Field(None, description="Of those, the accepted ones.")
+    population_jumps: int | None = Field(
+        None,
+        description="Of the surrogate steps, population jumps (independence proposals from the "
+        "population's t; the proposal scale adapts on the acceptance of the other steps).",
     )
+    population_jumps_accepted: int | None = Field(None, description="Of those, the accepted ones.")
     unique_samples: int | None = Field(
         None, description="Distinct samples in the stage's population (resampling repeats)."
     )

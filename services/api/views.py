@@ -254,6 +254,8 @@ def stage_out(store: Store, stage: StageRecord) -> StageOut:
         surrogate_checks=stage.counts.get("surrogate_checks"),
         surrogate_steps=stage.counts.get("inner_proposed"),
         surrogate_steps_accepted=stage.counts.get("inner_accepted"),
+        population_jumps=stage.counts.get("jump_proposed"),
+        population_jumps_accepted=stage.counts.get("jump_accepted"),
         unique_samples=stage.counts.get("unique_samples"),
         created_at=stage.created_at,
         finished_at=stage.finished_at,

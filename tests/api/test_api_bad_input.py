@@ -77,6 +77,10 @@ def _unknown_resampling(doc: dict) -> None:
     doc.setdefault("sampler", {})["resampling"] = "stratified"
 
 
+def _jumps_one(doc: dict) -> None:
+    doc.setdefault("sampler", {})["surrogate_jumps"] = 1.0
+
+
 def _bad_log() -> bytes:
     return LOG.read_bytes().replace(b"torque [Nm]", b"torque [furlong]")
 
@@ -130,6 +134,9 @@ CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] =
     ("unknown-resampling", "POST", "/studies",
      lambda e: {"json": {"case": _case(e, _unknown_resampling), "dataset_ids": [e.dataset_id]}},
      422, ("case.sampler.resampling", "'systematic' or 'multinomial'")),
+    ("surrogate-jumps-one", "POST", "/studies",
+     lambda e: {"json": {"case": _case(e, _jumps_one), "dataset_ids": [e.dataset_id]}},
+     422, ("case.sampler.surrogate_jumps", "less than 1")),
     ("unknown-dataset-id", "POST", "/studies",
      lambda e: {"json": {"preset": "1", "dataset_ids": [e.dataset_id + 1000]}}, 422,
      ("dataset_ids", str(1000 + 1))),

@@ -33,14 +33,29 @@ from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Unifo
 
 
 @pytest.fixture(
-    params=[(1, "resample-move"), (10, "resample-move"), (10, "waste-free")],
-    ids=["da", "stm10", "wf-stm10"],
+    params=[
+        (1, "resample-move", 0.0),
+        (10, "resample-move", 0.0),
+        (10, "waste-free", 0.0),
+        (10, "waste-free", 0.5),
+    ],
+    ids=["da", "stm10", "wf-stm10", "wf-stm10-jumps"],
 )
 def da(request) -> TMCMCSettings:
     """Delayed acceptance with 1 or 10 surrogate steps per model run; the second also with
-    waste-free chains (every chain state a sample, P = 10 states per chain)."""
-    steps, moves = request.param
-    return TMCMCSettings(delayed_acceptance=True, surrogate_steps=steps, moves=moves)
+    waste-free chains (every chain state a sample, P = 10 states per chain), without and with
+    population jumps (half the inner steps independence proposals)."""
+    steps, moves, jumps = request.param
+    return TMCMCSettings(
+        delayed_acceptance=True, surrogate_steps=steps, moves=moves, surrogate_jumps=jumps
+    )
+
+
+def _jumped(res, settings: TMCMCSettings) -> bool:
+    """With population jumps on, some were proposed and some accepted."""
+    if settings.surrogate_jumps == 0.0:
+        return all(s.jump_proposed == 0 for s in res.stages)
+    return sum(s.jump_accepted for s in res.stages) > 0
 
 
 def _screened(res) -> int:
@@ -64,7 +79,7 @@ def test_linear_gaussian_5d_exact_answer_with_fewer_model_runs(da: TMCMCSettings
         f"{res.n_model_runs}, screened {_screened(res)}, surrogate |error| {err:.2e}"
     )
     assert res.status == "completed"
-    assert _screened(res) > 0 and checks > 0
+    assert _screened(res) > 0 and checks > 0 and _jumped(res, da)
     # 0.1 sd, 10 %, 0.25 nat: the tolerances of test_linear_gaussian_5d
     assert err_mean.max() < 0.1
     assert err_sd.max() < 0.10
@@ -79,7 +94,7 @@ def test_conjugate_1d_exact_answer(da: TMCMCSettings) -> None:
     prior = JointPrior({"theta": TruncatedNormal(0.0, 1.0, -20.0, 20.0)})
     res = run_tmcmc(PartedLinearGaussian(A, y, s, [(0,), (1,)]), prior, seed=0, settings=da)
     mean, sd, log_z = exact_linear(A, y, s)
-    assert _screened(res) > 0
+    assert _screened(res) > 0 and _jumped(res, da)
     assert abs(res.samples[:, 0].mean() - mean[0]) < 0.1 * sd[0]
     assert abs(res.samples[:, 0].std() / sd[0] - 1.0) < 0.10
     assert abs(res.log_evidence - log_z) < 0.25
@@ -89,7 +104,7 @@ def test_bimodal_product_mode_masses_and_evidence(da: TMCMCSettings) -> None:
     """The surrogate interpolates a bimodal log-density (not reproduced exactly)."""
     prior = JointPrior({f"x{j}": Uniform(-5.0, 5.0) for j in range(4)})
     res = run_tmcmc(PartedBimodal(), prior, seed=0, settings=da)
-    assert res.status == "completed" and _screened(res) > 0
+    assert res.status == "completed" and _screened(res) > 0 and _jumped(res, da)
     assert abs(res.log_evidence + 4.0 * math.log(10.0)) < 0.3
     for k in range(2):
         assert abs(np.mean(res.samples[:, 2 * k : 2 * k + 2].sum(axis=1) < 0.0) - 0.1) < 0.05
@@ -102,7 +117,7 @@ def test_posterior_piled_against_bound(da: TMCMCSettings) -> None:
     )
     res = run_tmcmc(f, JointPrior({"theta": Uniform(0.0, 1.0)}), seed=0, settings=da)
     exact = stats.truncnorm((0.0 - mu) / sd, (1.0 - mu) / sd, loc=mu, scale=sd)
-    assert _screened(res) > 0
+    assert _screened(res) > 0 and _jumped(res, da)
     assert abs(res.samples[:, 0].mean() - exact.mean()) < 0.1 * exact.std()
     assert stats.kstest(res.samples[:, 0], exact.cdf).statistic < 0.05
 
@@ -114,18 +129,24 @@ def test_update_with_surrogate_and_early_rejection_exact_answer(da: TMCMCSetting
     old = run_tmcmc(old_f, prior, 4000, seed=3)
     res = run_tmcmc(f, prior, 4000, seed=4, settings=da, stage0_samples=old.samples)
     mean, sd, log_z = exact_linear(A, y, s)
-    assert _screened(res) > 0
+    assert _screened(res) > 0 and _jumped(res, da)
     assert np.all(np.abs(res.samples.mean(axis=0) - mean) < 0.1 * sd)
     assert np.all(np.abs(res.samples.std(axis=0) / sd - 1.0) < 0.07)
     assert abs(old.log_evidence + res.log_evidence - log_z) < 0.2
 
 
 @pytest.mark.parametrize("steps", [1, 10])
-@pytest.mark.parametrize("moves", ["resample-move", "leader", "waste-free"])
+@pytest.mark.parametrize("moves", ["resample-move", "leader", "waste-free", "waste-free-jumps"])
 def test_batches_do_not_change_results(moves: str, steps: int) -> None:
     """The surrogate is a function of the stage plan: any batch split gives the same bits."""
     f = parted_5d()
-    settings = TMCMCSettings(delayed_acceptance=True, surrogate_steps=steps, moves=moves)
+    jumps = 0.5 if moves.endswith("-jumps") else 0.0
+    settings = TMCMCSettings(
+        delayed_acceptance=True,
+        surrogate_steps=steps,
+        moves=moves.removesuffix("-jumps"),
+        surrogate_jumps=jumps,
+    )
     a = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings)
     b = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings, batch_size=37)
     assert _screened(a) > 0
@@ -174,6 +195,7 @@ def test_curved_target_with_an_imperfect_surrogate_keeps_the_evidence(da: TMCMCS
     checks = sum(s.surrogate_checks for s in res.stages)
     error = sum(s.surrogate_error_sum for s in res.stages) / checks
     assert _screened(res) > res.n_model_runs  # most proposals never reached the model
+    assert _jumped(res, da)
     assert error > 0.1  # the surrogate is really imperfect here
     assert abs(res.log_evidence - log_z) < 0.3
 

@@ -67,6 +67,8 @@ STAGE_COUNTS = (
     "surrogate_checks",
     "inner_accepted",
     "inner_proposed",
+    "jump_accepted",
+    "jump_proposed",
     "unique_samples",
 )
 
