@@ -123,7 +123,7 @@ class TMCMCResult:
         likelihood evaluations; part runs: their parts, a study's simulator runs, with those early
         rejection saved; moves the surrogate turned down, full evaluations it was checked
         against and its mean |log L~ - log L| there, the acceptance of the surrogate
-        transitions' inner steps), evidence."""
+        transitions' inner steps and of their population jumps), evidence."""
         return [
             {
                 "stage": s.stage,
@@ -147,6 +147,10 @@ class TMCMCResult:
                 "surrogate_steps": s.inner_proposed,
                 "surrogate_acceptance": (
                     s.inner_accepted / s.inner_proposed if s.inner_proposed else math.nan
+                ),
+                "population_jumps": s.jump_proposed,
+                "population_jump_acceptance": (
+                    s.jump_accepted / s.jump_proposed if s.jump_proposed else math.nan
                 ),
                 "log_evidence": s.log_evidence,
             }
