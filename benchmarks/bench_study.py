@@ -11,19 +11,26 @@ log at slip 0.2 (``examples/wf34_s020.csv``) with the default simulator, sampled
 * accelerated: the accurate form with surrogate transitions (``--surrogate-steps`` K Metropolis
   steps on a surrogate of the responses, fitted on each stage's starting states, then one model
   run corrects; K = 1 is Christen & Fox's delayed acceptance; ``scm_core/inference/surrogate.py``;
-  exact: the chains still target the posterior).
+  exact: the chains still target the posterior);
+* waste-free: the accelerated accurate form of a case with ``moves = "waste-free"`` (chains of
+  P = 5 states whose moves are surrogate transitions of 40 steps, log walk, multinomial
+  resampling; ``--moves``, ``--surrogate-steps``, ``--proposal-scale``, ``--resampling`` change
+  it).
 
 A one-dataset study has nothing for early rejection to cut, so it is on (the default) and idle.
 Per form and size: stages, model runs, surrogate evaluations (the inner steps), moves the
 surrogate turned down without a model run, wall time on ``--workers`` processes, log evidence with
-its standard error, and per parameter the posterior mean and sd and, for the other forms, the
-distance to the accurate form of the same size (|difference of means| in the accurate sd, and the
-two-sample KS statistic).
+its standard error, the smallest chain ESS over the parameters (waste-free: M / P x the ratio of
+the population variance to the variance of chain means, Dau & Chopin 2022 section 3.4; the
+population's effective size for means within its last stage), and per parameter the posterior
+mean and sd and, for the other forms, the distance to the accurate form of the same size
+(|difference of means| in the accurate sd, and the two-sample KS statistic).
 
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_study.py [--samples 500 2000] [--workers 2]
-        [--forms leader accurate accelerated] [--surrogate-steps 10] [--moves M] [--seed 1]
-        [--proposal-scale linear|log] [--json OUT.json] [--save DIR] [--reference DIR [DIR ...]]
+        [--forms leader accurate accelerated waste-free] [--surrogate-steps K] [--moves M]
+        [--seed 1] [--proposal-scale linear|log] [--json OUT.json] [--save DIR]
+        [--reference DIR [DIR ...]]
         [--reference-form accurate|accurate-log] [--resampling systematic|multinomial]
 
 ``--save DIR`` writes each run's final samples (``FORM_N.npy``); ``--reference DIR`` compares with
@@ -47,7 +54,7 @@ from rich.table import Table
 from scipy.stats import ks_2samp
 
 from scm_core.calibration import CaseDefinition, StudyModel, load_case, run_tmcmc
-from scm_core.inference.tmcmc_moves import stage_chains
+from scm_core.inference.tmcmc_moves import WasteFreeMove, stage_chains
 from scm_core.inference.tmcmc_types import RESAMPLING
 from scm_core.signals import load_dataset
 from services.cli.pool import batch_map
@@ -56,17 +63,35 @@ from services.studies.batching import local_batch_size
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "case1.toml"
 LOG = ROOT / "examples" / "wf34_s020.csv"
+#: the unaccelerated forms name every setting; the accelerated ones take the study defaults
+#: (``form_defaults``) unless an option below changes them
 FORMS = {
-    "leader": {"moves": "leader", "delayed_acceptance": False},
-    "accurate": {"moves": "resample-move", "delayed_acceptance": False},
+    "leader": {"moves": "leader"},
+    "accurate": {
+        "moves": "resample-move",
+        "delayed_acceptance": False,
+        "proposal_scale": "linear",
+        "resampling": "systematic",
+    },
     "accurate-log": {
         "moves": "resample-move",
         "delayed_acceptance": False,
         "proposal_scale": "log",
+        "resampling": "systematic",
     },
     "accelerated": {"moves": "resample-move", "delayed_acceptance": True},
     "waste-free": {"moves": "waste-free", "delayed_acceptance": True},
 }
+
+
+def chain_ess(samples: np.ndarray, per_chain: int) -> np.ndarray:
+    """Per parameter: the effective sample size for its mean of a waste-free population of
+    consecutive chains of ``per_chain`` states, M var(x) / var(chain means) with the M chains
+    as the independent units (Dau & Chopin 2022, section 3.4); a trailing short chain is left
+    out. It measures the last stage's chains only, not what the roots inherit."""
+    m = samples.shape[0] // per_chain
+    chains = samples[: m * per_chain].reshape(m, per_chain, -1).mean(axis=1)
+    return m * samples.var(axis=0) / chains.var(axis=0, ddof=1)
 
 
 def load_model(case: CaseDefinition) -> StudyModel:
@@ -80,21 +105,25 @@ def run_form(
     n_samples: int,
     seed: int,
     workers: int,
-    surrogate_steps: int,
+    surrogate_steps: int | None,
     moves: int | None,
-    proposal_scale: str = "linear",
+    proposal_scale: str | None = None,
     case_path: Path = CASE,
-    resampling: str = "systematic",
+    resampling: str | None = None,
     jumps: float = 0.0,
 ) -> dict:
-    sampler = {"n_samples": n_samples, **FORMS[form], "resampling": resampling}
-    if sampler["delayed_acceptance"]:  # the accelerated forms; leader and accurate as they are
-        sampler["proposal_scale"] = proposal_scale
-    if sampler["delayed_acceptance"]:
-        sampler["surrogate_steps"] = surrogate_steps
+    """One run of ``form``; None options keep the form's (study) defaults."""
+    sampler = {"n_samples": n_samples, **FORMS[form]}
+    if resampling is not None:
+        sampler["resampling"] = resampling
+    if sampler.get("delayed_acceptance"):  # the accelerated forms; the others as they are
+        accelerated = {
+            "proposal_scale": proposal_scale,
+            "surrogate_steps": surrogate_steps,
+            "n_steps": moves,
+        }
+        sampler.update({k: v for k, v in accelerated.items() if v is not None})
         sampler["surrogate_jumps"] = jumps
-        if moves is not None:
-            sampler["n_steps"] = moves
     case = load_case(case_path).with_changes(sampler=sampler)
     model = load_model(case)
     batch = local_batch_size(stage_chains(n_samples, case.tmcmc_settings()), workers)
@@ -128,6 +157,8 @@ def run_form(
         for s in res.stages
     ]
     screened = sum(s.first_stage_rejections for s in res.stages)
+    settings = case.tmcmc_settings()
+    per_chain = WasteFreeMove.states_per_chain(settings) if settings.moves == "waste-free" else 0
     inner = sum(s.inner_proposed for s in res.stages)
     return {
         "form": form,
@@ -140,6 +171,7 @@ def run_form(
         "wall_s": wall,
         "log_evidence": float(res.log_evidence),
         "log_evidence_se": float(res.log_evidence_se),
+        "chain_ess": float(chain_ess(res.samples, per_chain).min()) if per_chain else None,
         "names": list(res.names),
         "samples": res.samples,
         "stage_rows": stages,
@@ -152,15 +184,20 @@ def main() -> None:
     ap.add_argument("--forms", nargs="+", choices=list(FORMS), default=list(FORMS))
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--surrogate-steps", type=int, default=10)
     ap.add_argument(
-        "--moves", type=int, default=None, help="accelerated: moves per chain (default adapted)"
+        "--surrogate-steps", type=int, default=None, help="accelerated: inner steps (default 40)"
+    )
+    ap.add_argument(
+        "--moves",
+        type=int,
+        default=None,
+        help="accelerated: moves per chain (default: waste-free 4, resample-move adapted)",
     )
     ap.add_argument(
         "--proposal-scale",
         choices=["linear", "log"],
-        default="linear",
-        help="random-walk coordinates of the accelerated forms",
+        default=None,
+        help="random-walk coordinates of the accelerated forms (default log)",
     )
     ap.add_argument(
         "--case", type=Path, default=CASE, help="another case on the same log (e.g. other priors)"
@@ -168,8 +205,9 @@ def main() -> None:
     ap.add_argument(
         "--resampling",
         choices=RESAMPLING,
-        default=RESAMPLING[0],
-        help="resampling of every form run (multinomial: right log-evidence errors)",
+        default=None,
+        help="resampling of every form run (default: the accurate forms and leader systematic, "
+        "the accelerated multinomial, which gives right log-evidence errors)",
     )
     ap.add_argument(
         "--jumps",
@@ -225,7 +263,7 @@ def main() -> None:
     runs = Table(title=f"paper case 1 on wf34_s020, seed {args.seed}, {args.workers} workers")
     for col in ("samples", "form", "stages", "model runs", "surrogate evals", "screened out"):
         runs.add_column(col, justify="right")
-    for col in ("wall s", "log Z"):
+    for col in ("wall s", "log Z", "chain ESS"):
         runs.add_column(col, justify="right")
     post = Table(title=f"posterior mean (sd); vs {ref_form}: |d mean| / sd_{ref_form}, KS")
     post.add_column("samples", justify="right")
@@ -234,7 +272,7 @@ def main() -> None:
         post.add_column(name, justify="right")
     for r in rows:
         if r.get("saved"):
-            runs.add_row(str(r["n_samples"]), f"{r['form']} (saved)", *["-"] * 6)
+            runs.add_row(str(r["n_samples"]), f"{r['form']} (saved)", *["-"] * 7)
         else:
             runs.add_row(
                 str(r["n_samples"]),
@@ -245,6 +283,7 @@ def main() -> None:
                 str(r["first_stage_rejections"]),
                 f"{r['wall_s']:.0f}",
                 f"{r['log_evidence']:.3f} +- {r['log_evidence_se']:.3f}",
+                "-" if r["chain_ess"] is None else f"{r['chain_ess']:.0f}",
             )
         ref = next(
             (a for a in rows if a["form"] == ref_form and a["n_samples"] == r["n_samples"]),

@@ -24,7 +24,7 @@ the simulator settings, the sampler settings and the datasets. It is written as 
 
     [sampler]
     n_samples = 2000
-    moves = "leader"                   # or "resample-move" (default), "waste-free"
+    moves = "leader"                   # or "waste-free" (default), "resample-move"
 
     [data]
     files = ["wf34_s020.csv"]          # relative to the case file; --data replaces them
@@ -55,7 +55,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    model_validator,
+)
 
 from scm_core.inference.priors import (
     TABLE2_NOMINAL,
@@ -63,6 +70,7 @@ from scm_core.inference.priors import (
     distribution_from_dict,
     table2_prior,
 )
+from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc_stage import TMCMCSettings
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
 from scm_core.validation_text import first_error, one_line
@@ -165,6 +173,13 @@ _DEFAULT = TMCMCSettings()
 class SamplerSettings(_Strict):
     """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
 
+    ``moves``: "resample-move" (the default: the unaccelerated accurate form), "waste-free"
+    (the accelerated accurate form) or "leader" (the paper's form). ``delayed_acceptance``,
+    ``surrogate_steps``, ``proposal_scale`` and ``resampling`` left out (or null) take the move
+    scheme's defaults (:func:`scm_core.inference.tmcmc_moves.form_defaults`): for "waste-free"
+    surrogate transitions of 40 inner steps, the log walk and multinomial resampling; for
+    "resample-move" and "leader" plain steps in the parameters and systematic resampling.
+
     ``batch_size``: chains per batch handed to the ``map`` (None: chosen by the runner; does
     not change the results). ``max_stages``: stop (status "max_stages") after that many
     tempering stages. ``early_rejection``: stop simulating a proposal's datasets once they
@@ -177,22 +192,50 @@ class SamplerSettings(_Strict):
     (:mod:`scm_core.inference.population_jump`). ``proposal_scale``:
     "log" walks the log of every strictly positive parameter (exact; SCM's multiplicative
     trade-offs become straight ridges, :mod:`scm_core.inference.walk_space`). ``resampling``:
-    "systematic" (the more accurate answers; the evidence's standard error is a lower bound,
-    1.3-1.4 times too small) or "multinomial" (a right standard error, somewhat noisier answers).
+    "systematic" (less resampling noise; the evidence's standard error is a lower bound,
+    1.3-1.4 times too small) or "multinomial" (a right standard error).
     """
 
     n_samples: int = Field(2000, ge=10)
-    moves: Literal["resample-move", "leader", "waste-free"] = _DEFAULT.moves
+    moves: Literal["resample-move", "leader", "waste-free"] = STUDY_MOVES
     n_steps: int | None = Field(_DEFAULT.n_steps, ge=1)
     batch_size: int | None = Field(None, ge=1)
     max_stages: int = Field(_DEFAULT.max_stages, ge=1)
     target_cov: float = Field(_DEFAULT.target_cov, gt=0.0)
     early_rejection: bool = _DEFAULT.early_rejection
-    delayed_acceptance: bool = _DEFAULT.delayed_acceptance
-    surrogate_steps: int = Field(_DEFAULT.surrogate_steps, ge=1, le=100)
+    delayed_acceptance: bool | None = None
+    surrogate_steps: int | None = Field(None, ge=1, le=100)
     surrogate_jumps: float = Field(_DEFAULT.surrogate_jumps, ge=0.0, lt=1.0)
-    proposal_scale: Literal["linear", "log"] = _DEFAULT.proposal_scale
-    resampling: Literal["systematic", "multinomial"] = _DEFAULT.resampling
+    proposal_scale: Literal["linear", "log"] | None = None
+    resampling: Literal["systematic", "multinomial"] | None = None
+
+    _filled: frozenset[str] = PrivateAttr(default=frozenset())
+
+    @model_validator(mode="after")
+    def _form_defaults(self) -> SamplerSettings:
+        """Fill what the case left to its move scheme; ``model_fields_set`` keeps what the
+        case gave (:meth:`CaseDefinition.with_changes` merges onto that alone)."""
+        filled = []
+        for key, value in form_defaults(self.moves).items():
+            if getattr(self, key) is None:
+                self.__dict__[key] = value
+                filled.append(key)
+        self._filled = frozenset(filled)
+        return self
+
+    def __eq__(self, other: object) -> bool:
+        # equal settings are equal whether the case named them or its move scheme filled them
+        if not isinstance(other, SamplerSettings):
+            return NotImplemented
+        return self.model_dump() == other.model_dump()
+
+    def __hash__(self) -> int:
+        return hash(tuple(sorted(self.model_dump().items())))
+
+    def given(self) -> dict[str, Any]:
+        """The settings the case gave (not the ones its move scheme filled in)."""
+        keys = set(self.model_fields_set) - self._filled
+        return self.model_dump(include=keys, exclude_none=True)
 
     def tmcmc_settings(self) -> TMCMCSettings:
         return TMCMCSettings(
@@ -201,11 +244,11 @@ class SamplerSettings(_Strict):
             max_stages=self.max_stages,
             target_cov=self.target_cov,
             early_rejection=self.early_rejection,
-            delayed_acceptance=self.delayed_acceptance,
-            surrogate_steps=self.surrogate_steps,
+            delayed_acceptance=bool(self.delayed_acceptance),
+            surrogate_steps=int(self.surrogate_steps or 1),
             surrogate_jumps=self.surrogate_jumps,
-            proposal_scale=self.proposal_scale,
-            resampling=self.resampling,
+            proposal_scale=str(self.proposal_scale),
+            resampling=str(self.resampling),
         )
 
 
@@ -271,6 +314,9 @@ class CaseDefinition(_Strict):
     def with_changes(self, **changes: Any) -> CaseDefinition:
         """A validated copy; ``sampler`` / ``data`` may be given as partial dicts."""
         doc = self.to_dict()
+        # the sampler keeps what the case gave; what its move scheme filled in follows the
+        # (possibly changed) scheme
+        doc["sampler"] = self.sampler.given()
         for key, value in changes.items():
             if key in ("sampler", "data") and isinstance(value, Mapping):
                 doc[key] = {**doc.get(key, {}), **value}
@@ -412,8 +458,6 @@ class CaseDefinition(_Strict):
         # form they had before the key existed
         if self.trials == "mean":
             del out["trials"]
-        if self.sampler.resampling == "systematic":
-            del out["sampler"]["resampling"]
         return out
 
     def fingerprint(self) -> str:
@@ -428,6 +472,9 @@ class CaseDefinition(_Strict):
         doc["sampler"].pop("batch_size", None)
         doc["sampler"].pop("max_stages", None)
         doc["sampler"].pop("early_rejection", None)
+        if doc["sampler"].get("resampling") == "systematic":
+            # cases from before resampling could be chosen keep their fingerprint
+            del doc["sampler"]["resampling"]
         text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(b"scm-calib-case/1\n" + text.encode()).hexdigest()
 

@@ -18,20 +18,20 @@ scipy's ``RBFInterpolator`` with ``neighbors`` (each prediction solves its own s
 from its nearest training points; :func:`local_tps`), fitted on the distinct starting
 states of the stage's chains and their stored responses: a function of the stage plan alone, so
 a resumed or redelivered batch, or any number of workers, sees the same first stage. The
-systems of a batch of rows are built with element-wise operations and solved one by one
-(batched LAPACK), so a row's value does not depend on the other rows of the batch (scipy's
-own evaluation groups rows into matrix products whose rounding does).
+system of each row is built and solved on its own (a numba loop, one LAPACK solve per row),
+so a row's value does not depend on the other rows of the batch (scipy's own evaluation groups
+rows into matrix products whose rounding does).
 
 A likelihood opts in by implementing :class:`ResponseLikelihood`.
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
@@ -66,12 +66,13 @@ def supports_surrogate(f: object) -> bool:
     return isinstance(f, ResponseLikelihood)
 
 
-def _tps(r: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Thin-plate-spline kernel r^2 log r (0 at r = 0)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(r > 0.0, r * r * np.log(np.where(r > 0.0, r, 1.0)), 0.0)
+@njit(cache=True)
+def _tps_kernel(r2: float) -> float:
+    """Thin-plate-spline kernel r^2 log r from r^2 (0 at r = 0)."""
+    return 0.5 * r2 * np.log(r2) if r2 > 0.0 else 0.0
 
 
+@njit(cache=True)
 def local_tps(
     points: NDArray[np.float64],
     values: NDArray[np.float64],
@@ -83,40 +84,68 @@ def local_tps(
     row i interpolates ``values`` (n, s) over its ``neighbors[i]`` (k indices into ``points``
     (n, d)), in the formulation of scipy's ``RBFInterpolator(kernel="thin_plate_spline",
     degree=1, neighbors=k, smoothing=...)``: polynomial coordinates shifted and scaled to the
-    neighbours' box, kernel matrix plus ``smoothing`` on its diagonal. A row whose system is
-    singular gives NaN."""
-    Y = points[neighbors]  # (m, k, d)
-    D = values[neighbors]  # (m, k, s)
-    m, k, d = Y.shape
-    lo, hi = Y.min(axis=1), Y.max(axis=1)
-    shift = (hi + lo) / 2.0
-    scale = (hi - lo) / 2.0
-    scale = np.where(scale == 0.0, 1.0, scale)
-    Yhat = (Y - shift[:, None, :]) / scale[:, None, :]
-    r2 = np.zeros((m, k, k))
-    for j in range(d):  # coordinate by coordinate: no (m, k, k, d) temporary
-        diff = Y[:, :, None, j] - Y[:, None, :, j]
-        r2 += diff * diff
-    r = np.sqrt(r2)
-    A = np.zeros((m, k + d + 1, k + d + 1))
-    A[:, :k, :k] = _tps(r) + smoothing * np.eye(k)
-    A[:, :k, k] = 1.0
-    A[:, :k, k + 1 :] = Yhat
-    A[:, k, :k] = 1.0
-    A[:, k + 1 :, :k] = np.swapaxes(Yhat, 1, 2)
-    B = np.zeros((m, k + d + 1, D.shape[2]))
-    B[:, :k] = D
-    coeffs = np.full_like(B, np.nan)
-    try:
-        coeffs = np.linalg.solve(A, B)
-    except np.linalg.LinAlgError:  # some system is singular: solve row by row
-        for i in range(m):
-            with contextlib.suppress(np.linalg.LinAlgError):
-                coeffs[i] = np.linalg.solve(A[i], B[i])
-    rx = np.sqrt(((U[:, None, :] - Y) ** 2).sum(axis=-1))  # (m, k)
-    Uhat = (U - shift) / scale
-    vec = np.concatenate([_tps(rx), np.ones((m, 1)), Uhat], axis=1)  # (m, k + 1 + d)
-    return (vec[:, :, None] * coeffs).sum(axis=1)
+    neighbours' box, kernel matrix plus ``smoothing`` on its diagonal. Each row builds and
+    solves its own (k + d + 1)-square system (numba, one LAPACK solve per row), so a row's
+    value does not depend on the other rows. A row whose system is singular gives NaN."""
+    m, k = neighbors.shape
+    d = points.shape[1]
+    s = values.shape[1]
+    n = k + d + 1
+    out = np.full((m, s), np.nan)
+    Y = np.empty((k, d))
+    A = np.empty((n, n))
+    B = np.empty((n, s))
+    shift = np.empty(d)
+    scale = np.empty(d)
+    for i in range(m):
+        for a in range(k):
+            for j in range(d):
+                Y[a, j] = points[neighbors[i, a], j]
+        for j in range(d):
+            lo = Y[0, j]
+            hi = Y[0, j]
+            for a in range(1, k):
+                lo = min(lo, Y[a, j])
+                hi = max(hi, Y[a, j])
+            shift[j] = (hi + lo) / 2.0
+            half = (hi - lo) / 2.0
+            scale[j] = half if half != 0.0 else 1.0
+        A[:, :] = 0.0
+        for a in range(k):
+            for b in range(a + 1, k):
+                r2 = 0.0
+                for j in range(d):
+                    diff = Y[a, j] - Y[b, j]
+                    r2 += diff * diff
+                v = _tps_kernel(r2)
+                A[a, b] = v
+                A[b, a] = v
+            A[a, a] = smoothing
+            A[a, k] = 1.0
+            A[k, a] = 1.0
+            for j in range(d):
+                yhat = (Y[a, j] - shift[j]) / scale[j]
+                A[a, k + 1 + j] = yhat
+                A[k + 1 + j, a] = yhat
+            for c in range(s):
+                B[a, c] = values[neighbors[i, a], c]
+        B[k:, :] = 0.0
+        try:
+            coef = np.linalg.solve(A, B)
+        except Exception:  # a singular system (numba raises a plain exception)
+            continue
+        for c in range(s):
+            acc = coef[k, c]
+            for a in range(k):
+                r2 = 0.0
+                for j in range(d):
+                    diff = U[i, j] - Y[a, j]
+                    r2 += diff * diff
+                acc += _tps_kernel(r2) * coef[a, c]
+            for j in range(d):
+                acc += (U[i, j] - shift[j]) / scale[j] * coef[k + 1 + j, c]
+            out[i, c] = acc
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,7 +173,7 @@ class ResponseSurrogate:
             _, idx = self.tree.query(rows, k=self.neighbors)
             idx = np.asarray(idx, dtype=np.intp).reshape(rows.shape[0], self.neighbors)
             out[start : start + CHUNK] = local_tps(
-                self.points, self.values, idx, rows, self.smoothing
+                self.points, self.values, np.ascontiguousarray(idx), rows, self.smoothing
             )
         return out * self.y_scale + self.y_center
 

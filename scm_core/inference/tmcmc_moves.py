@@ -19,6 +19,7 @@ __all__ = [
     "Move",
     "ResampleMove",
     "WasteFreeMove",
+    "form_defaults",
     "move_of",
     "stage_chains",
     "steps_for_acceptance",
@@ -50,6 +51,10 @@ class Move(Protocol):
         """(start index into the previous population, Metropolis steps) of each chain, from
         the resampled indices ``parent`` (:meth:`resample_size`,), the population size n and
         the last stage's acceptance rate."""
+        ...
+
+    def max_runs_per_sample(self, settings: TMCMCSettings) -> int:
+        """The most model runs a stage makes per sample (a worst case for budgets)."""
         ...
 
 
@@ -87,6 +92,9 @@ class ResampleMove:
     def chain_sizes(self, n: int, n_chains: int, settings: TMCMCSettings) -> None:
         return None
 
+    def max_runs_per_sample(self, settings: TMCMCSettings) -> int:
+        return int(settings.n_steps or settings.max_steps)
+
     def chains(
         self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -121,14 +129,19 @@ class LeaderMove:
     def chain_sizes(self, n: int, n_chains: int, settings: TMCMCSettings) -> None:
         return None
 
+    def max_runs_per_sample(self, settings: TMCMCSettings) -> int:
+        return 1
+
     def chains(
         self, parent: NDArray[np.int64], n: int, acceptance_rate: float, settings: TMCMCSettings
     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         return np.unique(parent, return_counts=True)
 
 
-#: moves per chain of the waste-free form when ``n_steps`` is not set (P = 10 states per chain)
-WASTE_FREE_STEPS = 9
+#: moves per chain of the waste-free form when ``n_steps`` is not set (P = 5 states per chain:
+#: on paper case 1 nearer the unaccelerated posterior than P = 10 at fewer model runs,
+#: docs/calibration.md)
+WASTE_FREE_STEPS = 4
 
 
 class WasteFreeMove:
@@ -151,6 +164,9 @@ class WasteFreeMove:
     def resample_size(self, n: int, settings: TMCMCSettings) -> int:
         return -(-n // self.states_per_chain(settings))
 
+    def max_runs_per_sample(self, settings: TMCMCSettings) -> int:
+        return 1  # n - M runs per stage
+
     def chain_sizes(
         self, n: int, n_chains: int, settings: TMCMCSettings
     ) -> NDArray[np.int64] | None:
@@ -172,6 +188,38 @@ class WasteFreeMove:
 
 
 _MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove(), WasteFreeMove())}
+
+
+#: the accelerated accurate form (issue 12, docs/calibration.md): waste-free chains whose moves
+#: are surrogate transitions of ACCELERATED_STEPS inner steps, the log walk and multinomial
+#: resampling (a right evidence standard error); each part exact
+ACCELERATED_STEPS = 40
+_ACCELERATED = {
+    "delayed_acceptance": True,
+    "surrogate_steps": ACCELERATED_STEPS,
+    "proposal_scale": "log",
+    "resampling": "multinomial",
+}
+#: plain Metropolis steps in the parameters, systematic resampling: the paper's form (leader)
+#: and the unaccelerated accurate form (resample-move)
+_PLAIN = {
+    "delayed_acceptance": False,
+    "surrogate_steps": 1,
+    "proposal_scale": "linear",
+    "resampling": "systematic",
+}
+#: the move scheme of a study that names none: the unaccelerated accurate form until the
+#: accelerated one meets issue 12's accuracy lines on every seed (docs/calibration.md)
+STUDY_MOVES = "resample-move"
+
+
+def form_defaults(moves: str) -> dict[str, bool | int | str]:
+    """The settings a study leaves to its move scheme: for "waste-free" the accelerated
+    accurate form (waste-free chains are only accurate with surrogate transitions as their
+    moves), for "resample-move" and "leader" plain steps. Keys: ``delayed_acceptance``,
+    ``surrogate_steps``, ``proposal_scale``, ``resampling``."""
+    move_of(moves)  # a known scheme
+    return dict(_ACCELERATED if moves == "waste-free" else _PLAIN)
 
 
 def stage_chains(n: int, settings: TMCMCSettings) -> int:

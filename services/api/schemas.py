@@ -158,7 +158,9 @@ class StudyCreate(_In):
     n_samples: int | None = Field(None, le=COUNT_MAX, description="Samples per stage (>= 10).")
     moves: Literal["resample-move", "leader", "waste-free"] | None = None
     n_steps: int | None = Field(
-        None, le=COUNT_MAX, description="Metropolis steps per chain (resample-move)."
+        None,
+        le=COUNT_MAX,
+        description="Moves per chain: waste-free (default 4), resample-move (default adapted).",
     )
     max_stages: int | None = Field(
         None, le=COUNT_MAX, description="Stop after this many tempering stages."
@@ -171,7 +173,8 @@ class StudyCreate(_In):
     delayed_acceptance: bool | None = Field(
         None,
         description="Screen proposals with a surrogate of the responses before simulating "
-        "them (default false; exact: the chain still targets the posterior).",
+        "them (default: true for waste-free moves, false for resample-move and leader; exact: "
+        "the chain still targets the posterior).",
     )
     likelihood: Literal["normalized", "gaussian"] | None = None
     batch_size: int | None = Field(

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from scm_core.calibration import CaseDefinition, CaseError, load_case, preset_case
-from scm_core.inference import TABLE2_NOMINAL, table2_prior
+from scm_core.inference import TABLE2_NOMINAL, TMCMCSettings, table2_prior
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -205,16 +205,50 @@ def test_validation_errors_name_the_field(changes: dict, needle: str) -> None:
 
 
 def test_sampler_resampling_reaches_the_tmcmc_settings() -> None:
-    """The default leaves the stored case and its fingerprint as they were before the key."""
-    base = build()
+    """A systematic case keeps the fingerprint it had before the key existed; multinomial
+    reaches the settings and changes it; the stored document names it and reads back equal."""
+    base = build(sampler={"moves": "leader"})
     assert base.tmcmc_settings().resampling == "systematic"
-    assert "resampling" not in base.to_dict()["sampler"]
-    same = build(sampler={"resampling": "systematic"})
+    same = build(sampler={"moves": "leader", "resampling": "systematic"})
     assert same.fingerprint() == base.fingerprint()
-    multi = build(sampler={"resampling": "multinomial"})
+    multi = build(sampler={"moves": "leader", "resampling": "multinomial"})
     assert multi.tmcmc_settings().resampling == "multinomial"
     assert multi.fingerprint() != base.fingerprint()
-    assert CaseDefinition.from_dict(multi.to_dict()) == multi
+    for case in (base, multi):
+        assert case.to_dict()["sampler"]["resampling"] == case.sampler.resampling
+        assert CaseDefinition.from_dict(case.to_dict()) == case
+
+
+def test_a_study_takes_its_move_schemes_form_unless_it_names_the_settings() -> None:
+    """No [sampler] table: the unaccelerated accurate form (resample-move, plain steps, linear
+    walk, systematic resampling), as before the form defaults. "waste-free": the accelerated
+    accurate form (surrogate transitions of 40 steps, log walk, multinomial resampling).
+    Named settings win; a changed move scheme brings its own defaults for what the case left
+    out, and keeps what it named."""
+    default = build().tmcmc_settings()
+    assert default.moves == "resample-move" and default.n_steps is None
+    assert (default.delayed_acceptance, default.surrogate_steps) == (False, 1)
+    assert (default.proposal_scale, default.resampling) == ("linear", "systematic")
+    assert default == TMCMCSettings()  # the library's defaults
+    fast = build(sampler={"moves": "waste-free"}).tmcmc_settings()
+    assert fast.n_steps is None and fast.moves == "waste-free"
+    assert (fast.delayed_acceptance, fast.surrogate_steps) == (True, 40)
+    assert (fast.proposal_scale, fast.resampling) == ("log", "multinomial")
+    leader = build(sampler={"moves": "leader"})
+    paper = leader.tmcmc_settings()
+    assert (paper.delayed_acceptance, paper.surrogate_steps) == (False, 1)
+    assert (paper.proposal_scale, paper.resampling) == ("linear", "systematic")
+    switched = leader.with_changes(sampler={"moves": "waste-free"})
+    assert switched.tmcmc_settings().delayed_acceptance is True
+    assert switched.tmcmc_settings().resampling == "multinomial"
+    named = build(sampler={"moves": "leader", "proposal_scale": "log"})
+    assert named.with_changes(sampler={"moves": "waste-free"}).sampler.proposal_scale == "log"
+    plain = build(sampler={"moves": "waste-free", "delayed_acceptance": False})
+    assert plain.tmcmc_settings().delayed_acceptance is False
+    # null is "the form's default", as leaving the key out
+    assert build(sampler={"moves": "leader", "resampling": None}) == leader
+    # the stored document names the resolved form, so it does not change with the defaults
+    assert leader.to_dict()["sampler"]["delayed_acceptance"] is False
 
 
 def test_toml_errors_are_one_line(tmp_path: Path) -> None:

@@ -6,7 +6,8 @@ test_inference_tmcmc_accuracy and test_inference_update (their docstrings give t
 error budgets), on test likelihoods whose output follows from responses, so the surrogate is
 really used: every test asserts that the surrogate turned proposals down. Each runs with one
 inner step (Christen & Fox's delayed acceptance), with ten (a surrogate transition, Liu 2001),
-and with ten in waste-free chains (Dau & Chopin 2022: every chain state is a sample).
+in the accelerated accurate form (waste-free chains, Dau & Chopin 2022: every chain state is a
+sample; 40 inner steps, log walk, multinomial resampling), and with population jumps.
 """
 
 from __future__ import annotations
@@ -30,24 +31,33 @@ from parted_targets import (
 from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
+from scm_core.inference.tmcmc_moves import form_defaults
 
 
 @pytest.fixture(
     params=[
         (1, "resample-move", 0.0),
         (10, "resample-move", 0.0),
-        (10, "waste-free", 0.0),
+        (None, "waste-free", 0.0),
         (10, "waste-free", 0.5),
     ],
-    ids=["da", "stm10", "wf-stm10", "wf-stm10-jumps"],
+    ids=["da", "stm10", "waste-free-default", "wf-stm10-jumps"],
 )
 def da(request) -> TMCMCSettings:
-    """Delayed acceptance with 1 or 10 surrogate steps per model run; the second also with
-    waste-free chains (every chain state a sample, P = 10 states per chain), without and with
-    population jumps (half the inner steps independence proposals)."""
+    """Delayed acceptance with 1 or 10 surrogate steps per model run in resample-move chains;
+    the accelerated accurate form a case gets with ``moves = "waste-free"`` (chains of P = 5
+    states, surrogate transitions of 40 steps, log walk, multinomial resampling); and
+    waste-free chains of P = 10 states with 10 surrogate steps, half of them population jumps
+    (independence proposals)."""
     steps, moves, jumps = request.param
+    if steps is None:
+        return TMCMCSettings(moves=moves, **form_defaults(moves))
     return TMCMCSettings(
-        delayed_acceptance=True, surrogate_steps=steps, moves=moves, surrogate_jumps=jumps
+        delayed_acceptance=True,
+        surrogate_steps=steps,
+        moves=moves,
+        surrogate_jumps=jumps,
+        n_steps=9 if moves == "waste-free" else None,
     )
 
 

@@ -271,7 +271,7 @@ def test_waste_free_chains_keep_every_state_and_cost_n_minus_m_runs() -> None:
         return -0.5 * ((X[:, 0] - 0.2) ** 2 + (X[:, 1] + 0.1) ** 2) / 0.05**2
 
     n = 503  # P = 10 does not divide it: the last chain has 3 states
-    settings = TMCMCSettings(moves="waste-free")
+    settings = TMCMCSettings(moves="waste-free", n_steps=9)
     res = run_tmcmc(gauss, prior, n_samples=n, seed=0, settings=settings)
     assert res.status == "completed" and res.exponents[-1] == 1.0
     m = 51

@@ -40,7 +40,10 @@ def loglik_lognormal(X: np.ndarray) -> np.ndarray:
 def test_log_walk_lognormal_conjugate(moves: str) -> None:
     # truncated at +-20 prior sd in log theta: negligible mass
     prior = JointPrior({"theta": LogNormal(M0, F0, M0 * F0**-20, M0 * F0**20)})
-    settings = TMCMCSettings(moves=moves, proposal_scale="log")
+    # P = 10 states per waste-free chain
+    settings = TMCMCSettings(
+        moves=moves, proposal_scale="log", n_steps=9 if moves == "waste-free" else None
+    )
     assert log_columns(prior, "log").tolist() == [True]
     res = run_tmcmc(loglik_lognormal, prior, 2000, seed=0, settings=settings)
     post_mean, tau, log_z = exact_lognormal()

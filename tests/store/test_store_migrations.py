@@ -47,7 +47,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0006"
+    assert head_revision() == "0007"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -87,9 +87,9 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0006") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0007") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0006"
+    assert info.value.current == "ffff" and info.value.head == "0007"
 
     engine = make_engine(empty_url)
     try:
@@ -132,7 +132,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0006"
+        assert current_revision(url) == "0007"
     finally:
         get_settings.cache_clear()
 
@@ -313,3 +313,47 @@ def test_0006_derives_the_study_documents_from_the_case_and_back(empty_url: str)
 def _json(value):
     """A JSON column's value as read by a text query (a string on SQLite, parsed on PG)."""
     return json.loads(value) if isinstance(value, str) else value
+
+
+def test_0007_writes_the_old_sampler_defaults_into_stored_cases(empty_url: str) -> None:
+    """A case stored before 0007 without the form's keys (the old to_dict left out
+    ``resampling`` when systematic; older ones ``proposal_scale``, ``delayed_acceptance`` ...)
+    meant the old defaults: after the upgrade the study's sampler is still exactly that
+    (resample-move, plain steps, linear walk, systematic resampling), not the new study
+    defaults, and a case that named its form keeps it."""
+    case = load_case(EXAMPLES / "quick.toml").to_dict()
+    old = dict(case, sampler={"n_samples": 21, "n_steps": 3})  # form keys left out
+    named = dict(
+        case,
+        sampler={"n_samples": 21, "moves": "waste-free", "resampling": "multinomial"},
+    )
+    upgrade(empty_url, "0006")
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO studies (name, kind, status, case_spec, seed, n_samples, model_runs, "
+        "failed_runs, created_at, updated_at) VALUES "
+        "(:n, 'tmcmc', 'queued', :c, 9, 21, 0, 0, :t, :t)"
+    )
+    try:
+        with engine.begin() as conn:
+            for name, doc in (("old", old), ("named", named)):
+                conn.execute(insert, {"n": name, "c": json.dumps(doc), "t": "2025-01-01 00:00:00"})
+        upgrade(empty_url)
+        with Store.open(empty_url) as store:
+            by_name = {s.name: study_terms(s).sampler for s in store.studies.list().items}
+        assert by_name["old"]["moves"] == "resample-move" and by_name["old"]["n_steps"] == 3
+        assert by_name["old"]["delayed_acceptance"] is False
+        assert by_name["old"]["surrogate_steps"] == 1
+        assert by_name["old"]["proposal_scale"] == "linear"
+        assert by_name["old"]["resampling"] == "systematic"
+        # a named form keeps its keys; what it left out is filled with the old meaning too
+        assert by_name["named"]["moves"] == "waste-free"
+        assert by_name["named"]["resampling"] == "multinomial"
+        assert by_name["named"]["delayed_acceptance"] is False
+        downgrade(empty_url, "0006")
+        upgrade(empty_url)  # the round trip changes nothing more
+        with Store.open(empty_url) as store:
+            again = {s.name: study_terms(s).sampler for s in store.studies.list().items}
+        assert again == by_name
+    finally:
+        engine.dispose()

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from scm_core.calibration import CaseDefinition, StudyModel
 from scm_core.inference._serial import encode_array
+from scm_core.inference.tmcmc_moves import move_of
 from scm_core.inference.tmcmc_stage import (
     ChainBatchResult,
     PointEvaluation,
@@ -152,7 +153,7 @@ def check_limits(
             settings,
             n_samples=case.sampler.n_samples,
             max_stages=case.sampler.max_stages,
-            steps_per_chain=sampler.n_steps or sampler.max_steps,
+            steps_per_chain=move_of(sampler.moves).max_runs_per_sample(sampler),
             dataset_ids=list(dataset_ids),
             batch_size=batch_size,
         )
