@@ -18,7 +18,7 @@ scipy's ``RBFInterpolator`` with ``neighbors`` (each prediction solves its own s
 from its nearest training points; :func:`local_tps`), fitted on the distinct starting
 states of the stage's chains and their stored responses: a function of the stage plan alone, so
 a resumed or redelivered batch, or any number of workers, sees the same first stage. The
-system of each row is built and solved on its own (a numba loop, one LAPACK solve per row),
+system of each row is built (numba loops) and solved (LAPACK, one system at a time) on its own,
 so a row's value does not depend on the other rows of the batch (scipy's own evaluation groups
 rows into matrix products whose rounding does).
 
@@ -27,6 +27,7 @@ A likelihood opts in by implementing :class:`ResponseLikelihood`.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -73,6 +74,72 @@ def _tps_kernel(r2: float) -> float:
 
 
 @njit(cache=True)
+def _local_systems(points, values, neighbors, smoothing):
+    """The (k + d + 1)-square systems A c = B of the rows, and their neighbours' box (shift,
+    scale) for the polynomial coordinates."""
+    m, k = neighbors.shape
+    d = points.shape[1]
+    s = values.shape[1]
+    n = k + d + 1
+    A = np.zeros((m, n, n))
+    B = np.zeros((m, n, s))
+    shift = np.empty((m, d))
+    scale = np.empty((m, d))
+    for i in range(m):
+        for j in range(d):
+            lo = points[neighbors[i, 0], j]
+            hi = lo
+            for a in range(1, k):
+                lo = min(lo, points[neighbors[i, a], j])
+                hi = max(hi, points[neighbors[i, a], j])
+            shift[i, j] = (hi + lo) / 2.0
+            half = (hi - lo) / 2.0
+            scale[i, j] = half if half != 0.0 else 1.0
+        for a in range(k):
+            pa = neighbors[i, a]
+            for b in range(a + 1, k):
+                pb = neighbors[i, b]
+                r2 = 0.0
+                for j in range(d):
+                    diff = points[pa, j] - points[pb, j]
+                    r2 += diff * diff
+                v = _tps_kernel(r2)
+                A[i, a, b] = v
+                A[i, b, a] = v
+            A[i, a, a] = smoothing
+            A[i, a, k] = 1.0
+            A[i, k, a] = 1.0
+            for j in range(d):
+                yhat = (points[pa, j] - shift[i, j]) / scale[i, j]
+                A[i, a, k + 1 + j] = yhat
+                A[i, k + 1 + j, a] = yhat
+            for c in range(s):
+                B[i, a, c] = values[pa, c]
+    return A, B, shift, scale
+
+
+@njit(cache=True)
+def _local_values(points, neighbors, U, coef, shift, scale):
+    """The interpolants with coefficients ``coef`` (m, k + d + 1, s) at the rows of U."""
+    m, k = neighbors.shape
+    d = points.shape[1]
+    s = coef.shape[2]
+    out = np.empty((m, s))
+    for i in range(m):
+        for c in range(s):
+            acc = coef[i, k, c]
+            for a in range(k):
+                r2 = 0.0
+                for j in range(d):
+                    diff = U[i, j] - points[neighbors[i, a], j]
+                    r2 += diff * diff
+                acc += _tps_kernel(r2) * coef[i, a, c]
+            for j in range(d):
+                acc += (U[i, j] - shift[i, j]) / scale[i, j] * coef[i, k + 1 + j, c]
+            out[i, c] = acc
+    return out
+
+
 def local_tps(
     points: NDArray[np.float64],
     values: NDArray[np.float64],
@@ -84,68 +151,22 @@ def local_tps(
     row i interpolates ``values`` (n, s) over its ``neighbors[i]`` (k indices into ``points``
     (n, d)), in the formulation of scipy's ``RBFInterpolator(kernel="thin_plate_spline",
     degree=1, neighbors=k, smoothing=...)``: polynomial coordinates shifted and scaled to the
-    neighbours' box, kernel matrix plus ``smoothing`` on its diagonal. Each row builds and
-    solves its own (k + d + 1)-square system (numba, one LAPACK solve per row), so a row's
-    value does not depend on the other rows. A row whose system is singular gives NaN."""
-    m, k = neighbors.shape
-    d = points.shape[1]
-    s = values.shape[1]
-    n = k + d + 1
-    out = np.full((m, s), np.nan)
-    Y = np.empty((k, d))
-    A = np.empty((n, n))
-    B = np.empty((n, s))
-    shift = np.empty(d)
-    scale = np.empty(d)
-    for i in range(m):
-        for a in range(k):
-            for j in range(d):
-                Y[a, j] = points[neighbors[i, a], j]
-        for j in range(d):
-            lo = Y[0, j]
-            hi = Y[0, j]
-            for a in range(1, k):
-                lo = min(lo, Y[a, j])
-                hi = max(hi, Y[a, j])
-            shift[j] = (hi + lo) / 2.0
-            half = (hi - lo) / 2.0
-            scale[j] = half if half != 0.0 else 1.0
-        A[:, :] = 0.0
-        for a in range(k):
-            for b in range(a + 1, k):
-                r2 = 0.0
-                for j in range(d):
-                    diff = Y[a, j] - Y[b, j]
-                    r2 += diff * diff
-                v = _tps_kernel(r2)
-                A[a, b] = v
-                A[b, a] = v
-            A[a, a] = smoothing
-            A[a, k] = 1.0
-            A[k, a] = 1.0
-            for j in range(d):
-                yhat = (Y[a, j] - shift[j]) / scale[j]
-                A[a, k + 1 + j] = yhat
-                A[k + 1 + j, a] = yhat
-            for c in range(s):
-                B[a, c] = values[neighbors[i, a], c]
-        B[k:, :] = 0.0
-        try:
-            coef = np.linalg.solve(A, B)
-        except Exception:  # a singular system (numba raises a plain exception)
-            continue
-        for c in range(s):
-            acc = coef[k, c]
-            for a in range(k):
-                r2 = 0.0
-                for j in range(d):
-                    diff = U[i, j] - Y[a, j]
-                    r2 += diff * diff
-                acc += _tps_kernel(r2) * coef[a, c]
-            for j in range(d):
-                acc += (U[i, j] - shift[j]) / scale[j] * coef[k + 1 + j, c]
-            out[i, c] = acc
-    return out
+    neighbours' box, kernel matrix plus ``smoothing`` on its diagonal. Each row's system is
+    built (numba loops) and solved (LAPACK, one system at a time) on its own, so a row's value
+    does not depend on the other rows. A row whose system is singular gives NaN."""
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    neighbors = np.ascontiguousarray(neighbors, dtype=np.intp)
+    U = np.ascontiguousarray(U, dtype=np.float64)
+    A, B, shift, scale = _local_systems(points, values, neighbors, float(smoothing))
+    coef = np.full_like(B, np.nan)
+    try:
+        coef = np.linalg.solve(A, B)
+    except np.linalg.LinAlgError:  # some system is singular: solve row by row
+        for i in range(A.shape[0]):
+            with contextlib.suppress(np.linalg.LinAlgError):
+                coef[i] = np.linalg.solve(A[i], B[i])
+    return _local_values(points, neighbors, U, coef, shift, scale)
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,7 +194,7 @@ class ResponseSurrogate:
             _, idx = self.tree.query(rows, k=self.neighbors)
             idx = np.asarray(idx, dtype=np.intp).reshape(rows.shape[0], self.neighbors)
             out[start : start + CHUNK] = local_tps(
-                self.points, self.values, np.ascontiguousarray(idx), rows, self.smoothing
+                self.points, self.values, idx, rows, self.smoothing
             )
         return out * self.y_scale + self.y_center
 
