@@ -24,7 +24,7 @@ the simulator settings, the sampler settings and the datasets. It is written as 
 
     [sampler]
     n_samples = 2000
-    moves = "leader"                   # or "waste-free" (default), "resample-move"
+    moves = "leader"                   # or "resample-move" (default), "waste-free"
 
     [data]
     files = ["wf34_s020.csv"]          # relative to the case file; --data replaces them
