@@ -110,7 +110,7 @@ def run_form(
     proposal_scale: str | None = None,
     case_path: Path = CASE,
     resampling: str | None = None,
-    jumps: float = 0.0,
+    jumps: float | None = None,
 ) -> dict:
     """One run of ``form``; None options keep the form's (study) defaults."""
     sampler = {"n_samples": n_samples, **FORMS[form]}
@@ -121,9 +121,9 @@ def run_form(
             "proposal_scale": proposal_scale,
             "surrogate_steps": surrogate_steps,
             "n_steps": moves,
+            "surrogate_jumps": jumps,
         }
         sampler.update({k: v for k, v in accelerated.items() if v is not None})
-        sampler["surrogate_jumps"] = jumps
     case = load_case(case_path).with_changes(sampler=sampler)
     model = load_model(case)
     batch = local_batch_size(stage_chains(n_samples, case.tmcmc_settings()), workers)
@@ -212,8 +212,9 @@ def main() -> None:
     ap.add_argument(
         "--jumps",
         type=float,
-        default=0.0,
-        help="accelerated: probability of a population jump per surrogate step",
+        default=None,
+        help="accelerated: probability of a population jump per surrogate step (default: "
+        "the form's, 0.2 for waste-free)",
     )
     ap.add_argument("--stages", action="store_true", help="also print each run's stages")
     ap.add_argument("--json", type=Path, default=None, help="also write the rows here")

@@ -2,12 +2,12 @@
 
 From this revision a case that leaves ``moves``, ``delayed_acceptance``, ``surrogate_steps``,
 ``proposal_scale`` or ``resampling`` out takes its move scheme's defaults (the accelerated
-accurate form for "waste-free" and "resample-move", the paper's for "leader"), and the default
-scheme is "waste-free". Cases stored before left some of these keys out and meant the old
-defaults (resample-move, no surrogate, one inner step, linear walk, systematic resampling; the
-case document omitted ``resampling`` when it was systematic). This revision writes those values
-into every stored case that lacks them, so every study keeps the sampler it was created with.
-The downgrade leaves the explicit values in place: the old code reads them as they are.
+accurate form for "waste-free", plain steps for "resample-move" and "leader"). Cases stored
+before left some of these keys out and meant the old defaults (resample-move, no surrogate,
+one inner step, linear walk, systematic resampling; the case document omitted ``resampling``
+when it was systematic). This revision writes those values into every stored case that lacks
+them, so every study keeps the sampler it was created with. The downgrade leaves the explicit
+values in place: the old code reads them as they are.
 
 Revision ID: 0007
 Revises: 0006

@@ -175,10 +175,11 @@ class SamplerSettings(_Strict):
 
     ``moves``: "resample-move" (the default: the unaccelerated accurate form), "waste-free"
     (the accelerated accurate form) or "leader" (the paper's form). ``delayed_acceptance``,
-    ``surrogate_steps``, ``proposal_scale`` and ``resampling`` left out (or null) take the move
-    scheme's defaults (:func:`scm_core.inference.tmcmc_moves.form_defaults`): for "waste-free"
-    surrogate transitions of 40 inner steps, the log walk and multinomial resampling; for
-    "resample-move" and "leader" plain steps in the parameters and systematic resampling.
+    ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale`` and ``resampling`` left out (or
+    null) take the move scheme's defaults (:func:`scm_core.inference.tmcmc_moves.form_defaults`):
+    for "waste-free" surrogate transitions of 40 inner steps with population jumps, the log walk
+    and multinomial resampling; for "resample-move" and "leader" plain steps in the parameters
+    and systematic resampling.
 
     ``batch_size``: chains per batch handed to the ``map`` (None: chosen by the runner; does
     not change the results). ``max_stages``: stop (status "max_stages") after that many
@@ -205,7 +206,7 @@ class SamplerSettings(_Strict):
     early_rejection: bool = _DEFAULT.early_rejection
     delayed_acceptance: bool | None = None
     surrogate_steps: int | None = Field(None, ge=1, le=100)
-    surrogate_jumps: float = Field(_DEFAULT.surrogate_jumps, ge=0.0, lt=1.0)
+    surrogate_jumps: float | None = Field(None, ge=0.0, lt=1.0)
     proposal_scale: Literal["linear", "log"] | None = None
     resampling: Literal["systematic", "multinomial"] | None = None
 
@@ -246,7 +247,7 @@ class SamplerSettings(_Strict):
             early_rejection=self.early_rejection,
             delayed_acceptance=bool(self.delayed_acceptance),
             surrogate_steps=int(self.surrogate_steps or 1),
-            surrogate_jumps=self.surrogate_jumps,
+            surrogate_jumps=float(self.surrogate_jumps or 0.0),
             proposal_scale=str(self.proposal_scale),
             resampling=str(self.resampling),
         )

@@ -191,12 +191,15 @@ _MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove(), Was
 
 
 #: the accelerated accurate form (issue 12, docs/calibration.md): waste-free chains whose moves
-#: are surrogate transitions of ACCELERATED_STEPS inner steps, the log walk and multinomial
-#: resampling (a right evidence standard error); each part exact
+#: are surrogate transitions of ACCELERATED_STEPS inner steps, a share ACCELERATED_JUMPS of them
+#: population jumps, the log walk and multinomial resampling (a right evidence standard
+#: error); each part exact
 ACCELERATED_STEPS = 40
+ACCELERATED_JUMPS = 0.2
 _ACCELERATED = {
     "delayed_acceptance": True,
     "surrogate_steps": ACCELERATED_STEPS,
+    "surrogate_jumps": ACCELERATED_JUMPS,
     "proposal_scale": "log",
     "resampling": "multinomial",
 }
@@ -205,6 +208,7 @@ _ACCELERATED = {
 _PLAIN = {
     "delayed_acceptance": False,
     "surrogate_steps": 1,
+    "surrogate_jumps": 0.0,
     "proposal_scale": "linear",
     "resampling": "systematic",
 }
@@ -213,11 +217,11 @@ _PLAIN = {
 STUDY_MOVES = "resample-move"
 
 
-def form_defaults(moves: str) -> dict[str, bool | int | str]:
+def form_defaults(moves: str) -> dict[str, bool | int | float | str]:
     """The settings a study leaves to its move scheme: for "waste-free" the accelerated
     accurate form (waste-free chains are only accurate with surrogate transitions as their
     moves), for "resample-move" and "leader" plain steps. Keys: ``delayed_acceptance``,
-    ``surrogate_steps``, ``proposal_scale``, ``resampling``."""
+    ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale``, ``resampling``."""
     move_of(moves)  # a known scheme
     return dict(_ACCELERATED if moves == "waste-free" else _PLAIN)
 

@@ -222,25 +222,33 @@ def test_sampler_resampling_reaches_the_tmcmc_settings() -> None:
 def test_a_study_takes_its_move_schemes_form_unless_it_names_the_settings() -> None:
     """No [sampler] table: the unaccelerated accurate form (resample-move, plain steps, linear
     walk, systematic resampling), as before the form defaults. "waste-free": the accelerated
-    accurate form (surrogate transitions of 40 steps, log walk, multinomial resampling).
+    accurate form (surrogate transitions of 40 steps with population jumps, log walk,
+    multinomial resampling).
     Named settings win; a changed move scheme brings its own defaults for what the case left
     out, and keeps what it named."""
     default = build().tmcmc_settings()
     assert default.moves == "resample-move" and default.n_steps is None
     assert (default.delayed_acceptance, default.surrogate_steps) == (False, 1)
+    assert default.surrogate_jumps == 0.0
     assert (default.proposal_scale, default.resampling) == ("linear", "systematic")
     assert default == TMCMCSettings()  # the library's defaults
     fast = build(sampler={"moves": "waste-free"}).tmcmc_settings()
     assert fast.n_steps is None and fast.moves == "waste-free"
     assert (fast.delayed_acceptance, fast.surrogate_steps) == (True, 40)
+    assert fast.surrogate_jumps == 0.2
     assert (fast.proposal_scale, fast.resampling) == ("log", "multinomial")
     leader = build(sampler={"moves": "leader"})
     paper = leader.tmcmc_settings()
     assert (paper.delayed_acceptance, paper.surrogate_steps) == (False, 1)
+    assert paper.surrogate_jumps == 0.0
     assert (paper.proposal_scale, paper.resampling) == ("linear", "systematic")
     switched = leader.with_changes(sampler={"moves": "waste-free"})
     assert switched.tmcmc_settings().delayed_acceptance is True
     assert switched.tmcmc_settings().resampling == "multinomial"
+    assert switched.tmcmc_settings().surrogate_jumps == 0.2
+    # a share the case named stays, also at 0 (no jumps in the accelerated form)
+    still = build(sampler={"moves": "waste-free", "surrogate_jumps": 0.0})
+    assert still.tmcmc_settings().surrogate_jumps == 0.0
     named = build(sampler={"moves": "leader", "proposal_scale": "log"})
     assert named.with_changes(sampler={"moves": "waste-free"}).sampler.proposal_scale == "log"
     plain = build(sampler={"moves": "waste-free", "delayed_acceptance": False})

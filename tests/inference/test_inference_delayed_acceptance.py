@@ -46,7 +46,8 @@ from scm_core.inference.tmcmc_moves import form_defaults
 def da(request) -> TMCMCSettings:
     """Delayed acceptance with 1 or 10 surrogate steps per model run in resample-move chains;
     the accelerated accurate form a case gets with ``moves = "waste-free"`` (chains of P = 5
-    states, surrogate transitions of 40 steps, log walk, multinomial resampling); and
+    states, surrogate transitions of 40 steps of which a fifth are population jumps, log walk,
+    multinomial resampling); and
     waste-free chains of P = 10 states with 10 surrogate steps, half of them population jumps
     (independence proposals)."""
     steps, moves, jumps = request.param

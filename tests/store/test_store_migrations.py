@@ -13,7 +13,7 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from click.testing import CliRunner
 
-from scm_core.calibration import load_case, sensitivity_design
+from scm_core.calibration import CaseDefinition, load_case, sensitivity_design
 from services.cli.main import cli
 from services.store import SchemaVersionError, Store, current_revision, downgrade, upgrade
 from services.store.engine import make_engine
@@ -47,7 +47,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0007"
+    assert head_revision() == "0008"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -87,9 +87,9 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0007") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0008") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0007"
+    assert info.value.current == "ffff" and info.value.head == "0008"
 
     engine = make_engine(empty_url)
     try:
@@ -132,7 +132,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0007"
+        assert current_revision(url) == "0008"
     finally:
         get_settings.cache_clear()
 
@@ -351,6 +351,44 @@ def test_0007_writes_the_old_sampler_defaults_into_stored_cases(empty_url: str) 
         assert by_name["named"]["resampling"] == "multinomial"
         assert by_name["named"]["delayed_acceptance"] is False
         downgrade(empty_url, "0006")
+        upgrade(empty_url)  # the round trip changes nothing more
+        with Store.open(empty_url) as store:
+            again = {s.name: study_terms(s).sampler for s in store.studies.list().items}
+        assert again == by_name
+    finally:
+        engine.dispose()
+
+
+def test_0008_writes_no_jumps_into_stored_cases_that_left_them_out(empty_url: str) -> None:
+    """A case stored before 0008 without ``surrogate_jumps`` meant none (0.0), also with
+    ``moves = "waste-free"``, whose form now has jumps: after the upgrade its sampler still has
+    none, its fingerprint is the one it had, and a case that named a share keeps it."""
+    case = load_case(EXAMPLES / "quick.toml").to_dict()
+    form = {"delayed_acceptance": True, "surrogate_steps": 40, "proposal_scale": "log"}
+    old_sampler = {"n_samples": 21, "moves": "waste-free", "resampling": "multinomial", **form}
+    old = dict(case, sampler=old_sampler)
+    named = dict(case, sampler={**old_sampler, "surrogate_jumps": 0.3})
+    before = CaseDefinition.from_dict(dict(old, sampler={**old_sampler, "surrogate_jumps": 0.0}))
+    upgrade(empty_url, "0007")
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO studies (name, kind, status, case_spec, seed, n_samples, model_runs, "
+        "failed_runs, created_at, updated_at) VALUES "
+        "(:n, 'tmcmc', 'queued', :c, 9, 21, 0, 0, :t, :t)"
+    )
+    try:
+        with engine.begin() as conn:
+            for name, doc in (("old", old), ("named", named)):
+                conn.execute(insert, {"n": name, "c": json.dumps(doc), "t": "2025-01-01 00:00:00"})
+        upgrade(empty_url)
+        with Store.open(empty_url) as store:
+            studies = {s.name: s for s in store.studies.list().items}
+            by_name = {name: study_terms(s).sampler for name, s in studies.items()}
+            stored = CaseDefinition.from_dict(studies["old"].case)
+        assert by_name["old"]["surrogate_jumps"] == 0.0
+        assert by_name["named"]["surrogate_jumps"] == 0.3
+        assert stored.fingerprint() == before.fingerprint()
+        downgrade(empty_url, "0007")
         upgrade(empty_url)  # the round trip changes nothing more
         with Store.open(empty_url) as store:
             again = {s.name: study_terms(s).sampler for s in store.studies.list().items}
