@@ -24,7 +24,7 @@ the simulator settings, the sampler settings and the datasets. It is written as 
 
     [sampler]
     n_samples = 2000
-    moves = "leader"                   # or "resample-move" (default), "waste-free"
+    moves = "leader"                   # or "waste-free" (default), "resample-move"
 
     [data]
     files = ["wf34_s020.csv"]          # relative to the case file; --data replaces them
@@ -173,8 +173,8 @@ _DEFAULT = TMCMCSettings()
 class SamplerSettings(_Strict):
     """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
 
-    ``moves``: "resample-move" (the default: the unaccelerated accurate form), "waste-free"
-    (the accelerated accurate form) or "leader" (the paper's form). ``delayed_acceptance``,
+    ``moves``: "waste-free" (the default: the accelerated accurate form), "resample-move" (the
+    unaccelerated accurate form) or "leader" (the paper's form). ``delayed_acceptance``,
     ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale`` and ``resampling`` left out (or
     null) take the move scheme's defaults (:func:`scm_core.inference.tmcmc_moves.form_defaults`):
     for "waste-free" surrogate transitions of 40 inner steps with population jumps, the log walk

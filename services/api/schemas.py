@@ -156,7 +156,11 @@ class StudyCreate(_In):
     name: str | None = Field(None, min_length=1, max_length=200)
     seed: int | None = Field(None, ge=0, le=SEED_MAX)
     n_samples: int | None = Field(None, le=COUNT_MAX, description="Samples per stage (>= 10).")
-    moves: Literal["resample-move", "leader", "waste-free"] | None = None
+    moves: Literal["resample-move", "leader", "waste-free"] | None = Field(
+        None,
+        description="Move scheme (default: the case's, else waste-free, the accelerated "
+        "accurate form; resample-move: unaccelerated; leader: the paper's form).",
+    )
     n_steps: int | None = Field(
         None,
         le=COUNT_MAX,

@@ -9,6 +9,7 @@ import pytest
 
 from scm_core.calibration import CaseDefinition, CaseError, load_case, preset_case
 from scm_core.inference import TABLE2_NOMINAL, TMCMCSettings, table2_prior
+from scm_core.inference.tmcmc_moves import form_defaults
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -220,18 +221,20 @@ def test_sampler_resampling_reaches_the_tmcmc_settings() -> None:
 
 
 def test_a_study_takes_its_move_schemes_form_unless_it_names_the_settings() -> None:
-    """No [sampler] table: the unaccelerated accurate form (resample-move, plain steps, linear
-    walk, systematic resampling), as before the form defaults. "waste-free": the accelerated
-    accurate form (surrogate transitions of 40 steps with population jumps, log walk,
-    multinomial resampling).
+    """No [sampler] table: the accelerated accurate form (waste-free chains of surrogate
+    transitions of 40 steps with population jumps, log walk, multinomial resampling).
+    "resample-move": the unaccelerated accurate form (plain steps, linear walk, systematic
+    resampling), as before the form defaults.
     Named settings win; a changed move scheme brings its own defaults for what the case left
     out, and keeps what it named."""
     default = build().tmcmc_settings()
-    assert default.moves == "resample-move" and default.n_steps is None
-    assert (default.delayed_acceptance, default.surrogate_steps) == (False, 1)
-    assert default.surrogate_jumps == 0.0
-    assert (default.proposal_scale, default.resampling) == ("linear", "systematic")
-    assert default == TMCMCSettings()  # the library's defaults
+    assert default == TMCMCSettings(moves="waste-free", **form_defaults("waste-free"))
+    accurate = build(sampler={"moves": "resample-move"}).tmcmc_settings()
+    assert accurate.moves == "resample-move" and accurate.n_steps is None
+    assert (accurate.delayed_acceptance, accurate.surrogate_steps) == (False, 1)
+    assert accurate.surrogate_jumps == 0.0
+    assert (accurate.proposal_scale, accurate.resampling) == ("linear", "systematic")
+    assert accurate == TMCMCSettings()  # the library's defaults
     fast = build(sampler={"moves": "waste-free"}).tmcmc_settings()
     assert fast.n_steps is None and fast.moves == "waste-free"
     assert (fast.delayed_acceptance, fast.surrogate_steps) == (True, 40)
