@@ -78,7 +78,7 @@ def steps_for_acceptance(
 
 
 class ResampleMove:
-    """Resample-move (the default, accurate form): every resampled point starts a chain of
+    """Resample-move (the unaccelerated accurate form): every resampled point starts a chain of
     ``n_steps`` steps (fixed, or adapted with :func:`steps_for_acceptance`) whose final state is
     the new sample."""
 
