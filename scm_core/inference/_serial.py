@@ -1,9 +1,21 @@
-"""Lossless conversion of float arrays to strict-JSON values and back.
+"""Lossless conversion of float arrays and dataclasses to strict-JSON values and back.
 
 Floats are written as Python floats (shortest repr round-trips exactly); the non-finite values
 that strict JSON lacks (-inf for failed model runs, NaN for undefined diagnostics) are written as
-the strings "inf", "-inf" and "nan". Dataclasses are converted field by field from their type
-annotations (:func:`dataclass_to_dict`, :func:`dataclass_from_dict`).
+the strings "inf", "-inf" and "nan". Arrays are ``{"shape", "dtype", "data"}`` objects.
+
+Dataclasses are converted field by field (:func:`dataclass_to_dict`, :func:`dataclass_from_dict`)
+from things this project owns, never from how a library spells its type hints (numpy 2.5 made
+``NDArray`` a PEP 695 alias that ``typing.get_origin`` no longer maps to ``np.ndarray``):
+
+* on the way out, a field's runtime value decides: arrays, floats (numpy's too), ints, bools,
+  strings, None and objects with ``to_dict``; anything else is refused, so a document is always
+  strict JSON;
+* on the way back, the encoded form decides for arrays (an object with ``shape`` and ``data``);
+  scalar and nested fields are coerced by the *text* of their own annotation (the modules use
+  ``from __future__ import annotations``): ``int``, ``float``, ``bool``, ``str`` or a class of
+  the dataclass's module with ``from_dict``, optionally ``| None``. Third-party names in an
+  annotation are never evaluated.
 """
 
 from __future__ import annotations
@@ -11,33 +23,17 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import types
-import typing
+import sys
 from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.jsondoc import decode_float, encode_float
+
 T = TypeVar("T")
 
-_NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
-
-
-def encode_float(x: float) -> float | str:
-    x = float(x)
-    if math.isfinite(x):
-        return x
-    if math.isnan(x):
-        return "nan"
-    return "inf" if x > 0 else "-inf"
-
-
-def decode_float(x: float | int | str) -> float:
-    if isinstance(x, str):
-        if x not in _NONFINITE:
-            raise ValueError(f"not a float encoding: {x!r}")
-        return _NONFINITE[x]
-    return float(x)
+_SCALARS: dict[str, type] = {"int": int, "float": float, "bool": bool, "str": str}
 
 
 def encode_array(a: NDArray[Any] | None) -> dict[str, Any] | None:
@@ -61,72 +57,89 @@ def decode_array(d: dict[str, Any] | None) -> NDArray[Any] | None:
     return np.array([decode_float(v) for v in d["data"]], dtype=float).reshape(shape)
 
 
+def is_encoded_array(value: Any) -> bool:
+    """Whether ``value`` is :func:`encode_array`'s form."""
+    return isinstance(value, dict) and "shape" in value and "data" in value
+
+
 # ---------------------------------------------------------------------- dataclasses
 
 
-def _field_kind(hint: Any) -> Any:
-    """What a field's type annotation asks for: "array", int, float, bool, str, a class with
-    ``from_dict``, or None (kept as is)."""
-    args = [a for a in typing.get_args(hint) if a is not type(None)]
-    if typing.get_origin(hint) in (typing.Union, types.UnionType) and len(args) == 1:
-        hint = args[0]
-    if hint is np.ndarray or typing.get_origin(hint) is np.ndarray:
-        return "array"
-    if hint in (int, float, bool, str):
-        return hint
-    if isinstance(hint, type) and hasattr(hint, "from_dict"):
-        return hint
+def _declared_kind(annotation: Any, namespace: dict[str, Any]) -> Any:
+    """int, float, bool, str, a class with ``from_dict``, or None (decided by the value and its
+    encoded form) for a field annotation written as text (``"float"``, ``"int | None"``,
+    ``"JointPrior"``); only builtin names and classes of the dataclass's own module are
+    resolved."""
+    if not isinstance(annotation, str):
+        raise TypeError(
+            "serialised dataclasses need text annotations (from __future__ import annotations)"
+        )
+    parts = [p.strip() for p in annotation.split("|")]
+    parts = [p for p in parts if p != "None"]
+    if len(parts) != 1:
+        return None
+    name = parts[0]
+    if name in _SCALARS:
+        return _SCALARS[name]
+    if name.isidentifier():
+        cls = namespace.get(name)
+        if isinstance(cls, type) and hasattr(cls, "from_dict") and hasattr(cls, "to_dict"):
+            return cls
     return None
 
 
 @functools.cache
 def _kinds(cls: type) -> tuple[tuple[str, Any], ...]:
-    hints = typing.get_type_hints(cls)
-    return tuple((f.name, _field_kind(hints[f.name])) for f in dataclasses.fields(cls))
+    namespace = vars(sys.modules[cls.__module__])
+    return tuple((f.name, _declared_kind(f.type, namespace)) for f in dataclasses.fields(cls))
+
+
+def _encode_value(cls: type, name: str, kind: Any, value: Any) -> Any:
+    if value is None:
+        return None
+    if isinstance(value, np.ndarray):
+        return encode_array(value)
+    if kind is float or isinstance(value, float | np.floating):
+        return encode_float(value)
+    if kind in (int, bool, str):
+        return kind(value)
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, str):
+        return value
+    if hasattr(value, "to_dict"):
+        return value.to_dict()
+    raise TypeError(f"{cls.__name__}.{name}: cannot write a {type(value).__name__} as JSON")
+
+
+def _decode_value(kind: Any, value: Any) -> Any:
+    if value is None:
+        return None
+    if kind is float:
+        return decode_float(value)
+    if kind in (int, bool, str):
+        return kind(value)
+    if isinstance(kind, type):
+        return kind.from_dict(value)
+    if is_encoded_array(value):
+        return decode_array(value)
+    return value
 
 
 def dataclass_to_dict(obj: Any) -> dict[str, Any]:
     """Strict-JSON dict of a dataclass whose fields are ints, floats (non-finite as strings),
     numpy arrays (:func:`encode_array`), None, or objects with ``to_dict``; exact with
     :func:`dataclass_from_dict`. The field list is the dataclass's: nothing to keep in step."""
-    out: dict[str, Any] = {}
-    for name, kind in _kinds(type(obj)):
-        value = getattr(obj, name)
-        if value is None:
-            out[name] = None
-        elif kind == "array":
-            out[name] = encode_array(value)
-        elif kind is float:
-            out[name] = encode_float(value)
-        elif kind in (int, bool, str):
-            out[name] = kind(value)
-        elif hasattr(value, "to_dict"):
-            out[name] = value.to_dict()
-        else:
-            out[name] = value
-    return out
+    cls = type(obj)
+    return {name: _encode_value(cls, name, kind, getattr(obj, name)) for name, kind in _kinds(cls)}
 
 
 def dataclass_from_dict(cls: type[T], data: dict[str, Any]) -> T:
     """The dataclass ``cls`` from :func:`dataclass_to_dict`'s output (a field absent from
     ``data`` takes its default)."""
-    kw: dict[str, Any] = {}
-    for name, kind in _kinds(cls):
-        if name not in data:
-            continue
-        value = data[name]
-        if value is None:
-            kw[name] = None
-        elif kind == "array":
-            kw[name] = decode_array(value)
-        elif kind is float:
-            kw[name] = decode_float(value)
-        elif kind in (int, bool, str):
-            kw[name] = kind(value)
-        elif isinstance(kind, type):
-            kw[name] = kind.from_dict(value)
-        else:
-            kw[name] = value
+    kw = {name: _decode_value(kind, data[name]) for name, kind in _kinds(cls) if name in data}
     return cls(**kw)
 
 
@@ -135,21 +148,20 @@ def dataclass_equal(a: Any, b: Any) -> bool:
     value (NaN equal to NaN), floats with NaN equal to NaN, the rest with ``==``."""
     if type(a) is not type(b):
         return False
-    for name, kind in _kinds(type(a)):
-        x, y = getattr(a, name), getattr(b, name)
-        if (x is None) != (y is None):
-            return False
-        if x is None:
-            continue
-        if kind == "array":
-            if not np.array_equal(x, y, equal_nan=True):
-                return False
-        elif kind is float:
-            if not (x == y or (math.isnan(x) and math.isnan(y))):
-                return False
-        elif kind is not None and hasattr(x, "to_dict"):
-            if x.to_dict() != y.to_dict():
-                return False
-        elif x != y:
-            return False
-    return True
+    return all(_values_equal(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+
+
+def _values_equal(x: Any, y: Any) -> bool:
+    if (x is None) or (y is None):
+        return x is None and y is None
+    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        return (
+            isinstance(x, np.ndarray)
+            and isinstance(y, np.ndarray)
+            and np.array_equal(x, y, equal_nan=True)
+        )
+    if isinstance(x, float) and isinstance(y, float):
+        return x == y or (math.isnan(x) and math.isnan(y))
+    if hasattr(x, "to_dict") and hasattr(y, "to_dict"):
+        return x.to_dict() == y.to_dict()
+    return bool(x == y)

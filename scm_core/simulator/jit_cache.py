@@ -25,7 +25,7 @@ from types import ModuleType
 
 from numba.core.dispatcher import Dispatcher
 
-__all__ = ["STAMP_NAME", "ensure_fresh_cache", "sources_digest"]
+__all__ = ["STAMP_NAME", "ensure_fresh_cache", "kernel_is_cached", "sources_digest"]
 
 #: the stamp file written in each cache directory of the simulator's functions
 STAMP_NAME = "scm_simulator_sources.sha256"
@@ -100,3 +100,22 @@ def ensure_fresh_cache() -> bool:
     """Flush numba's cached simulator code if the simulator's sources changed since it was
     cached (see the module doc). Once per process; True if something was flushed."""
     return bool(refresh(_cached_dispatchers(_simulator_modules()), sources_digest()))
+
+
+def kernel_is_cached() -> bool | None:
+    """Whether numba's disk cache holds the batch kernel compiled from these sources (True), or
+    the first simulation of this process will compile it, about a minute (False); None where
+    numba's cache is not laid out as known here. Ask before the first simulation: a flush
+    (:func:`ensure_fresh_cache`) leaves an empty index behind."""
+    from . import kernel
+
+    try:
+        cache = kernel.run_batch._cache
+        index = Path(cache._cache_file._index_path)
+        stamp = Path(cache._cache_path) / STAMP_NAME
+    except AttributeError:
+        return None
+    try:
+        return index.is_file() and stamp.read_text(encoding="ascii").strip() == sources_digest()
+    except (OSError, UnicodeDecodeError):
+        return False

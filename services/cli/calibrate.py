@@ -35,7 +35,14 @@ from scm_core.signals import SWTDataset
 from services.studies.batching import local_batch_size
 from services.studies.kinds.checks import prior_medians
 
-from .common import CLIError, data_option, data_paths, read_case, read_datasets
+from .common import (
+    CLIError,
+    compile_simulator_once,
+    data_option,
+    data_paths,
+    read_case,
+    read_datasets,
+)
 from .parent import ParentStudy, load_parent
 from .pool import batch_map
 from .progress import CheckedLikelihood, StageDisplay, StopRequest, is_interrupt
@@ -208,6 +215,7 @@ def calibrate(
             f"{'in-process' if workers is None else f'{workers} worker processes'}"
         )
 
+    compile_simulator_once(quiet)
     wall_times = list(walls)
     t_start = [time.perf_counter()]
     display = StageDisplay(quiet, console)

@@ -29,8 +29,9 @@ from scm_core.calibration.predict import (
     sweep_targets,
 )
 
-from .common import CLIError, data_option, read_datasets
+from .common import CLIError, compile_simulator_once, data_option, read_datasets
 from .pool import batch_map
+from .results import write_json
 
 _SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
 
@@ -151,6 +152,7 @@ def predict_cmd(
         sweep_terms = sweep_targets(template, slips, loads)
     else:
         sweep_terms = []
+    compile_simulator_once(as_json)
     with batch_map(workers) as mapper:
         try:
             preds = predict(
@@ -186,7 +188,7 @@ def predict_cmd(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
-    (out / "predictions.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    write_json(out / "predictions.json", doc, indent=2)
     if not no_plots:
         from services.plots.predict import plot_predictions
 

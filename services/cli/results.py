@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
+from scm_core import jsondoc
 from scm_core.calibration import CaseDefinition, StudyModel, study_summary
 from scm_core.calibration.report import finite_or_none
 from scm_core.inference import LOG_SCALE_KINDS, StageState, TMCMCResult
@@ -38,9 +39,12 @@ CHECKPOINT_FORMAT = "scm-calib-checkpoints"
 # ---------------------------------------------------------------------- checkpoints
 
 
-def _write_json(path: Path, doc: Any) -> None:
+def write_json(path: Path, doc: Any, *, indent: int | None = None) -> None:
+    """Write ``doc`` as strict JSON (:func:`scm_core.jsondoc.dumps`), atomically; an indented
+    file ends with a newline."""
+    text = jsondoc.dumps(doc, indent=indent) + ("\n" if indent is not None else "")
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, separators=(",", ":")), encoding="utf-8")
+    tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
 
 
@@ -108,11 +112,11 @@ class Checkpoints:
         if fresh:
             for old in self.dir.glob("stage_*.json"):
                 old.unlink()
-        _write_json(self.dir / "manifest.json", self.manifest)
+        write_json(self.dir / "manifest.json", self.manifest)
 
     def save(self, state: StageState, wall_time_s: float) -> None:
         doc = {"state": state.to_dict(), "wall_time_s": wall_time_s}
-        _write_json(self.dir / f"stage_{state.stage:03d}.json", doc)
+        write_json(self.dir / f"stage_{state.stage:03d}.json", doc)
 
 
 # ---------------------------------------------------------------------- outputs
@@ -188,7 +192,7 @@ def write_outputs(
     for entry, path in zip(summary["datasets"], paths or (), strict=False):
         entry["path"] = str(Path(path).resolve())
     summary.update(sections or {})
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    write_json(out / "summary.json", summary, indent=2)
 
     if plots:
         from services.plots.fit import plot_fit

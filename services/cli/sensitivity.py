@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -12,8 +11,9 @@ from rich.table import Table
 
 from scm_core.calibration import run_sensitivity, screening_factors
 
-from .common import CLIError, data_paths, read_case, read_datasets
+from .common import CLIError, compile_simulator_once, data_paths, read_case, read_datasets
 from .pool import batch_map
+from .results import write_json
 
 
 def _parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
@@ -97,6 +97,7 @@ def sensitivity(
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     n_runs = r * (len(names) + 1)
+    compile_simulator_once()
     with batch_map(workers) as mapper:
         batch = None if workers is None else max(1, math.ceil(n_runs / (4 * workers)))
         try:
@@ -126,7 +127,7 @@ def sensitivity(
         "conditions": dataset.conditions.to_sim_config(),
         **result.to_dict(),
     }
-    (out / "sensitivity.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    write_json(out / "sensitivity.json", doc, indent=2)
     from services.plots.sensitivity import plot_morris
 
     plot_morris(result, out / "sensitivity.png")

@@ -10,6 +10,8 @@ be at the code's schema revision (``scm-calib db upgrade``).
 
 from __future__ import annotations
 
+import contextlib
+
 import click
 
 
@@ -101,6 +103,15 @@ def serve(host: str, port: int, workers: int | None, no_local_workers: bool, log
             "are refused; make one with `python -m services.config new-token`",
             err=True,
         )
+    if not no_local_workers and not distributed:
+        from scm_core.simulator.jit_cache import kernel_is_cached
+
+        if kernel_is_cached() is False:
+            click.echo(
+                "compiling the simulator in the worker processes, first run only (about a "
+                "minute); /health/ready answers 503 until they are ready",
+                err=True,
+            )
     app = create_app(settings, start_local_runtime=not no_local_workers)
     if settings.dashboard:
         import threading
@@ -110,4 +121,6 @@ def serve(host: str, port: int, workers: int | None, no_local_workers: bool, log
         click.echo(f"dashboard: http://{host}:{port}/", err=True)
         # the first figure would otherwise pay for matplotlib's fonts and the simulator's load
         threading.Thread(target=warm_up, name="dashboard-warm-up", daemon=True).start()
-    uvicorn.run(app, host=host, port=port, log_level=log_level)
+    # uvicorn 0.29-0.30 re-raise the Ctrl-C they already handled: a clean stop all the same
+    with contextlib.suppress(KeyboardInterrupt):
+        uvicorn.run(app, host=host, port=port, log_level=log_level)

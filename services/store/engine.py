@@ -11,29 +11,28 @@
   waits for it (busy timeout) instead of failing on a lock upgrade half-way. See
   :func:`write_session`. In-memory SQLite is not supported by the store (each pooled connection
   would see its own database); use a file.
-* JSON columns are written as strict JSON; non-finite floats become the strings "nan", "inf",
-  "-inf" (the convention of ``scm_core.inference._serial``) and numpy scalars/arrays become
-  Python numbers/lists.
+* JSON columns are written as strict JSON by :func:`scm_core.jsondoc.dumps`, which converts
+  nothing: documents are built of plain JSON values (non-finite floats as the strings "nan",
+  "inf", "-inf", the convention of ``scm_core.inference._serial``), and anything else fails
+  where it is written.
 """
 
 from __future__ import annotations
 
-import json
-import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.engine import URL, Engine, make_url
 from sqlalchemy.orm import Session, sessionmaker
 
+from scm_core import jsondoc
+
 __all__ = [
     "dumps_json",
     "is_sqlite",
-    "jsonable",
     "make_engine",
     "make_sessionmaker",
     "normalise_url",
@@ -59,26 +58,10 @@ def safe_url(url: str | URL) -> str:
     return normalise_url(url).render_as_string(hide_password=True)
 
 
-def jsonable(obj: Any) -> Any:
-    if isinstance(obj, float | np.floating):
-        x = float(obj)
-        if math.isfinite(x):
-            return x
-        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, np.integer | np.bool_):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return jsonable(obj.tolist())
-    return obj
-
-
 def dumps_json(obj: Any) -> str:
-    """Strict JSON for JSON columns (see module docstring)."""
-    return json.dumps(jsonable(obj), allow_nan=False, separators=(",", ":"))
+    """Strict JSON for JSON columns: :func:`scm_core.jsondoc.dumps`, no conversion (see module
+    docstring)."""
+    return jsondoc.dumps(obj)
 
 
 def is_sqlite(bind: Engine | sa.Connection | Session) -> bool:

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
 import pytest
 import sqlalchemy as sa
 
+from scm_core import jsondoc
 from services.store import NotFoundError, Store, StudySpec
 from services.store.models import Event
 
@@ -130,6 +132,20 @@ def test_study_validation(store: Store, toy) -> None:
         store.studies.get(12345)
     with pytest.raises(NotFoundError):
         store.studies.cancel(12345)
+
+
+def test_json_columns_take_only_plain_json_values(store: Store, toy) -> None:
+    """JSON columns are written by json.dumps(allow_nan=False) without an encoder
+    (scm_core.jsondoc.dumps): a numpy array or a nested NaN that slips into a document fails
+    where it is written, and nothing is stored; the documents the store builds itself
+    (stage rows, events) pass, which the rest of this suite shows on SQLite and PostgreSQL."""
+    study = store.studies.create(toy.spec())
+    before = store.events.list(study.id)
+    for bad in ({"x": np.arange(3)}, {"nested": {"x": float("nan")}}, {"x": np.float32(1.5)}):
+        with pytest.raises((TypeError, ValueError, sa.exc.StatementError)):
+            store.events.append(study.id, "note", bad)
+    assert store.events.list(study.id) == before  # nothing half-written
+    assert jsondoc.dumps({"a": [1, 2.5, "nan"], "b": None}) == '{"a":[1,2.5,"nan"],"b":null}'
 
 
 def test_event_log_is_append_only_and_ordered(store: Store, toy) -> None:

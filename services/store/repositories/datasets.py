@@ -20,7 +20,6 @@ from sqlalchemy.orm import Session
 
 from scm_core.signals import SWTDataset
 
-from ..engine import jsonable
 from ..errors import NotFoundError
 from ..models import Dataset, DatasetChunk, DatasetUpload
 from ..records import DatasetRecord, Page
@@ -125,8 +124,8 @@ class DatasetRepository:
             "filename": filename,
             "media_type": media_type,
             "size_bytes": size,
-            "meta": jsonable(dict(meta or {})),
-            "processed": jsonable(dataset.to_dict(include_series=False)),
+            "meta": dict(meta or {}),
+            "processed": dataset.to_dict(include_series=False),
             "created_at": now,
         }
         with self.db.write() as s:

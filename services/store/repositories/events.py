@@ -18,7 +18,8 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from ..engine import jsonable
+from scm_core.jsondoc import encode_float
+
 from ..models import Event, Study
 from ..records import EventRecord
 from .base import Database
@@ -54,12 +55,12 @@ def append_event(
     at: datetime,
 ) -> Event:
     """Add one event in the caller's transaction (flushed, so it has its id); a study's event
-    raises the study's version."""
+    raises the study's version. ``payload``: a flat record of JSON values, whose floats may be
+    non-finite (written as "nan", "inf", "-inf")."""
     if study_id is not None:
         touch_study(session, study_id, at)
-    event = Event(
-        study_id=study_id, kind=kind, payload=jsonable(dict(payload or {})), created_at=at
-    )
+    body = {k: encode_float(v) if isinstance(v, float) else v for k, v in (payload or {}).items()}
+    event = Event(study_id=study_id, kind=kind, payload=body, created_at=at)
     session.add(event)
     session.flush()
     return event

@@ -30,7 +30,6 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from ..engine import jsonable
 from ..errors import InvalidStateError, NotFoundError
 from ..models import Stage, Study, WorkBatch
 from ..records import (
@@ -346,7 +345,7 @@ class StageRepository:
                 model_runs=int(red.model_runs),
                 failed_runs=int(red.failed_runs),
                 n_steps=red.n_steps,
-                state_meta=jsonable(dict(red.meta)),
+                state_meta=dict(red.meta),
                 updated_at=now,
                 finished_at=now,
             )
@@ -358,12 +357,12 @@ class StageRepository:
             "stage_done",
             {
                 "stage": stage_index,
-                "exponent": red.exponent,
-                "acceptance": red.acceptance,
-                "ess": red.ess,
-                "log_evidence": red.log_evidence,
-                "model_runs": red.model_runs,
-                "failed_runs": red.failed_runs,
+                "exponent": _opt(red.exponent),
+                "acceptance": _opt(red.acceptance),
+                "ess": _opt(red.ess),
+                "log_evidence": _opt(red.log_evidence),
+                "model_runs": int(red.model_runs),
+                "failed_runs": int(red.failed_runs),
                 **dict(adv.payload or {}),
             },
             now,
@@ -386,7 +385,7 @@ class StageRepository:
             return AdvanceOutcome("advanced", "running", nxt)
         final = str(adv.final_status)
         if adv.result is not None:
-            counters["result"] = jsonable(dict(adv.result))
+            counters["result"] = dict(adv.result)
         if not set_study_status(
             s, study_id, final, now, from_=("running",), error=adv.error, **counters
         ):

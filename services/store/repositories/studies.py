@@ -15,7 +15,6 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from ..engine import jsonable
 from ..errors import NotFoundError
 from ..models import STUDY_ACTIVE, STUDY_KIND_PATTERN, STUDY_STATUSES, Dataset, Study, StudyDataset
 from ..records import Page, PlannedStage, StageRecord, StudyRecord, StudySpec
@@ -157,8 +156,8 @@ class StudyRepository:
                 kind=spec.kind,
                 name=spec.name[:200],
                 status="queued",
-                case_spec=jsonable(dict(spec.case)),
-                payload=None if spec.payload is None else jsonable(dict(spec.payload)),
+                case_spec=dict(spec.case),
+                payload=None if spec.payload is None else dict(spec.payload),
                 seed=int(spec.seed),
                 n_samples=int(spec.n_samples),
                 batch_size=None if spec.batch_size is None else int(spec.batch_size),
