@@ -1,12 +1,40 @@
 """Test-session setup shared by every test package."""
 
+import contextlib
+import os
+
 import pytest
 
+from scm_core.simulator import warm_up
 from scm_core.simulator.jit_cache import ensure_fresh_cache
 
 
+@contextlib.contextmanager
+def _file_lock(path):
+    """An exclusive lock on ``path`` across processes (POSIX; elsewhere no lock)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
 @pytest.fixture(scope="session", autouse=True)
-def _fresh_simulator_cache():
+def _fresh_simulator_cache(tmp_path_factory):
     """Tests that call jitted simulator functions directly (not through the entry points,
-    which check it themselves) load no cached code built from other sources."""
-    ensure_fresh_cache()
+    which check it themselves) load no cached code built from other sources. Under
+    pytest-xdist the workers take turns: the first compiles the simulator into numba's disk
+    cache (about a minute on a fresh clone), the others then load it instead of each compiling
+    it again on the same cores."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        ensure_fresh_cache()
+        return
+    with _file_lock(tmp_path_factory.getbasetemp().parent / "simulator-compile.lock"):
+        ensure_fresh_cache()
+        warm_up()

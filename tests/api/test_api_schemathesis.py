@@ -159,6 +159,7 @@ def _schemathesis(base: str, tmp: Path, token: str | None) -> tuple[int, str, fl
     return proc.returncode, proc.stdout + proc.stderr, time.perf_counter() - t0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("token", [TOKEN, None], ids=["with-token", "without-token"])
 def test_schemathesis_finds_nothing(seeded, token: str | None, record_property) -> None:
     base, tmp = seeded

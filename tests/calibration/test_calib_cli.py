@@ -434,3 +434,57 @@ def test_bad_update_inputs_one_line_exit_2(
 ) -> None:
     line = one_line_error(run_cli(*args, cwd=work))
     assert line.startswith("error: ") and needle in line, line
+
+
+def _refuse_nonfinite(token: str) -> float:
+    raise ValueError(f"non-standard JSON constant {token}")
+
+
+def test_every_json_file_the_cli_wrote_is_strict_json(work: Path, reference: Path) -> None:
+    """Checkpoints, manifest, summary, predictions and sensitivity are strict JSON (no NaN or
+    Infinity tokens): they go through ``scm_core.jsondoc.dumps``, json.dumps with
+    allow_nan=False and no encoder, so a non-JSON value fails where it is written."""
+    assert run_cli("predict", "ref", "--data", "log.csv", "--draws", "4", cwd=work).returncode == 0
+    assert (
+        run_cli("sensitivity", "tiny.toml", "--r", "2", "--out", "sens2", cwd=work).returncode == 0
+    )
+    files = [
+        *sorted((reference / "checkpoints").glob("*.json")),
+        reference / "summary.json",
+        reference / "predictions" / "predictions.json",
+        work / "sens2" / "sensitivity.json",
+    ]
+    assert len(files) >= 5
+    for path in files:
+        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=_refuse_nonfinite)
+        assert isinstance(doc, dict), path
+    stages = sorted((reference / "checkpoints").glob("stage_*.json"))
+    assert stages, "no stage checkpoints"
+    state = json.loads(stages[-1].read_text())
+    assert isinstance(state["state"]["samples"], dict)  # an encoded array, not a raw list
+
+
+@pytest.mark.slow
+def test_first_run_says_it_compiles_the_simulator(work: Path, tmp_path: Path) -> None:
+    """A fresh install (an empty numba cache) is told once that the simulator compiles
+    (about a minute, silent otherwise); the next run loads it from the cache and says nothing."""
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(Path(__file__).resolve().parents[2]),
+        "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+    }
+
+    def calibrate(out: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", "services.cli", "calibrate", "tiny.toml",
+             "--out", str(tmp_path / out), "--max-stages", "1", "--samples", "24", "--no-plots"],
+            capture_output=True, text=True, cwd=work, timeout=600, env=env,
+        )  # fmt: skip
+
+    first = calibrate("first")
+    assert first.returncode == 0, first.stderr
+    assert "compiling the simulator, first run only" in first.stderr
+    assert "simulator compiled in" in first.stderr
+    second = calibrate("second")
+    assert second.returncode == 0, second.stderr
+    assert "compiling the simulator" not in second.stderr

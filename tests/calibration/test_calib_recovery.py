@@ -97,6 +97,8 @@ def studies(tmp_path_factory) -> dict[str, np.ndarray]:
     return intervals
 
 
+@pytest.mark.slow
+@pytest.mark.xdist_group("recovery")  # one worker builds the studies once
 @pytest.mark.parametrize("study", ["0.2", "0.5", "both"])
 def test_true_values_inside_95_intervals(studies, study: str) -> None:
     for j, name in enumerate(CASE["parameters"]):
@@ -104,6 +106,8 @@ def test_true_values_inside_95_intervals(studies, study: str) -> None:
         assert lo <= TRUTH[name] <= hi, f"{name}: {TRUTH[name]} outside [{lo}, {hi}]"
 
 
+@pytest.mark.slow
+@pytest.mark.xdist_group("recovery")
 def test_two_slips_together_are_no_less_informative(studies) -> None:
     for j, name in enumerate(CASE["parameters"]):
         if name == "k_phi":

@@ -36,9 +36,9 @@ from scm_core.inference.tmcmc_moves import form_defaults
 
 @pytest.fixture(
     params=[
-        (1, "resample-move", 0.0),
-        (10, "resample-move", 0.0),
-        (None, "waste-free", 0.0),
+        pytest.param((1, "resample-move", 0.0), marks=pytest.mark.slow),
+        pytest.param((10, "resample-move", 0.0), marks=pytest.mark.slow),
+        pytest.param((None, "waste-free", 0.0), marks=pytest.mark.slow),
         (10, "waste-free", 0.5),
     ],
     ids=["da", "stm10", "waste-free-default", "wf-stm10-jumps"],

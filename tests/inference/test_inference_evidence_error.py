@@ -33,6 +33,7 @@ def linear_gaussian(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return LOG_NORM - 0.5 * np.sum((pred - Y) ** 2, axis=1) / S**2, pred
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "settings",
     [

@@ -166,6 +166,7 @@ class LogNormalWithResponse:
         return self.from_responses(X, np.log(X[:, :1]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("states", [5, 10])
 def test_log_walk_with_surrogate_transitions_in_waste_free_chains(states: int) -> None:
     """Waste-free chains of P states whose moves are surrogate transitions (K = 10 inner steps,

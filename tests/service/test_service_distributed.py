@@ -84,6 +84,7 @@ def test_two_workers_match_calibrate_and_double_delivery_counts_once(
     assert final.model_runs == sum(s.model_runs for s in store.stages.list(study.id))
 
 
+@pytest.mark.slow
 def test_worker_killed_mid_batch(pg_url, redis_server, processes, svc_case, reference_samples):
     store, dispatcher, workers = _setup(pg_url, redis_server.url, processes)
     ds = add_example_dataset(store, svc_case)
@@ -98,6 +99,7 @@ def test_worker_killed_mid_batch(pg_url, redis_server, processes, svc_case, refe
     assert "lease_expired" in kinds  # the reaper took the dead worker's batch back
 
 
+@pytest.mark.slow
 def test_broker_restart_mid_stage(pg_url, redis_server, processes, svc_case, reference_samples):
     store, dispatcher, _ = _setup(pg_url, redis_server.url, processes)
     ds = add_example_dataset(store, svc_case)

@@ -195,6 +195,7 @@ def _final_samples(store: Store, study_id: int):
     return store.samples.arrays(study_id, last.stage_index).samples
 
 
+@pytest.mark.slow
 def test_pool_survives_request_threads_and_a_killed_process(server, reference_samples) -> None:
     study_id = _submit(server)
     pool = server.children()
@@ -241,6 +242,7 @@ def test_pool_survives_request_threads_and_a_killed_process(server, reference_sa
         store.close()
 
 
+@pytest.mark.slow
 def test_server_killed_and_restarted(server, reference_samples) -> None:
     study_id = _submit(server)
     store = Store.open(server.url)

@@ -229,7 +229,7 @@ def test_thirty_studies_and_twenty_pollers(ready_server, capsys, record_property
         ("poll_busy_p99_ms", 1000 * busy_p99),
         ("completion_s", server_span),
     ]:
-        record_property(name, value)
+        record_property(name, float(value))
 
     assert not errors, (len(errors), errors[:5], log[-4000:])
     assert not seen.bad, (seen.bad, log[-4000:])

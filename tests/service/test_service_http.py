@@ -55,6 +55,7 @@ def _final_samples(client: SCMCalibClient, study_id: int) -> np.ndarray:
     return np.ascontiguousarray(s.samples, dtype=np.float64)
 
 
+@pytest.mark.slow
 def test_api_and_two_celery_workers(
     pg_url, redis_server, processes, reference_samples, reference_update, reference_prediction
 ):
@@ -116,6 +117,7 @@ def test_api_and_two_celery_workers(
     assert len({w.split(":")[1] for w in workers}) == 2  # both Celery workers ran points
 
 
+@pytest.mark.slow
 def test_embedded_server_killed_and_restarted(tmp_path, processes, reference_samples):
     token, digest = new_token()
     env = dict(os.environ)
