@@ -1,0 +1,139 @@
+"""Simulator cost where labs test: the paper wheel and CMU-like small wheels at the nine lab slips.
+
+Run: ``python benchmarks/bench_lab_wheels.py [--repeats 3] [--draws 12]``. One core (numba's
+single-run kernel), after a warm-up. Prints two tables:
+
+* per wheel and lab slip, with the fixed soil k_phi 8e6, n 1.0, phi 29 deg, J 0.01 m (the CMU
+  case's options: ``shear = "displacement"``, ``drive_digging = "mobilised"``,
+  ``skid_ploughing = "sliding_face"``; the other calibrated parameters at their prior medians):
+  median wall time of ``--repeats`` runs, steps, loaded nodes per step, contact evaluations per
+  step (vertical solves) and erosion visits per step, and the run's status;
+* over ``--draws`` draws of the CMU case's prior at the four calibration rim speeds: mean and
+  largest wall time per run and the share of runs that did not finish.
+
+Wheels: the paper's (its default run), the CMU smooth wheel (R 58 mm, b 50 mm, the datasets'
+loads and speeds from ``examples/cmu_smooth/``) and a CMU-like grousered wheel built from the
+same rig (12 grousers of 5 mm).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from scm_core.calibration import load_case
+from scm_core.calibration.model import StudyModel, build_configs, dataset_terms
+from scm_core.signals import load_dataset
+from scm_core.simulator import simulate_swt
+
+ROOT = Path(__file__).resolve().parents[1]
+CASE = ROOT / "examples" / "cmu_smooth.toml"
+DATA = sorted((ROOT / "examples" / "cmu_smooth").glob("cmu_smooth_s*.csv"))
+CALIBRATION_STEMS = ("sm050", "sp000", "sp050", "sp090")  # rim speeds 5, 10, 20, 100 mm/s
+SOIL = {"k_phi": 8.0e6, "n": 1.0, "phi": 29.0, "J": 0.01}
+GROUSERS = {"n_grousers": 12, "grouser_height": 0.005}
+
+
+def _slip_key(terms) -> float:
+    return float(terms.conditions["slip"])
+
+
+def _run(soil, wheel, rig) -> dict[str, float | str]:
+    r = simulate_swt(soil, wheel, rig)
+    d = r.diagnostics
+    steps = max(d["steps"], 1.0)
+    return {
+        "wall": r.wall_time_s,
+        "steps": d["steps"],
+        "nodes": d["node_steps"] / steps,
+        "evals": d["contact_evaluations"] / steps,
+        "erosion": d["erosion_visits"] / steps,
+        "status": r.status,
+    }
+
+
+def _median_run(cfg, repeats: int) -> dict[str, float | str]:
+    runs = [_run(*cfg) for _ in range(repeats)]
+    out = dict(runs[-1])
+    out["wall"] = statistics.median(float(r["wall"]) for r in runs)
+    return out
+
+
+def _row(table: Table, wheel: str, slip: str, r: dict[str, float | str]) -> None:
+    table.add_row(
+        wheel,
+        slip,
+        f"{1000 * float(r['wall']):.0f}",
+        f"{float(r['steps']):.0f}",
+        f"{float(r['nodes']):.0f}",
+        f"{float(r['evals']):.2f}",
+        f"{float(r['erosion']):.0f}",
+        str(r["status"]),
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--repeats", type=int, default=3, help="runs per cell (median)")
+    ap.add_argument("--draws", type=int, default=12, help="prior draws per rim speed")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+
+    case = load_case(CASE)
+    terms = sorted((dataset_terms(load_dataset(p)) for p in DATA), key=_slip_key)
+    model = StudyModel(case, terms)
+    prior = case.prior()
+    medians = prior.ppf(np.full((1, prior.dim), 0.5))[0]
+    base = dict(zip(case.parameter_names, medians, strict=True))
+    wheels = {"CMU smooth": {}, "CMU 12x5 mm": GROUSERS}
+    simulate_swt()  # warm-up (JIT)
+
+    fixed = Table(title="Lab slips, soil k_phi 8e6, n 1.0, phi 29 deg, J 0.01 m (one core)")
+    for col in ("wheel", "lab slip", "ms/run", "steps", "nodes/step", "evals/step"):
+        fixed.add_column(col, justify="right")
+    fixed.add_column("erosion visits/step", justify="right")
+    fixed.add_column("status")
+    _row(fixed, "paper", "0.2", _median_run((None, None, None), args.repeats))
+    for name, extra in wheels.items():
+        for t in terms:
+            cfg = build_configs(
+                model.nominal, model.simulator, {**t.conditions, **extra}, {**base, **SOIL}
+            )
+            _row(fixed, name, f"{_slip_key(t):+.2f}", _median_run(cfg, args.repeats))
+    Console(width=120).print(fixed)
+
+    rng = np.random.default_rng(args.seed)
+    draws = prior.sample(rng, args.draws)
+    by_draws = Table(title=f"{args.draws} draws of the CMU case's prior (one core)")
+    for col in ("wheel", "lab slip", "mean ms/run", "max ms/run", "not finished"):
+        by_draws.add_column(col, justify="right")
+    for name, extra in wheels.items():
+        for t in terms:
+            if not t.name.endswith(CALIBRATION_STEMS):
+                continue
+            walls, failed = [], 0
+            for theta in draws:
+                values = dict(zip(case.parameter_names, theta, strict=True))
+                cfg = build_configs(
+                    model.nominal, model.simulator, {**t.conditions, **extra}, values
+                )
+                r = _run(*cfg)
+                walls.append(float(r["wall"]))
+                failed += r["status"] != "ok"
+            by_draws.add_row(
+                name,
+                f"{_slip_key(t):+.2f}",
+                f"{1000 * statistics.fmean(walls):.0f}",
+                f"{1000 * max(walls):.0f}",
+                f"{failed}/{len(walls)}",
+            )
+    Console(width=120).print(by_draws)
+
+
+if __name__ == "__main__":
+    main()
