@@ -56,7 +56,7 @@ R_CMAX = 9
 N_RES = 10
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def inclination_factor(nx: float, nz: float, tx: float, tz: float, mu: float, m: float) -> float:
     """Bearing-capacity factor (1 - alpha / 90 deg)^m of a node's traction on the soil.
 
@@ -154,7 +154,7 @@ def build_patches(
     return npatch, ztop
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def tip_footprint_length(
     zw: float, xi: np.ndarray, eb: np.ndarray, gtop: np.ndarray, dx: float
 ) -> float:

@@ -186,13 +186,13 @@ def _push(node: int, queue: np.ndarray, inq: np.ndarray, tail: int) -> int:
     return tail
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def surface(c: int, j: int, h0: np.ndarray, sp: np.ndarray, hl: np.ndarray) -> float:
     """Unloaded surface of node (c, j) [m]: ground reference - plastic sinkage + loose soil."""
     return h0[c, j] - sp[c, j] + hl[c, j]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _take(c: int, j: int, amount: float, h0: np.ndarray, hl: np.ndarray) -> None:
     """Remove ``amount`` [m] from the top of node (c, j): its loose soil first, then ground."""
     loose = min(amount, hl[c, j])
@@ -243,7 +243,7 @@ def _deposit(amount: float, c: int, j: int, dc: int, dj: int, grid, tail: int):
     return amount, tail
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _row_mobilised(u: float, v: float, length: float, J: float, disp_form: bool) -> float:
     """Mean mobilised shear of eq. (8) over a row of contact ``length`` [m] sliding at its mean
     slip velocity ``u`` [m/s] over ground at carriage speed v [m/s].
@@ -287,7 +287,7 @@ def sliding_face_height(v: float, omega: float, r: float, tan_phi: float) -> flo
     return r * (1.0 - math.cos(theta_s))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _conveyed(depth: float, f: float, u: float, v: float, mobilised: bool) -> float:
     """Flux [m^2/s] of the layer of ``depth`` the rim drags at the mean slip velocity ``u``
     over ground (< 0: backwards, a driven wheel), f the dragged fraction (slip_flow times the

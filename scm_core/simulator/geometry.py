@@ -21,7 +21,7 @@ N_SUB = 8  # sub-samples per column where a grouser crosses it (cell average of 
 _VISIBLE_COS = 0.25  # grousers whose direction is within ~75 deg of straight down can touch soil
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rim_point(x: float, R: float):
     """Lowest rim point at relative x: (z, fx, fz), z = +inf where the rim does not reach."""
     if abs(x) >= R:
@@ -30,7 +30,7 @@ def _rim_point(x: float, R: float):
     return z, -x / R, -z / R
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _grouser_point(x: float, s_psi: float, c_psi: float, r_in: float, r_out: float, half_t: float):
     """Lowest point of one grouser rectangle at relative x: (z, fx, fz), +inf if not covered.
 
@@ -62,7 +62,7 @@ def _grouser_point(x: float, s_psi: float, c_psi: float, r_in: float, r_out: flo
     return best, fx, fz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _lowest_point(x, R, vis_s, vis_c, n_vis, r_in, r_out, half_t):
     """Lowest point of rim and visible grousers at relative x: (z, fx, fz)."""
     zb, bfx, bfz = _rim_point(x, R)
