@@ -38,9 +38,7 @@ def decode_float(x: float | int | str) -> float:
     return float(x)
 
 
-def dumps(doc: Any, *, indent: int | None = None, sort_keys: bool = False) -> str:
+def dumps(doc: Any, *, indent: int | None = None) -> str:
     """``json.dumps(doc, allow_nan=False)``: compact, or indented by ``indent``."""
     separators = (",", ":") if indent is None else (",", ": ")
-    return json.dumps(
-        doc, allow_nan=False, indent=indent, sort_keys=sort_keys, separators=separators
-    )
+    return json.dumps(doc, allow_nan=False, indent=indent, separators=separators)

@@ -13,7 +13,7 @@
   would see its own database); use a file.
 * JSON columns are written as strict JSON by :func:`scm_core.jsondoc.dumps`, which converts
   nothing: documents are built of plain JSON values (non-finite floats as the strings "nan",
-  "inf", "-inf", the convention of ``scm_core.inference._serial``), and anything else fails
+  "inf", "-inf": :func:`scm_core.jsondoc.encode_float`), and anything else fails
   where it is written.
 """
 
@@ -31,7 +31,6 @@ from sqlalchemy.orm import Session, sessionmaker
 from scm_core import jsondoc
 
 __all__ = [
-    "dumps_json",
     "is_sqlite",
     "make_engine",
     "make_sessionmaker",
@@ -58,12 +57,6 @@ def safe_url(url: str | URL) -> str:
     return normalise_url(url).render_as_string(hide_password=True)
 
 
-def dumps_json(obj: Any) -> str:
-    """Strict JSON for JSON columns: :func:`scm_core.jsondoc.dumps`, no conversion (see module
-    docstring)."""
-    return jsondoc.dumps(obj)
-
-
 def is_sqlite(bind: Engine | sa.Connection | Session) -> bool:
     engine = bind.get_bind() if isinstance(bind, Session) else bind
     return engine.dialect.name == "sqlite"
@@ -75,7 +68,7 @@ def make_engine(url: str | URL, *, echo: bool = False, **kwargs: Any) -> Engine:
     if u.get_backend_name() == "sqlite":
         return _sqlite_engine(u, echo=echo, **kwargs)
     kwargs.setdefault("pool_pre_ping", True)
-    return sa.create_engine(u, echo=echo, json_serializer=dumps_json, **kwargs)
+    return sa.create_engine(u, echo=echo, json_serializer=jsondoc.dumps, **kwargs)
 
 
 def _sqlite_engine(u: URL, *, echo: bool, **kwargs: Any) -> Engine:
@@ -88,7 +81,7 @@ def _sqlite_engine(u: URL, *, echo: bool, **kwargs: Any) -> Engine:
     connect_args.setdefault("timeout", SQLITE_BUSY_TIMEOUT_S)
     connect_args.setdefault("check_same_thread", False)
     engine = sa.create_engine(
-        u, echo=echo, json_serializer=dumps_json, connect_args=connect_args, **kwargs
+        u, echo=echo, json_serializer=jsondoc.dumps, connect_args=connect_args, **kwargs
     )
     busy_ms = int(float(connect_args["timeout"]) * 1000)
 

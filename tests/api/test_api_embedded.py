@@ -20,6 +20,9 @@ from test_api_support import AUTH, EXAMPLES, api_client, fresh_database, upload_
 from services.client import SCMCalibClient
 from services.store import Store
 
+# tests share one server (module fixture) and read what earlier ones stored: one xdist worker
+pytestmark = pytest.mark.xdist_group("test_api_embedded")
+
 TIMEOUT = 300.0
 
 

@@ -28,6 +28,9 @@ from scm_core.calibration.predict import predict
 from services.store import Store
 from services.studies.datasets import load_datasets
 
+# tests share one server (module fixture) and read what earlier ones stored: one xdist worker
+pytestmark = pytest.mark.xdist_group("test_api_predictions")
+
 TIMEOUT = 300.0
 CONDITIONS = [
     {"name": "slip 0.3", "W": 100.0, "slip": 0.3, "R": 0.125, "b": 0.15},

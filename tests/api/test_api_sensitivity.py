@@ -20,6 +20,9 @@ from services.store import Store
 from services.studies import work_batches
 from services.studies.datasets import load_datasets
 
+# tests share one server (module fixture) and read what earlier ones stored: one xdist worker
+pytestmark = pytest.mark.xdist_group("test_api_sensitivity")
+
 TIMEOUT = 300.0
 CASE = {
     "name": "screen",
