@@ -7,7 +7,9 @@ single-run kernel), after a warm-up. Prints two tables:
   case's options: ``shear = "displacement"``, ``drive_digging = "mobilised"``,
   ``skid_ploughing = "sliding_face"``; the other calibrated parameters at their prior medians):
   median wall time of ``--repeats`` runs, steps, loaded nodes per step, contact evaluations per
-  step (vertical solves) and erosion visits per step, and the run's status;
+  step (vertical solves), erosion visits per step, the share of the step's time per kernel phase
+  (wheel envelope and contact patches, vertical solve, node update, flow fields and deposits,
+  erosion; from the CPU's cycle counter) and the run's status;
 * over ``--draws`` draws of the CMU case's prior at the four calibration rim speeds: mean and
   largest wall time per run and the share of runs that did not finish.
 
@@ -43,11 +45,17 @@ def _slip_key(terms) -> float:
     return float(terms.conditions["slip"])
 
 
+PHASES = ("geometry", "solve", "commit", "flow", "erosion")
+
+
 def _run(soil, wheel, rig) -> dict[str, float | str]:
     r = simulate_swt(soil, wheel, rig)
     d = r.diagnostics
     steps = max(d["steps"], 1.0)
+    ticks = [d[f"cycles_{p}"] for p in PHASES]
+    total = max(sum(ticks), 1.0)
     return {
+        **{f"share_{p}": t / total for p, t in zip(PHASES, ticks, strict=True)},
         "wall": r.wall_time_s,
         "steps": d["steps"],
         "nodes": d["node_steps"] / steps,
@@ -73,6 +81,7 @@ def _row(table: Table, wheel: str, slip: str, r: dict[str, float | str]) -> None
         f"{float(r['nodes']):.0f}",
         f"{float(r['evals']):.2f}",
         f"{float(r['erosion']):.0f}",
+        " ".join(f"{100 * float(r[f'share_{p}']):2.0f}" for p in PHASES),
         str(r["status"]),
     )
 
@@ -97,6 +106,7 @@ def main() -> None:
     for col in ("wheel", "lab slip", "ms/run", "steps", "nodes/step", "evals/step"):
         fixed.add_column(col, justify="right")
     fixed.add_column("erosion visits/step", justify="right")
+    fixed.add_column("% geom solve commit flow erosion", justify="right")
     fixed.add_column("status")
     _row(fixed, "paper", "0.2", _median_run((None, None, None), args.repeats))
     for name, extra in wheels.items():
@@ -105,7 +115,7 @@ def main() -> None:
                 model.nominal, model.simulator, {**t.conditions, **extra}, {**base, **SOIL}
             )
             _row(fixed, name, f"{_slip_key(t):+.2f}", _median_run(cfg, args.repeats))
-    Console(width=120).print(fixed)
+    Console(width=160).print(fixed)
 
     rng = np.random.default_rng(args.seed)
     draws = prior.sample(rng, args.draws)
@@ -132,7 +142,7 @@ def main() -> None:
                 f"{1000 * max(walls):.0f}",
                 f"{failed}/{len(walls)}",
             )
-    Console(width=120).print(by_draws)
+    Console(width=160).print(by_draws)
 
 
 if __name__ == "__main__":

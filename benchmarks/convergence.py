@@ -6,7 +6,8 @@ at dt and dx scaled by the factors below, and prints a markdown table of F, T, z
 is the default). ``paper``: the paper's wheel, soil and rig; ``cmu``: the CMU smooth wheel (r 58
 mm, b 50 mm, W 22 N, 10 mm/s) on a sand near its calibration (k* 2e6, n 1.1, phi 25 deg, J 5 mm/s,
 K 7e6 Pa/m, shear band 13 mm, bearing inclination m 2, repose 29 deg; sinkage averaged over the
-window of F, as in its case).
+window of F, as in its case); ``cmu-grousers``: the same rig and sand with a CMU-like grousered
+wheel (12 grousers of 5 mm on the 58 mm rim).
 """
 
 from __future__ import annotations
@@ -43,6 +44,11 @@ SETUPS = {
         {"W": 22.0, "carriage_speed": 0.01, "offset_z_fraction": 0.4},
     ),
 }
+SETUPS["cmu-grousers"] = (
+    SETUPS["cmu"][0],
+    WheelGeometry(R=0.058, b=0.05, n_grousers=12, grouser_height=0.005),
+    SETUPS["cmu"][2],
+)
 
 
 def main() -> None:

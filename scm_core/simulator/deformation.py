@@ -68,6 +68,8 @@ from .layout import (
 
 EROSION_TOL = 1e-6  # m: slopes may exceed the angle of repose by this height difference
 EROSION_MAX_MOVES_PER_NODE = 64
+STEPS = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]])  # a node's four neighbours (dc, dj)
+ROLLING_PARCELS = 256  # parcels of soil rolling down a face at once (erosion's avalanches)
 LOADED_ELASTIC = 1  # cflag: node in contact, elastic (unloading or reloading below its yield)
 LOADED_YIELDING = 2  # cflag: node in contact on the Bekker curve (plastic)
 LOOSE_PUSHED = 3  # cflag: only the node's loose soil was reached (pushed away, no stress)
@@ -178,10 +180,14 @@ def _is_loaded(c: int, j: int, c0: int, ncw: int, cflag: np.ndarray) -> bool:
 
 
 @njit(cache=True)
-def _push(node: int, queue: np.ndarray, inq: np.ndarray, tail: int) -> int:
-    if inq[node] == 0:
-        inq[node] = 1
-        queue[tail % queue.shape[0]] = node
+def _push(c: int, j: int, queue: np.ndarray, inq: np.ndarray, tail: int) -> int:
+    """Queue node (c, j) unless it is queued; ``queue`` is a ring of (c, j) pairs whose length
+    is a power of two (no division per push or pop). Returns the new tail."""
+    if inq[c, j] == 0:
+        inq[c, j] = 1
+        slot = tail & (queue.shape[0] - 1)
+        queue[slot, 0] = c
+        queue[slot, 1] = j
         tail += 1
     return tail
 
@@ -237,7 +243,7 @@ def _deposit(amount: float, c: int, j: int, dc: int, dj: int, grid, tail: int):
                 put = min(room, amount)
                 hl[c, j] += put
                 amount -= put
-                tail = _push(c * ny + j, queue, inq, tail)
+                tail = _push(c, j, queue, inq, tail)
         c += dc
         j += dj
     return amount, tail
@@ -311,7 +317,7 @@ def _conveyed(depth: float, f: float, u: float, v: float, mobilised: bool) -> fl
 
 
 @njit(cache=True)
-def flow_and_erode(
+def flow_and_deposit(
     prm: np.ndarray,
     zw: float,
     vz: float,
@@ -337,10 +343,13 @@ def flow_and_erode(
     queue: np.ndarray,
     inq: np.ndarray,
 ):
-    """Flow fields, then erosion (see the module docstring).
+    """Flow fields: the displaced and dragged soil deposited outside the footprint (see the
+    module docstring).
 
-    ``work`` (>= 8 rows, >= max(ncw, ny) columns) is scratch space. Returns (compacted volume
-    [m^3], spilled volume [m^3], erosion node visits).
+    ``work`` (>= 8 rows, >= max(ncw, ny) columns) is scratch space; its row 0 is left holding the
+    wheel's swept circle per window column (for :func:`erode`). The nodes that received soil are
+    queued in ``queue`` / ``inq``. Returns (compacted volume [m^3], spilled volume [m^3], queue
+    length).
     """
     nx, ny = h0.shape
     dA = dx * dy
@@ -533,51 +542,209 @@ def flow_and_erode(
         if acc_m[k] > 0.0:
             left, tail = _deposit(acc_m[k], c0 + k, cmin[k] - 1, 0, -1, grid, tail)
             spilled += left
-    # ---- erosion to the angle of repose among free nodes (work list), below the swept circle
+    return compacted * dA, spilled * dA, tail
+
+
+@njit(cache=True)
+def _headroom(c: int, j: int, skip_c: int, skip_j: int, lim_x: float, lim_y: float, grid):
+    """How far free node (c, j) may rise [m] before a slope to a free neighbour (other than
+    (skip_c, skip_j)) exceeds the angle of repose (negative when already over-steep), and how
+    far before it reaches the wheel's swept circle: (slope room, circle room)."""
+    c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, _queue, _inq = grid
+    nx, ny = h0.shape
+    s = surface(c, j, h0, sp, hl)
+    room = np.inf
+    for q in range(4):
+        cn = c + STEPS[q, 0]
+        jn = j + STEPS[q, 1]
+        if cn < 0 or cn >= nx or jn < 0 or jn >= ny or (cn == skip_c and jn == skip_j):
+            continue
+        if _is_loaded(cn, jn, c0, ncw, cflag):
+            continue
+        lim = lim_x if STEPS[q, 1] == 0 else lim_y
+        room = min(room, lim - (s - surface(cn, jn, h0, sp, hl)))
+    return room, _room(c, j, c0, ncw, jw0, nyw, clamp, h0, sp, hl)
+
+
+@njit(cache=True)
+def _binding(c, j, skip_c, skip_j, room, lim_x, lim_y, grid, nb) -> int:
+    """The free neighbours of (c, j) not above it whose slope reaches the angle of repose first
+    when it rises by ``room`` (to EROSION_TOL), written to ``nb`` (4 x 2); returns their count."""
+    c0, ncw, _jw0, _nyw, _clamp, h0, sp, hl, cflag, _queue, _inq = grid
+    nx, ny = h0.shape
+    s = surface(c, j, h0, sp, hl)
+    count = 0
+    for q in range(4):
+        cn = c + STEPS[q, 0]
+        jn = j + STEPS[q, 1]
+        if cn < 0 or cn >= nx or jn < 0 or jn >= ny or (cn == skip_c and jn == skip_j):
+            continue
+        if _is_loaded(cn, jn, c0, ncw, cflag):
+            continue
+        lim = lim_x if STEPS[q, 1] == 0 else lim_y
+        drop = s - surface(cn, jn, h0, sp, hl)
+        if drop >= 0.0 and lim - drop <= room + EROSION_TOL:
+            nb[count, 0] = cn
+            nb[count, 1] = jn
+            count += 1
+    return count
+
+
+@njit(cache=True)
+def _slide(
+    ca: int,
+    ja: int,
+    cb: int,
+    jb: int,
+    excess: float,
+    lim_x: float,
+    lim_y: float,
+    grid,
+    tail: int,
+    stack: np.ndarray,
+    amounts: np.ndarray,
+    nb: np.ndarray,
+) -> tuple[int, bool]:
+    """Soil slides from free node a down to its free neighbour b, the pair's height difference
+    exceeding the angle of repose by ``excess`` [m]. Returns (queue tail, whether soil moved).
+
+    When b can hold half the excess (its other slopes and the wheel's swept circle allow it),
+    half moves and the pair rests at the angle of repose (the pair rule). Otherwise b rises to
+    its own limit, a drops to rest at the angle of repose above it, and the rest rolls on down
+    the face, each node keeping what its slopes allow and passing the rest on in equal parts to
+    the lower neighbours whose slopes bind: grains roll down a face that is at rest and stop at
+    its toe, so a pile fed at its top keeps its face at the angle of repose and grows at the toe
+    in one pass, where the pair rule would relax the whole face pair by pair, step after step.
+    Soil does not roll past a node held down by the wheel's swept circle (it rests against the
+    wheel). ``stack`` (m x 2) and ``amounts`` (m) hold the rolling parcels; ``nb`` (4 x 2) is
+    scratch."""
+    _c0, _ncw, _jw0, _nyw, _clamp, h0, _sp, hl, _cflag, queue, inq = grid
+    half = 0.5 * excess
+    room_b, circle_b = _headroom(cb, jb, ca, ja, lim_x, lim_y, grid)
+    n_b = 0
+    if room_b < half and room_b < circle_b:
+        n_b = _binding(cb, jb, ca, ja, room_b, lim_x, lim_y, grid, nb)
+    if n_b == 0:  # the pair rule (also where the wheel holds b down)
+        amount = min(half, circle_b)
+        if amount <= EROSION_TOL:
+            return tail, False
+        _take(ca, ja, amount, h0, hl)  # what slides down is loose
+        hl[cb, jb] += amount
+        return _push(cb, jb, queue, inq, tail), True
+    keep = max(room_b, 0.0)
+    taken = excess - keep  # a rests at the angle of repose above b risen by keep
+    _take(ca, ja, taken, h0, hl)
+    hl[cb, jb] += keep
+    top = 0
+    share = (taken - keep) / n_b
+    for q in range(n_b):
+        stack[top, 0] = nb[q, 0]
+        stack[top, 1] = nb[q, 1]
+        amounts[top] = share
+        top += 1
+    m = stack.shape[0]
+    hops = 0
+    while top > 0:
+        top -= 1
+        c = stack[top, 0]
+        j = stack[top, 1]
+        rolling = amounts[top]
+        room, circle = _headroom(c, j, -1, -1, lim_x, lim_y, grid)
+        hops += 1
+        n_lower = 0
+        if room < rolling and room < circle:
+            n_lower = _binding(c, j, -1, -1, room, lim_x, lim_y, grid, nb)
+        if n_lower == 0 or top + n_lower > m or hops > 4 * m:
+            hl[c, j] += rolling  # it rests here (if over-steep, the work list sorts it out)
+            tail = _push(c, j, queue, inq, tail)
+            continue
+        put = max(room, 0.0)
+        hl[c, j] += put
+        share = (rolling - put) / n_lower  # each hop ends lim below the risen node
+        for q in range(n_lower):
+            stack[top, 0] = nb[q, 0]
+            stack[top, 1] = nb[q, 1]
+            amounts[top] = share
+            top += 1
+    return tail, True
+
+
+@njit(cache=True)
+def erode(
+    c0: int,
+    ncw: int,
+    jw0: int,
+    nyw: int,
+    dx: float,
+    dy: float,
+    tan_repose: float,
+    h0: np.ndarray,
+    sp: np.ndarray,
+    hl: np.ndarray,
+    cflag: np.ndarray,
+    clamp: np.ndarray,
+    queue: np.ndarray,
+    inq: np.ndarray,
+    tail: int,
+) -> int:
+    """Erosion to the angle of repose among free nodes, from the ``tail`` queued nodes (work
+    list), below the wheel's swept circle ``clamp`` (per window column); see :func:`_slide`.
+    Returns the node visits."""
+    nx, ny = h0.shape
+    grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
+    stack = np.empty((ROLLING_PARCELS, 2), np.int64)
+    amounts = np.empty(ROLLING_PARCELS)
+    nb = np.empty((4, 2), np.int64)
+    excess = np.empty(4)
     lim_x = dx * tan_repose
     lim_y = dy * tan_repose
     head = 0
     max_moves = EROSION_MAX_MOVES_PER_NODE * (tail + 1) + 1000
     moves = 0
-    qn = queue.shape[0]
+    mask = queue.shape[0] - 1
     while head < tail and moves < max_moves:
-        a = queue[head % qn]
+        ca = queue[head & mask, 0]
+        ja = queue[head & mask, 1]
         head += 1
-        inq[a] = 0
-        ca = a // ny
-        ja = a - ca * ny
+        inq[ca, ja] = 0
         if _is_loaded(ca, ja, c0, ncw, cflag):
             continue
-        for dc, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-            cb = ca + dc
-            jb = ja + dj
-            if cb < 0 or cb >= nx or jb < 0 or jb >= ny:
+        # the excess of each of the node's four slopes (+: a above b), taken together so that
+        # a node over-steep on several sides sheds to all of them alike
+        sa = surface(ca, ja, h0, sp, hl)
+        n_down = 0
+        for q in range(4):
+            cb = ca + STEPS[q, 0]
+            jb = ja + STEPS[q, 1]
+            excess[q] = 0.0
+            if cb < 0 or cb >= nx or jb < 0 or jb >= ny or _is_loaded(cb, jb, c0, ncw, cflag):
                 continue
-            if _is_loaded(cb, jb, c0, ncw, cflag):
-                continue
-            lim = lim_x if dj == 0 else lim_y
-            d = surface(ca, ja, h0, sp, hl) - surface(cb, jb, h0, sp, hl)
+            lim = lim_x if STEPS[q, 1] == 0 else lim_y
+            d = sa - surface(cb, jb, h0, sp, hl)
             if d > lim + EROSION_TOL:
-                room = _room(cb, jb, c0, ncw, jw0, nyw, clamp, h0, sp, hl)
-                amount = min(0.5 * (d - lim), room)
-                if amount <= EROSION_TOL:
-                    continue
-                _take(ca, ja, amount, h0, hl)  # what slides down is loose
-                hl[cb, jb] += amount
+                excess[q] = d - lim
+                n_down += 1
             elif -d > lim + EROSION_TOL:
-                room = _room(ca, ja, c0, ncw, jw0, nyw, clamp, h0, sp, hl)
-                amount = min(0.5 * (-d - lim), room)
-                if amount <= EROSION_TOL:
-                    continue
-                _take(cb, jb, amount, h0, hl)
-                hl[ca, ja] += amount
+                excess[q] = d + lim
+        for q in range(4):
+            cb = ca + STEPS[q, 0]
+            jb = ja + STEPS[q, 1]
+            if excess[q] > 0.0:
+                tail, moved = _slide(
+                    ca, ja, cb, jb, excess[q] / n_down, lim_x, lim_y, grid, tail, stack,
+                    amounts, nb,
+                )  # fmt: skip
+            elif excess[q] < 0.0:
+                tail, moved = _slide(
+                    cb, jb, ca, ja, -excess[q], lim_x, lim_y, grid, tail, stack, amounts, nb
+                )
             else:
                 continue
-            moves += 1
-            tail = _push(cb * ny + jb, queue, inq, tail)
-            tail = _push(a, queue, inq, tail)
+            if moved:
+                moves += 1
+                tail = _push(ca, ja, queue, inq, tail)
     visits = head
     while head < tail:  # budget exhausted: clear the remaining marks
-        inq[queue[head % qn]] = 0
+        inq[queue[head & mask, 0], queue[head & mask, 1]] = 0
         head += 1
-    return compacted * dA, spilled * dA, visits
+    return visits

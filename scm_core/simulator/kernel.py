@@ -29,7 +29,8 @@ from .contact import (
     build_patches,
     evaluate_contact,
 )
-from .deformation import commit_contact, flow_and_erode
+from .cycles import cycles
+from .deformation import commit_contact, erode, flow_and_deposit
 from .geometry import tip_circle, wheel_envelope
 from .layout import (
     P_B,
@@ -85,7 +86,13 @@ D_JW0 = 9
 D_NYW = 10
 D_EROSION_VISITS = 11
 D_SPILLED = 12  # m^3 of flowing soil that left the grid
-N_DIAG = 13
+# cycle-counter ticks per phase of the step (shares of the run's time; see cycles.py)
+D_CYC_GEOMETRY = 13  # wheel envelope and contact patches
+D_CYC_SOLVE = 14  # vertical solve (contact evaluations)
+D_CYC_COMMIT = 15  # node update
+D_CYC_FLOW = 16  # flow fields and deposits
+D_CYC_EROSION = 17
+N_DIAG = 18
 
 Z_TOL = 1e-8  # m, convergence of the axle height
 MAX_ITER = 80
@@ -257,6 +264,14 @@ def _newton(
 
 
 @njit(cache=True)
+def _lap(diag: np.ndarray, slot: int, tick: int) -> int:
+    """Add the ticks since ``tick`` to diag[slot]; return the counter now."""
+    now = cycles()
+    diag[slot] += now - tick
+    return now
+
+
+@njit(cache=True)
 def _volume(h0: np.ndarray, sp: np.ndarray, hl: np.ndarray, dA: float) -> float:
     total = 0.0
     for c in range(h0.shape[0]):
@@ -328,8 +343,8 @@ def run_swt(prm: np.ndarray):
     dsp = np.zeros((ncw_max + 2, ny))
     fwork = np.zeros((8, max(ncw_max, ny)))
     work = (pc, pj0, pj1, pst, xi, e, eb, gtop, fx, fz, gx, gyc, pflag, psig, res)
-    queue = np.zeros(nx * ny, np.int64)
-    inq = np.zeros(nx * ny, np.int8)
+    queue = np.zeros((1 << int(math.ceil(math.log2(nx * ny))), 2), np.int64)  # erosion work list
+    inq = np.zeros((nx, ny), np.int8)
     bulldoze = prm[P_BULLDOZE] > 0.5
     for k in range(ncw_max):
         e[k] = np.inf
@@ -341,6 +356,7 @@ def run_swt(prm: np.ndarray):
     n_out = 0
     t_steady = min(prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z])  # the first averaged sample [s]
     for step in range(n_steps):
+        tick = cycles()
         t = (step + 1) * dt
         xw = v * t
         theta = omega * t
@@ -358,7 +374,9 @@ def run_swt(prm: np.ndarray):
             h0, sp, sy, ke, js, c0, ncw, n_margin, nyw, e, eb, z_low, pc, pj0, pj1, pst, gtop
         )
         diag[D_PATCH_STEPS] += npatch
+        tick = _lap(diag, D_CYC_GEOMETRY, tick)
         z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag)
+        tick = _lap(diag, D_CYC_SOLVE, tick)
         if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
             status = STATUS_UNSTABLE
             break
@@ -396,8 +414,9 @@ def run_swt(prm: np.ndarray):
             ncw,
             nyw,
         )
+        tick = _lap(diag, D_CYC_COMMIT, tick)
         if bulldoze:
-            compacted, spilled, visits = flow_and_erode(
+            compacted, spilled, tail = flow_and_deposit(
                 prm,
                 zw,
                 vz,
@@ -425,7 +444,25 @@ def run_swt(prm: np.ndarray):
             )
             diag[D_COMPACTED] += compacted
             diag[D_SPILLED] += spilled
-            diag[D_EROSION_VISITS] += visits
+            tick = _lap(diag, D_CYC_FLOW, tick)
+            diag[D_EROSION_VISITS] += erode(
+                c0,
+                ncw,
+                n_margin,
+                nyw,
+                dx,
+                dy,
+                tan_repose,
+                h0,
+                sp,
+                hl,
+                cflag,
+                fwork[0],
+                queue,
+                inq,
+                tail,
+            )
+            tick = _lap(diag, D_CYC_EROSION, tick)
         else:
             diag[D_COMPACTED] += flow * dA  # without flow the displaced soil is compacted
         for k in range(ncw):  # clear the marks of the nodes under the wheel

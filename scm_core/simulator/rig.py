@@ -32,7 +32,7 @@ from .params import RigConfig, WheelGeometry
 PAPER_OMEGA = 0.1  # rad/s: default angular speed of the faster of rim and carriage (per r)
 CELLS_PER_RADIUS = 25.0
 CARRIAGE_CELL_FRACTION = 10.0  # steps per cell of carriage travel
-RIM_CELL_FRACTION = 20.0  # steps per cell of rim travel (grousered wheels)
+RIM_CELL_FRACTION = 10.0  # steps per cell of rim travel (grousered wheels)
 TRAVEL_RADII = 4.0  # duration: carriage travel in slip radii
 OFFSET_FT = 0.4  # averaging offsets as fractions of the duration
 MAX_SINKAGE_CAP = 0.1  # m

@@ -114,6 +114,11 @@ _DIAG_NAMES = (
     "nyw",
     "erosion_visits",
     "volume_spilled",
+    "cycles_geometry",
+    "cycles_solve",
+    "cycles_commit",
+    "cycles_flow",
+    "cycles_erosion",
 )
 
 
