@@ -8,9 +8,11 @@ Numerics left unset scale with the wheel and the rig as the paper's set-up does 
 v = 1 cm/s: dx 5 mm, dt 20 ms, 50 s, offsets 20, 20 and 1 s), rounded to three significant digits:
 
 * dx = r / 25 (five grid cells per 2.5 % of the radius; convergence tables in docs/simulator.md);
-* dt: the carriage advances at most dx / 10 per step, and with grousers the rim at most dx / 20
-  (a grouser must not jump across cells); a smooth rim's angle does not enter the contact, and
-  its flows are fluxes per unit time, so only the carriage limits it;
+* dt: the carriage advances at most dx / 10 per step, and with grousers the rim at most dx / 10
+  (a grouser crosses a cell in ten steps; dx / 20 moved the steady means of the paper wheel and
+  the CMU-like grousered wheel by less than 1 % of W and 0.3 mm, docs/simulator.md); a smooth
+  rim's angle does not enter the contact, and its flows are fluxes per unit time, so only the
+  carriage limits it;
 * duration = 4 r / v (the carriage travels two wheel diameters); in skid 4 r (1 + |s|) / v with s
   the symmetric slip, as the bow wave and the slip sinkage build over a longer travel the harder
   the wheel skids (a locked wheel travels 8 r: docs/simulator.md); offsets 0.4 duration for F and
