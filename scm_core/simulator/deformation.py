@@ -546,15 +546,20 @@ def flow_and_deposit(
 
 
 @njit(cache=True)
-def _headroom(c: int, j: int, skip_c: int, skip_j: int, lim_x: float, lim_y: float, grid):
+def _headroom(
+    c: int, j: int, skip_c: int, skip_j: int, lim_x: float, lim_y: float, grid, gaps: np.ndarray
+):
     """How far free node (c, j) may rise [m] before a slope to a free neighbour (other than
     (skip_c, skip_j)) exceeds the angle of repose (negative when already over-steep), and how
-    far before it reaches the wheel's swept circle: (slope room, circle room)."""
+    far before it reaches the wheel's swept circle: (slope room, circle room). ``gaps[q]`` is
+    left holding the rise that brings the slope to neighbour q (STEPS) to its limit (inf where
+    q is not a free neighbour)."""
     c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, _queue, _inq = grid
     nx, ny = h0.shape
     s = surface(c, j, h0, sp, hl)
     room = np.inf
     for q in range(4):
+        gaps[q] = np.inf
         cn = c + STEPS[q, 0]
         jn = j + STEPS[q, 1]
         if cn < 0 or cn >= nx or jn < 0 or jn >= ny or (cn == skip_c and jn == skip_j):
@@ -562,30 +567,21 @@ def _headroom(c: int, j: int, skip_c: int, skip_j: int, lim_x: float, lim_y: flo
         if _is_loaded(cn, jn, c0, ncw, cflag):
             continue
         lim = lim_x if STEPS[q, 1] == 0 else lim_y
-        room = min(room, lim - (s - surface(cn, jn, h0, sp, hl)))
+        gaps[q] = lim - (s - surface(cn, jn, h0, sp, hl))
+        room = min(room, gaps[q])
     return room, _room(c, j, c0, ncw, jw0, nyw, clamp, h0, sp, hl)
 
 
 @njit(cache=True)
-def _binding(c, j, skip_c, skip_j, room, lim_x, lim_y, grid, nb) -> int:
-    """The free neighbours of (c, j) not above it whose slope reaches the angle of repose first
-    when it rises by ``room`` (to EROSION_TOL), written to ``nb`` (4 x 2); returns their count."""
-    c0, ncw, _jw0, _nyw, _clamp, h0, sp, hl, cflag, _queue, _inq = grid
-    nx, ny = h0.shape
-    s = surface(c, j, h0, sp, hl)
+def _binding(gaps: np.ndarray, room: float, lim_x: float, lim_y: float, binds: np.ndarray) -> int:
+    """The neighbours q (STEPS) not above the node whose slope reaches the angle of repose
+    first when it rises by ``room`` (to EROSION_TOL), from :func:`_headroom`'s ``gaps``; written
+    to ``binds``, returns their count."""
     count = 0
     for q in range(4):
-        cn = c + STEPS[q, 0]
-        jn = j + STEPS[q, 1]
-        if cn < 0 or cn >= nx or jn < 0 or jn >= ny or (cn == skip_c and jn == skip_j):
-            continue
-        if _is_loaded(cn, jn, c0, ncw, cflag):
-            continue
         lim = lim_x if STEPS[q, 1] == 0 else lim_y
-        drop = s - surface(cn, jn, h0, sp, hl)
-        if drop >= 0.0 and lim - drop <= room + EROSION_TOL:
-            nb[count, 0] = cn
-            nb[count, 1] = jn
+        if gaps[q] <= lim and gaps[q] <= room + EROSION_TOL:  # gap <= lim: not above the node
+            binds[count] = q
             count += 1
     return count
 
@@ -603,7 +599,8 @@ def _slide(
     tail: int,
     stack: np.ndarray,
     amounts: np.ndarray,
-    nb: np.ndarray,
+    gaps: np.ndarray,
+    binds: np.ndarray,
 ) -> tuple[int, bool]:
     """Soil slides from free node a down to its free neighbour b, the pair's height difference
     exceeding the angle of repose by ``excess`` [m]. Returns (queue tail, whether soil moved).
@@ -616,14 +613,14 @@ def _slide(
     its toe, so a pile fed at its top keeps its face at the angle of repose and grows at the toe
     in one pass, where the pair rule would relax the whole face pair by pair, step after step.
     Soil does not roll past a node held down by the wheel's swept circle (it rests against the
-    wheel). ``stack`` (m x 2) and ``amounts`` (m) hold the rolling parcels; ``nb`` (4 x 2) is
-    scratch."""
+    wheel). ``stack`` (m x 2) and ``amounts`` (m) hold the rolling parcels; ``gaps`` and
+    ``binds`` (4) are scratch."""
     _c0, _ncw, _jw0, _nyw, _clamp, h0, _sp, hl, _cflag, queue, inq = grid
     half = 0.5 * excess
-    room_b, circle_b = _headroom(cb, jb, ca, ja, lim_x, lim_y, grid)
+    room_b, circle_b = _headroom(cb, jb, ca, ja, lim_x, lim_y, grid, gaps)
     n_b = 0
     if room_b < half and room_b < circle_b:
-        n_b = _binding(cb, jb, ca, ja, room_b, lim_x, lim_y, grid, nb)
+        n_b = _binding(gaps, room_b, lim_x, lim_y, binds)
     if n_b == 0:  # the pair rule (also where the wheel holds b down)
         amount = min(half, circle_b)
         if amount <= EROSION_TOL:
@@ -637,9 +634,9 @@ def _slide(
     hl[cb, jb] += keep
     top = 0
     share = (taken - keep) / n_b
-    for q in range(n_b):
-        stack[top, 0] = nb[q, 0]
-        stack[top, 1] = nb[q, 1]
+    for i in range(n_b):
+        stack[top, 0] = cb + STEPS[binds[i], 0]
+        stack[top, 1] = jb + STEPS[binds[i], 1]
         amounts[top] = share
         top += 1
     m = stack.shape[0]
@@ -649,11 +646,11 @@ def _slide(
         c = stack[top, 0]
         j = stack[top, 1]
         rolling = amounts[top]
-        room, circle = _headroom(c, j, -1, -1, lim_x, lim_y, grid)
+        room, circle = _headroom(c, j, -1, -1, lim_x, lim_y, grid, gaps)
         hops += 1
         n_lower = 0
         if room < rolling and room < circle:
-            n_lower = _binding(c, j, -1, -1, room, lim_x, lim_y, grid, nb)
+            n_lower = _binding(gaps, room, lim_x, lim_y, binds)
         if n_lower == 0 or top + n_lower > m or hops > 4 * m:
             hl[c, j] += rolling  # it rests here (if over-steep, the work list sorts it out)
             tail = _push(c, j, queue, inq, tail)
@@ -661,40 +658,25 @@ def _slide(
         put = max(room, 0.0)
         hl[c, j] += put
         share = (rolling - put) / n_lower  # each hop ends lim below the risen node
-        for q in range(n_lower):
-            stack[top, 0] = nb[q, 0]
-            stack[top, 1] = nb[q, 1]
+        for i in range(n_lower):
+            stack[top, 0] = c + STEPS[binds[i], 0]
+            stack[top, 1] = j + STEPS[binds[i], 1]
             amounts[top] = share
             top += 1
     return tail, True
 
 
 @njit(cache=True)
-def erode(
-    c0: int,
-    ncw: int,
-    jw0: int,
-    nyw: int,
-    dx: float,
-    dy: float,
-    tan_repose: float,
-    h0: np.ndarray,
-    sp: np.ndarray,
-    hl: np.ndarray,
-    cflag: np.ndarray,
-    clamp: np.ndarray,
-    queue: np.ndarray,
-    inq: np.ndarray,
-    tail: int,
-) -> int:
-    """Erosion to the angle of repose among free nodes, from the ``tail`` queued nodes (work
-    list), below the wheel's swept circle ``clamp`` (per window column); see :func:`_slide`.
-    Returns the node visits."""
+def erode(grid, dx: float, dy: float, tan_repose: float, tail: int) -> int:
+    """Erosion to the angle of repose among free nodes, from the ``tail`` nodes queued in
+    ``grid`` (the work list; ``grid`` as for :func:`_deposit`), below the wheel's swept circle;
+    see :func:`_slide`. Returns the node visits."""
+    c0, ncw, _jw0, _nyw, _clamp, h0, sp, hl, cflag, queue, inq = grid
     nx, ny = h0.shape
-    grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
     stack = np.empty((ROLLING_PARCELS, 2), np.int64)
     amounts = np.empty(ROLLING_PARCELS)
-    nb = np.empty((4, 2), np.int64)
+    gaps = np.empty(4)
+    binds = np.empty(4, np.int64)
     excess = np.empty(4)
     lim_x = dx * tan_repose
     lim_y = dy * tan_repose
@@ -732,12 +714,13 @@ def erode(
             if excess[q] > 0.0:
                 tail, moved = _slide(
                     ca, ja, cb, jb, excess[q] / n_down, lim_x, lim_y, grid, tail, stack,
-                    amounts, nb,
+                    amounts, gaps, binds,
                 )  # fmt: skip
             elif excess[q] < 0.0:
                 tail, moved = _slide(
-                    cb, jb, ca, ja, -excess[q], lim_x, lim_y, grid, tail, stack, amounts, nb
-                )
+                    cb, jb, ca, ja, -excess[q], lim_x, lim_y, grid, tail, stack, amounts,
+                    gaps, binds,
+                )  # fmt: skip
             else:
                 continue
             if moved:

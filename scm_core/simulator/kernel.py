@@ -445,23 +445,8 @@ def run_swt(prm: np.ndarray):
             diag[D_COMPACTED] += compacted
             diag[D_SPILLED] += spilled
             tick = _lap(diag, D_CYC_FLOW, tick)
-            diag[D_EROSION_VISITS] += erode(
-                c0,
-                ncw,
-                n_margin,
-                nyw,
-                dx,
-                dy,
-                tan_repose,
-                h0,
-                sp,
-                hl,
-                cflag,
-                fwork[0],
-                queue,
-                inq,
-                tail,
-            )
+            grid = (c0, ncw, n_margin, nyw, fwork[0], h0, sp, hl, cflag, queue, inq)
+            diag[D_EROSION_VISITS] += erode(grid, dx, dy, tan_repose, tail)
             tick = _lap(diag, D_CYC_EROSION, tick)
         else:
             diag[D_COMPACTED] += flow * dA  # without flow the displaced soil is compacted

@@ -28,8 +28,8 @@ def _pour(volume: float, dx: float, dy: float, repose_deg: float, portions: int,
         hl[c, c] += volume / portions
         queue[0] = (c, c)
         inq[c, c] = 1
-        erode(-10, 0, 0, 0, dx, dy, math.tan(math.radians(repose_deg)), h0, sp, hl, cflag,
-              clamp, queue, inq, 1)  # fmt: skip
+        grid = (-10, 0, 0, 0, clamp, h0, sp, hl, cflag, queue, inq)
+        erode(grid, dx, dy, math.tan(math.radians(repose_deg)), 1)
     return h0 - sp + hl
 
 
