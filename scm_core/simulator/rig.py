@@ -8,11 +8,9 @@ Numerics left unset scale with the wheel and the rig as the paper's set-up does 
 v = 1 cm/s: dx 5 mm, dt 20 ms, 50 s, offsets 20, 20 and 1 s), rounded to three significant digits:
 
 * dx = r / 25 (five grid cells per 2.5 % of the radius; convergence tables in docs/simulator.md);
-* dt: the carriage advances at most dx / 10 per step, and with grousers the rim at most dx / 10
-  (a grouser crosses a cell in ten steps; dx / 20 moved the steady means of the paper wheel and
-  the CMU-like grousered wheel by less than 1 % of W and 0.3 mm, docs/simulator.md); a smooth
-  rim's angle does not enter the contact, and its flows are fluxes per unit time, so only the
-  carriage limits it;
+* dt: the carriage advances at most dx / 10 per step, and with grousers the rim at most dx / 20
+  (a grouser must not jump across cells); a smooth rim's angle does not enter the contact, and
+  its flows are fluxes per unit time, so only the carriage limits it;
 * duration = 4 r / v (the carriage travels two wheel diameters); in skid 4 r (1 + |s|) / v with s
   the symmetric slip, as the bow wave and the slip sinkage build over a longer travel the harder
   the wheel skids (a locked wheel travels 8 r: docs/simulator.md); offsets 0.4 duration for F and
@@ -34,7 +32,7 @@ from .params import RigConfig, WheelGeometry
 PAPER_OMEGA = 0.1  # rad/s: default angular speed of the faster of rim and carriage (per r)
 CELLS_PER_RADIUS = 25.0
 CARRIAGE_CELL_FRACTION = 10.0  # steps per cell of carriage travel
-RIM_CELL_FRACTION = 10.0  # steps per cell of rim travel (grousered wheels)
+RIM_CELL_FRACTION = 20.0  # steps per cell of rim travel (grousered wheels)
 TRAVEL_RADII = 4.0  # duration: carriage travel in slip radii
 OFFSET_FT = 0.4  # averaging offsets as fractions of the duration
 MAX_SINKAGE_CAP = 0.1  # m

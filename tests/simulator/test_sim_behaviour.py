@@ -113,8 +113,7 @@ def test_defaults_are_the_papers_set_up():
     r = resolve_rig(w, RigConfig())
     assert (w.R, w.b, w.n_grousers, w.grouser_height) == (0.125, 0.112, 12, 0.009)
     assert (r.W, r.duration, r.offset_F, r.offset_T, r.offset_z) == (315.0, 50.0, 20.0, 20.0, 1.0)
-    # dt is ours (the paper states none): the grousers' rim moves at most dx / 10 per step
-    assert (r.dx, r.dt, r.max_sinkage, r.omega) == (0.005, 0.04, 0.1, 0.1)
+    assert (r.dx, r.dt, r.max_sinkage, r.omega) == (0.005, 0.02, 0.1, 0.1)
     assert r.slip == pytest.approx(0.2) and r.carriage_speed == pytest.approx(0.01)
     assert (s.c, s.phi, s.n, s.k_c, s.J) == (0.0, 30.0, 1.1, 0.0, 0.001)
     assert s.k_c / 0.04 + s.k_phi == pytest.approx(1e7)
