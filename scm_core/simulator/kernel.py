@@ -94,10 +94,14 @@ D_CYC_FLOW = 16  # flow fields and deposits
 D_CYC_EROSION = 17
 N_DIAG = 18
 
-Z_TOL = 1e-8  # m, convergence of the axle height
+# convergence of the axle height [m]: where G jumps (a patch entering contact carries its damping
+# stress at once) the root is the jump, bracketed to 1 um (1e-8 m took ~8 more evaluations there)
+Z_TOL = 1e-6
 MAX_ITER = 80
 FREEZE_AFTER = 1  # evaluations before the footprint is frozen within a step
-G_TOL = 1e-4  # residual of the force balance, relative to W
+# residual of the force balance, relative to W (1e-4 moved no steady mean by more than 0.2 % of W
+# and 0.02 mm against 1e-3: benchmarks/physics_drift.py, issue 42)
+G_TOL = 1e-3
 OUTER_TOL = 0.05  # footprint re-solves while its change moves the balance by more (x W)
 MAX_OUTER = 4
 X_PAD = 0.02  # m of untouched soil before the start and after the end of the run
@@ -219,6 +223,7 @@ def _newton(
     hi = max(ztop, z_free)
     g_hi = c_in * (hi - zpred) + W  # no contact at ztop
     g_prev = np.inf
+    z_prev = z
     side = 0
     width_2ago = np.inf
     width_1ago = hi - lo
@@ -248,14 +253,19 @@ def _newton(
         dg = c_in - work[14][R_DFZ]
         z_new = z - g / dg if dg > 0.0 else lo - 1.0
         if not (lo < z_new < hi) or abs(g) > 0.5 * abs(g_prev):
-            # Newton left the bracket or stalled at a kink: regula falsi step
-            z_new = lo - g_lo * (hi - lo) / (g_hi - g_lo)
-            if not (lo < z_new < hi):  # also when g_lo is still unknown (NaN)
+            # Newton left the bracket or stalled at a kink: regula falsi on the bracket once
+            # both its ends are known, before that the secant through the last two iterates
+            if np.isfinite(g_lo):
+                z_new = lo - g_lo * (hi - lo) / (g_hi - g_lo)
+            elif g != g_prev and np.isfinite(g_prev):
+                z_new = z - g * (z - z_prev) / (g - g_prev)
+            if not (lo < z_new < hi):
                 z_new = 0.5 * (lo + hi)
-        if hi - lo > 0.5 * width_2ago:
+        if np.isfinite(g_lo) and hi - lo > 0.5 * width_2ago:
             z_new = 0.5 * (lo + hi)  # bracket not halving in two steps (a jump in G): bisect
         width_2ago = width_1ago
         width_1ago = hi - lo
+        z_prev = z
         g_prev = g
         if abs(z_new - z) < Z_TOL:
             return z_new, True
