@@ -342,18 +342,18 @@ def flow_and_deposit(
     work: np.ndarray,
     queue: np.ndarray,
     inq: np.ndarray,
+    tail: int,
 ):
     """Flow fields: the displaced and dragged soil deposited outside the footprint (see the
     module docstring).
 
     ``work`` (>= 8 rows, >= max(ncw, ny) columns) is scratch space; its row 0 is left holding the
     wheel's swept circle per window column (for :func:`erode`). The nodes that received soil are
-    queued in ``queue`` / ``inq``. Returns (compacted volume [m^3], spilled volume [m^3], queue
-    length).
+    queued in ``queue`` / ``inq`` after the ``tail`` queued before. Returns (compacted volume
+    [m^3], spilled volume [m^3], queue length).
     """
     nx, ny = h0.shape
     dA = dx * dy
-    tail = 0
     v = prm[P_V]
     omega = prm[P_OMEGA]
     dt = prm[P_DT]

@@ -39,6 +39,7 @@ from .layout import (
     P_DURATION,
     P_DX,
     P_DYDX,
+    P_EROSIONEVERY,
     P_HG,
     P_K,
     P_KC,
@@ -359,6 +360,8 @@ def run_swt(prm: np.ndarray):
     queue = np.zeros((1 << int(math.ceil(math.log2(nx * ny))), 2), np.int64)  # erosion work list
     inq = np.zeros((nx, ny), np.int8)
     bulldoze = prm[P_BULLDOZE] > 0.5
+    tail = 0  # erosion's work list: nodes that received soil since it last ran
+    erode_every = int(prm[P_EROSIONEVERY])
     for k in range(ncw_max):
         e[k] = np.inf
         eb[k] = np.inf
@@ -454,12 +457,15 @@ def run_swt(prm: np.ndarray):
                 fwork,
                 queue,
                 inq,
+                tail,
             )
             diag[D_COMPACTED] += compacted
             diag[D_SPILLED] += spilled
             tick = _lap(diag, D_CYC_FLOW, tick)
-            grid = (c0, ncw, n_margin, nyw, fwork[0], h0, sp, hl, cflag, queue, inq)
-            diag[D_EROSION_VISITS] += erode(grid, dx, dy, tan_repose, tail)
+            if (step + 1) % erode_every == 0 or step == n_steps - 1:
+                grid = (c0, ncw, n_margin, nyw, fwork[0], h0, sp, hl, cflag, queue, inq)
+                diag[D_EROSION_VISITS] += erode(grid, dx, dy, tan_repose, tail)
+                tail = 0
             tick = _lap(diag, D_CYC_EROSION, tick)
         else:
             diag[D_COMPACTED] += flow * dA  # without flow the displaced soil is compacted

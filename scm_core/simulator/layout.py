@@ -50,7 +50,8 @@ P_INCL = 34  # exponent of the bearing-capacity inclination factor (0: off)
 P_PLOUGH = 35  # fraction of a skidding wheel's path pushed ahead (0: off)
 P_DIGMOB = 36  # drive digging: 1 mobilised (dug depth d f), 0 thinning
 P_FACEPLOUGH = 37  # skid ploughing: 1 the front face's sliding zone (derived), 0 kappa
-N_PARAMS = 38
+P_EROSIONEVERY = 38  # steps between erosion passes
+N_PARAMS = 39
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -106,4 +107,5 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_PLOUGH] = soil.ploughing
     p[P_DIGMOB] = 1.0 if rig.drive_digging == "mobilised" else 0.0
     p[P_FACEPLOUGH] = 1.0 if rig.skid_ploughing == "sliding_face" else 0.0
+    p[P_EROSIONEVERY] = rig.erosion_every
     return p

@@ -60,6 +60,7 @@ class ResolvedRig:
     dy_over_dx: float
     output_rate: float
     output_every: int
+    erosion_every: int  # steps between erosion passes
     offset_F: float
     offset_T: float
     offset_z: float
@@ -96,6 +97,7 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         duration = rig.duration
     else:
         duration = _sig3(TRAVEL_RADII * (1.0 + max(0.0, -s_sym)) * r / v)
+    dt_carriage = dx / (CARRIAGE_CELL_FRACTION * v)
     if rig.dt is not None:
         dt = rig.dt
     else:
@@ -132,6 +134,7 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         dy_over_dx=rig.dy_over_dx,
         output_rate=rig.output_rate,
         output_every=max(1, round(1.0 / (rig.output_rate * dt))),
+        erosion_every=max(1, int(dt_carriage / dt + 1e-9)),
         offset_F=off_F,
         offset_T=off_T,
         offset_z=off_z,
