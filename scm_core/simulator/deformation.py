@@ -414,7 +414,7 @@ def flow_and_deposit(
         acc_f[j] = 0.0
         acc_b[j] = 0.0
     if nload == 0:
-        return 0.0, 0.0, 0
+        return 0.0, 0.0, tail  # the nodes queued earlier still wait for erosion
     xc = xsum / nload
     yc = jw0 + 0.5 * (nyw - 1)
     # radial flow: along x and y in the proportion the footprint's ring faces them (its rows

@@ -10,7 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from scm_core.simulator.deformation import EROSION_TOL, erode
+from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
+from scm_core.simulator.deformation import EROSION_TOL, erode, flow_and_deposit
+from scm_core.simulator.layout import pack
 
 
 def _pour(volume: float, dx: float, dy: float, repose_deg: float, portions: int, n: int = 61):
@@ -67,3 +69,23 @@ def test_a_poured_heap_rests_at_the_angle_of_repose(repose_deg, dy_over_dx):
     # and symmetric about its axis to within one cell's rise (nodes are visited in order)
     assert np.abs(s - s[::-1, :]).max() < lim_x
     assert np.abs(s - s[:, ::-1]).max() < lim_x
+
+
+def test_a_step_without_contact_keeps_the_nodes_waiting_for_erosion():
+    """Between erosion passes (a grousered wheel's short steps) the nodes that received soil
+    wait in the work list; a step in which the wheel touches nothing must not drop them (their
+    queued marks would stay set and they could never be eroded again)."""
+    nx, ny, ncw = 40, 12, 6
+    h0 = np.zeros((nx, ny))
+    zeros = np.zeros(ncw)
+    queue = np.zeros((1 << math.ceil(math.log2(nx * ny)), 2), np.int64)
+    inq = np.zeros((nx, ny), np.int8)
+    queue[:3] = [(5, 4), (6, 4), (7, 4)]
+    inq[5:8, 4] = 1
+    prm = pack(SoilParams(), WheelGeometry(), RigConfig())
+    out = flow_and_deposit(
+        prm, 1.0, 0.0, 0.134, zeros, np.full(ncw, np.inf), zeros, zeros, 10, ncw, 2, 8, 0.005,
+        0.01, 0.5, h0, h0.copy(), h0.copy(), h0.copy(), np.zeros((ncw + 2, ny), np.int8),
+        np.zeros((ncw + 2, ny)), np.zeros((8, max(ncw, ny))), queue, inq, 3,
+    )  # fmt: skip
+    assert out == (0.0, 0.0, 3)
