@@ -101,7 +101,7 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
     if rig.dt is not None:
         dt = rig.dt
     else:
-        dt = dx / (CARRIAGE_CELL_FRACTION * v)
+        dt = dt_carriage
         if wheel.has_grousers and v_rim > 0.0:
             dt = min(dt, dx / (RIM_CELL_FRACTION * v_rim))
         dt = _sig3(min(dt, 0.1, duration / 10.0))
