@@ -150,6 +150,11 @@ def test_bad_prediction_requests_name_the_field(calibrated, change, needle) -> N
 
 def test_collection_shows_only_its_kind(calibrated) -> None:
     client, _, study_id, ids = calibrated
+    # its own prediction: under xdist the module's fixture may be rebuilt between its tests
+    body = {"study_id": study_id, "dataset_ids": ids, "draws": 5, "seed": 2}
+    r = client.post("/predictions", json=body, headers=AUTH)
+    assert r.status_code == 201, r.text
+    assert _wait(client, r.json()["id"])["status"] == "completed"
     r = client.get(f"/predictions/{study_id}")
     assert r.status_code == 404 and "is a tmcmc study" in detail(r)
     page = client.get("/predictions").json()
