@@ -510,6 +510,9 @@ def test_polling_stops_while_hidden_and_once_the_study_has_ended(server, browser
         assert httpx.post(f"{base}/studies/{sid}/cancel", headers=AUTH).status_code == 200
         w.page.evaluate(HIDE % "false")
         w.page.wait_for_selector("#study-status:has-text('cancelled')", timeout=15_000)
+        # the live fragment's news of the end fetches the results fragment at once, not at its
+        # own next poll (up to 6 s later)
+        w.page.wait_for_selector("#results-poll:not([hx-get])", state="attached", timeout=5_000)
         w.page.wait_for_timeout(1000)
         polls.clear()
         w.page.wait_for_timeout(5000)

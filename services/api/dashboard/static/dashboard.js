@@ -83,7 +83,8 @@
     }
     const cancel = ev.target.closest("button[data-cancel]");
     if (cancel) {
-      const out = cancel.parentElement.querySelector(".write-result");
+      // outside #live, so that the next poll of the live fragment keeps the message
+      const out = document.getElementById("cancel-result");
       if (!token()) return say(out, "cancelling needs the API token (set it above)", true);
       const resp = await fetch("/studies/" + cancel.dataset.cancel + "/cancel", {
         method: "POST",
@@ -184,6 +185,17 @@
       p.setAttribute("role", "alert");
       p.textContent = msg;
       ev.detail.serverResponse = p.outerHTML;
+    }
+  });
+
+  /* a study that has just ended: its results fragment is fetched at once (it would otherwise
+     wait for its own, slower poll and keep showing the running study's figures) */
+  document.addEventListener("htmx:afterSwap", (ev) => {
+    if (!ev.detail.target || ev.detail.target.id !== "live") return;
+    const live = document.getElementById("live-poll");
+    const results = document.getElementById("results-poll");
+    if (live && !live.hasAttribute("hx-get") && results && results.hasAttribute("hx-get")) {
+      htmx.ajax("GET", results.getAttribute("hx-get"), { target: "#results", swap: "innerHTML" });
     }
   });
 
