@@ -96,7 +96,9 @@ D_CYC_EROSION = 17
 N_DIAG = 18
 
 # convergence of the axle height [m]: where G jumps (a patch entering contact carries its damping
-# stress at once) the root is the jump, bracketed to 1 um (1e-8 m took ~8 more evaluations there)
+# stress at once) the root is the jump, bracketed to 1 um (1e-8 m took ~8 more evaluations there),
+# or finer where the inertia term m dz / dt^2 of so small a change exceeds G_TOL W (short steps:
+# at dt 0.3 ms, 1 um of axle height is 31 N of a 26 N wheel's balance)
 Z_TOL = 1e-6
 MAX_ITER = 80
 FREEZE_AFTER = 1  # evaluations before the footprint is frozen within a step
@@ -182,6 +184,7 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
         _evaluate(z_free, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
         return z_free, True
     z = min(max(zpred, z_free), max(ztop, z_free))
+    z_tol = min(Z_TOL, G_TOL * W / c_in)  # the height change whose inertia is G_TOL W
     converged = False
     for outer in range(MAX_OUTER):
         z, converged = _newton(
@@ -201,6 +204,7 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
             work,
             diag,
             FREEZE_AFTER if outer == 0 else 0,
+            z_tol,
         )
         if not converged or outer == MAX_OUTER - 1:
             # the footprint keeps changing (e.g. k_c << 0): end on the balanced frozen solve
@@ -218,10 +222,27 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
 
 @njit(cache=True)
 def _newton(
-    z, zpred, z_free, ztop, c_in, W, zn, dt, prm, npatch, dx, dy, nyw, work, diag, freeze_after
+    z,
+    zpred,
+    z_free,
+    ztop,
+    c_in,
+    W,
+    zn,
+    dt,
+    prm,
+    npatch,
+    dx,
+    dy,
+    nyw,
+    work,
+    diag,
+    freeze_after,
+    z_tol,
 ):
     """Safeguarded Newton for G(z) = 0 from ``z``; frozen footprint after ``freeze_after``
-    evaluations. Returns (z, converged)."""
+    evaluations; converged when |G| < G_TOL W or the bracket or step is below ``z_tol`` [m].
+    Returns (z, converged)."""
     lo = z_free
     g_lo = np.nan  # G(z_free) < 0, not evaluated: regula falsi waits until lo has a value
     hi = max(ztop, z_free)
@@ -252,7 +273,7 @@ def _newton(
             if side == -1:
                 g_hi *= 0.5
             side = -1
-        if hi - lo < Z_TOL:
+        if hi - lo < z_tol:
             return z, True
         dg = c_in - work[14][R_DFZ]
         z_new = z - g / dg if dg > 0.0 else lo - 1.0
@@ -271,7 +292,7 @@ def _newton(
         width_1ago = hi - lo
         z_prev = z
         g_prev = g
-        if abs(z_new - z) < Z_TOL:
+        if abs(z_new - z) < z_tol:
             return z_new, True
         z = z_new
     return z, False
