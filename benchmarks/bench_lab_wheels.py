@@ -10,12 +10,14 @@ single-run kernel), after a warm-up. Prints two tables:
   step (vertical solves), erosion visits per step, the share of the step's time per kernel phase
   (wheel envelope and contact patches, vertical solve, node update, flow fields and deposits,
   erosion; from the CPU's cycle counter) and the run's status;
-* over ``--draws`` draws of the CMU case's prior at the four calibration rim speeds: mean and
-  largest wall time per run and the share of runs that did not finish.
+* over ``--draws`` draws of the CMU case's prior at the four calibration rim speeds: mean, median
+  and largest wall time per run and the share of runs that did not finish.
 
-Wheels: the paper's (its default run), the CMU smooth wheel (R 58 mm, b 50 mm, the datasets'
-loads and speeds from ``examples/cmu_smooth/``) and a CMU-like grousered wheel built from the
-same rig (12 grousers of 5 mm).
+``benchmarks/bench_simulator.py`` prints these tables after its own (``--no-lab`` skips them).
+
+Wheels: the paper's (its wheel, soil and rig at the nine slips), the CMU smooth wheel (R 58 mm,
+b 50 mm, the datasets' loads and speeds from ``examples/cmu_smooth/``) and a CMU-like grousered
+wheel built from the same rig (12 grousers of 5 mm).
 """
 
 from __future__ import annotations
@@ -31,7 +33,8 @@ from rich.table import Table
 from scm_core.calibration import load_case
 from scm_core.calibration.model import StudyModel, build_configs, dataset_terms
 from scm_core.signals import load_dataset
-from scm_core.simulator import simulate_swt
+from scm_core.simulator import RigConfig, simulate_swt
+from scm_core.slip import drive_to_symmetric
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "cmu_smooth.toml"
@@ -43,6 +46,13 @@ GROUSERS = {"n_grousers": 12, "grouser_height": 0.005}
 
 def _slip_key(terms) -> float:
     return float(terms.conditions["slip"])
+
+
+def _symmetric(terms) -> float:
+    """The dataset's slip in the symmetric lab convention (-1 locked, 0 rolling, 1 spinning)."""
+    c = terms.conditions
+    s = float(c["slip"])
+    return s if c.get("slip_convention") == "symmetric" else drive_to_symmetric(s)
 
 
 PHASES = ("geometry", "solve", "commit", "flow", "erosion")
@@ -86,13 +96,8 @@ def _row(table: Table, wheel: str, slip: str, r: dict[str, float | str]) -> None
     )
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--repeats", type=int, default=3, help="runs per cell (median)")
-    ap.add_argument("--draws", type=int, default=12, help="prior draws per rim speed")
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args()
-
+def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
+    """The two tables of the module docstring (the JIT warmed up first)."""
     case = load_case(CASE)
     terms = sorted((dataset_terms(load_dataset(p)) for p in DATA), key=_slip_key)
     model = StudyModel(case, terms)
@@ -102,32 +107,36 @@ def main() -> None:
     wheels = {"CMU smooth": {}, "CMU 12x5 mm": GROUSERS}
     simulate_swt()  # warm-up (JIT)
 
-    fixed = Table(title="Lab slips, soil k_phi 8e6, n 1.0, phi 29 deg, J 0.01 m (one core)")
+    fixed = Table(
+        title="Lab slips (one core): the paper's wheel, soil and rig; the CMU wheels on the soil "
+        "k_phi 8e6, n 1.0, phi 29 deg, J 0.01 m"
+    )
     for col in ("wheel", "lab slip", "ms/run", "steps", "nodes/step", "evals/step"):
         fixed.add_column(col, justify="right")
     fixed.add_column("erosion visits/step", justify="right")
     fixed.add_column("% geom solve commit flow erosion", justify="right")
     fixed.add_column("status")
-    _row(fixed, "paper", "0.2", _median_run((None, None, None), args.repeats))
+    for t in terms:  # the paper's set-up at the same nine slips (symmetric convention)
+        rig = RigConfig(slip=round(_symmetric(t), 2), slip_convention="symmetric")
+        _row(fixed, "paper", f"{_slip_key(t):+.2f}", _median_run((None, None, rig), repeats))
     for name, extra in wheels.items():
         for t in terms:
             cfg = build_configs(
                 model.nominal, model.simulator, {**t.conditions, **extra}, {**base, **SOIL}
             )
-            _row(fixed, name, f"{_slip_key(t):+.2f}", _median_run(cfg, args.repeats))
-    Console(width=160).print(fixed)
+            _row(fixed, name, f"{_slip_key(t):+.2f}", _median_run(cfg, repeats))
 
-    rng = np.random.default_rng(args.seed)
-    draws = prior.sample(rng, args.draws)
-    by_draws = Table(title=f"{args.draws} draws of the CMU case's prior (one core)")
-    for col in ("wheel", "lab slip", "mean ms/run", "max ms/run", "not finished"):
+    rng = np.random.default_rng(seed)
+    thetas = prior.sample(rng, draws)
+    by_draws = Table(title=f"{draws} draws of the CMU case's prior (one core)")
+    for col in ("wheel", "lab slip", "mean ms/run", "median", "max", "not finished"):
         by_draws.add_column(col, justify="right")
     for name, extra in wheels.items():
         for t in terms:
             if not t.name.endswith(CALIBRATION_STEMS):
                 continue
             walls, failed = [], 0
-            for theta in draws:
+            for theta in thetas:
                 values = dict(zip(case.parameter_names, theta, strict=True))
                 cfg = build_configs(
                     model.nominal, model.simulator, {**t.conditions, **extra}, values
@@ -139,10 +148,21 @@ def main() -> None:
                 name,
                 f"{_slip_key(t):+.2f}",
                 f"{1000 * statistics.fmean(walls):.0f}",
+                f"{1000 * statistics.median(walls):.0f}",
                 f"{1000 * max(walls):.0f}",
                 f"{failed}/{len(walls)}",
             )
-    Console(width=160).print(by_draws)
+    return [fixed, by_draws]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--repeats", type=int, default=3, help="runs per cell (median)")
+    ap.add_argument("--draws", type=int, default=12, help="prior draws per rim speed")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    for table in lab_tables(args.repeats, args.draws, args.seed):
+        Console(width=160).print(table)
 
 
 if __name__ == "__main__":

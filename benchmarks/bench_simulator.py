@@ -1,8 +1,11 @@
 """Simulator benchmark: wall time per default SWT, cost per loaded node, JIT cache, batch scaling.
 
-Run: ``python benchmarks/bench_simulator.py [--repeats 7] [--batch 8]``. Prints a table; medians of
-``--repeats`` runs after a warm-up. Compile times are measured in fresh interpreters with an empty
-and then a filled NUMBA_CACHE_DIR.
+Run: ``python benchmarks/bench_simulator.py [--repeats 7] [--batch 8] [--no-lab]``. Prints a table;
+medians of ``--repeats`` runs after a warm-up. Compile times are measured in fresh interpreters
+with an empty and then a filled NUMBA_CACHE_DIR. Then, unless ``--no-lab``, the per-slip tables of
+``bench_lab_wheels.py``: the paper wheel, the CMU smooth wheel and a CMU-like grousered wheel at
+the nine lab slips (wall time on one core, steps, loaded nodes and contact evaluations per step,
+the share of each kernel phase) and over ``--draws`` draws of the CMU case's prior.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import tempfile
 import time
 
 import numba
+from bench_lab_wheels import lab_tables
 from rich.console import Console
 from rich.table import Table
 
@@ -80,6 +84,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--batch", type=int, default=8, help="runs per batch call")
+    ap.add_argument("--lab", action=argparse.BooleanOptionalAction, default=True)
+    ap.add_argument("--lab-repeats", type=int, default=3, help="runs per lab-slip cell (median)")
+    ap.add_argument("--draws", type=int, default=12, help="prior draws per calibration slip")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as cache:
         cold = first_call_seconds(cache)
@@ -108,6 +115,9 @@ def main() -> None:
     table.add_row("batch throughput, 1 thread", f"{one:.2f} runs/s")
     table.add_row(f"batch throughput, {cores} threads", f"{many:.2f} runs/s ({many / one:.2f}x)")
     Console().print(table)
+    if args.lab:
+        for lab in lab_tables(args.lab_repeats, args.draws, seed=0):
+            Console(width=160).print(lab)
 
 
 if __name__ == "__main__":

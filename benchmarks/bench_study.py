@@ -38,13 +38,26 @@ the accurate form's samples saved there instead of running it again (the unaccel
 result does not change with the acceleration's settings); several DIRs (runs with different
 seeds) are pooled into one reference, whose own run-to-run noise is then smaller.
 ``--reference-form`` names the unaccelerated form the others are compared with (``accurate``, or
-``accurate-log``, saved as ``accurate-log_N.npy``).
+``accurate-log``, saved as ``accurate-log_N.npy``). ``--prior-case FILE`` runs the forms with
+another case (other priors) on the same log.
+
+A whole calibration as committed (its own datasets, sampler and seed), timed as a user runs it:
+
+    PYTHONPATH=. python benchmarks/bench_study.py --case examples/cmu_smooth.toml [--workers 2]
+        [--repeats 1]
+
+runs ``scm-calib calibrate CASE --workers W --no-plots`` (a fresh output directory per run, the
+simulator compiled beforehand so that no run pays for it) and prints per run the wall time, the
+stages, model runs (failed), the log evidence and the model runs per second.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -178,6 +191,41 @@ def run_form(
     }
 
 
+def run_case(case: Path, workers: int, repeats: int) -> None:
+    """``repeats`` whole calibrations of ``case`` as committed, through the command line."""
+    subprocess.run(  # compile (or load) the simulator once, outside the timed runs
+        [sys.executable, "-c", "from scm_core.simulator import simulate_swt; simulate_swt()"],
+        check=True,
+    )
+    table = Table(title=f"{case} as committed, {workers} workers")
+    for col in ("run", "status", "wall s", "stages", "model runs (failed)", "log Z", "runs/s"):
+        table.add_column(col, justify="right")
+    walls = []
+    for k in range(repeats):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "results"
+            cmd = [sys.executable, "-m", "services.cli", "calibrate", str(case)]
+            cmd += ["--workers", str(workers), "--out", str(out), "--no-plots", "--quiet"]
+            t0 = time.perf_counter()
+            done = subprocess.run(cmd, check=False)
+            wall = time.perf_counter() - t0
+            summary = json.loads((out / "summary.json").read_text())
+        walls.append(wall)
+        table.add_row(
+            str(k + 1),
+            f"{summary['status']} (exit {done.returncode})",
+            f"{wall:.0f}",
+            str(summary["n_stages"]),
+            f"{summary['model_runs']} ({summary['failed_runs']})",
+            f"{summary['log_evidence']:.3f} +- {summary['log_evidence_se']:.3f}",
+            f"{summary['model_runs'] / wall:.1f}",
+        )
+        print(f"run {k + 1}: {wall:.0f} s, {summary['model_runs']} model runs", flush=True)
+    if repeats > 1:
+        table.add_row("median", "", f"{float(np.median(walls)):.0f}", "", "", "", "")
+    Console(width=160).print(table)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--samples", type=int, nargs="+", default=[500, 2000])
@@ -200,8 +248,19 @@ def main() -> None:
         help="random-walk coordinates of the accelerated forms (default log)",
     )
     ap.add_argument(
-        "--case", type=Path, default=CASE, help="another case on the same log (e.g. other priors)"
+        "--prior-case",
+        type=Path,
+        default=CASE,
+        help="the forms with another case on the same log (e.g. other priors)",
     )
+    ap.add_argument(
+        "--case",
+        type=Path,
+        default=None,
+        help="instead of the forms: this case's whole calibration as committed (its datasets, "
+        "sampler and seed) through scm-calib calibrate",
+    )
+    ap.add_argument("--repeats", type=int, default=1, help="--case: calibrations to run")
     ap.add_argument(
         "--resampling",
         choices=RESAMPLING,
@@ -229,6 +288,9 @@ def main() -> None:
         help="the unaccelerated form the others are compared with",
     )
     args = ap.parse_args()
+    if args.case is not None:
+        run_case(args.case, args.workers, args.repeats)
+        return
 
     ref_form = args.reference_form
     rows = []
@@ -246,7 +308,7 @@ def main() -> None:
                     args.surrogate_steps,
                     args.moves,
                     args.proposal_scale,
-                    args.case,
+                    args.prior_case,
                     args.resampling,
                     args.jumps,
                 )
