@@ -158,8 +158,8 @@ def test_batches_do_not_change_results(moves: str, steps: int) -> None:
         moves=moves.removesuffix("-jumps"),
         surrogate_jumps=jumps,
     )
-    a = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings)
-    b = run_tmcmc(f, PRIOR5, 400, seed=2, settings=settings, batch_size=37)
+    a = run_tmcmc(f, PRIOR5, 200, seed=2, settings=settings)
+    b = run_tmcmc(f, PRIOR5, 200, seed=2, settings=settings, batch_size=37)
     assert _screened(a) > 0
     for sa, sb in zip(a.stages, b.stages, strict=True):
         np.testing.assert_array_equal(sa.samples, sb.samples)
