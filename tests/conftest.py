@@ -30,7 +30,7 @@ def _fresh_simulator_cache(tmp_path_factory):
     """Tests that call jitted simulator functions directly (not through the entry points,
     which check it themselves) load no cached code built from other sources. Under
     pytest-xdist the workers take turns: the first compiles the simulator into numba's disk
-    cache (about a minute on a fresh clone), the others then load it instead of each compiling
+    cache (about 20 s on a fresh clone), the others then load it instead of each compiling
     it again on the same cores."""
     if "PYTEST_XDIST_WORKER" not in os.environ:
         ensure_fresh_cache()

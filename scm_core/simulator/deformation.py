@@ -524,23 +524,25 @@ def flow_and_deposit(
     # ---- deposit outside the footprint, along the flow, below the wheel's swept circle
     grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
     spilled = 0.0
+    one = np.int64(1)  # directions as values: literals would compile _deposit once per value
+    zero = np.int64(0)
     for j in range(jw0, jw0 + nyw):
         if rmax[j] < 0:
             continue
         if acc_f[j] > 0.0:
-            left, tail = _deposit(acc_f[j], c0 + rmax[j] + 1, j, 1, 0, grid, tail)
+            left, tail = _deposit(acc_f[j], c0 + rmax[j] + 1, j, one, zero, grid, tail)
             spilled += left
         if acc_b[j] > 0.0:
-            left, tail = _deposit(acc_b[j], c0 + rmin[j] - 1, j, -1, 0, grid, tail)
+            left, tail = _deposit(acc_b[j], c0 + rmin[j] - 1, j, -one, zero, grid, tail)
             spilled += left
     for k in range(ncw):
         if cmax[k] < 0:
             continue
         if acc_p[k] > 0.0:
-            left, tail = _deposit(acc_p[k], c0 + k, cmax[k] + 1, 0, 1, grid, tail)
+            left, tail = _deposit(acc_p[k], c0 + k, cmax[k] + 1, zero, one, grid, tail)
             spilled += left
         if acc_m[k] > 0.0:
-            left, tail = _deposit(acc_m[k], c0 + k, cmin[k] - 1, 0, -1, grid, tail)
+            left, tail = _deposit(acc_m[k], c0 + k, cmin[k] - 1, zero, -one, grid, tail)
             spilled += left
     return compacted * dA, spilled * dA, tail
 
@@ -641,12 +643,13 @@ def _slide(
         top += 1
     m = stack.shape[0]
     hops = 0
+    no_skip = np.int64(-1)  # a value, not a literal (one compiled _headroom)
     while top > 0:
         top -= 1
         c = stack[top, 0]
         j = stack[top, 1]
         rolling = amounts[top]
-        room, circle = _headroom(c, j, -1, -1, lim_x, lim_y, grid, gaps)
+        room, circle = _headroom(c, j, no_skip, no_skip, lim_x, lim_y, grid, gaps)
         hops += 1
         n_lower = 0
         if room < rolling and room < circle:

@@ -109,7 +109,7 @@ def wheel_envelope(
     pitch = 2.0 * math.pi / n_grousers
     vis_s = np.empty(n_grousers)
     vis_c = np.empty(n_grousers)
-    n_vis = 0
+    n_vis = np.int64(0)  # a value: a literal 0 compiles _lowest_point twice
     for g in range(n_grousers):
         psi = (g * pitch - theta + math.pi) % (2.0 * math.pi) - math.pi
         c_psi = math.cos(psi)

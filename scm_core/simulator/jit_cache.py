@@ -103,14 +103,14 @@ def ensure_fresh_cache() -> bool:
 
 
 def kernel_is_cached() -> bool | None:
-    """Whether numba's disk cache holds the batch kernel compiled from these sources (True), or
-    the first simulation of this process will compile it, about a minute (False); None where
+    """Whether numba's disk cache holds the kernel compiled from these sources (True), or
+    the first simulation of this process will compile it, about 20 s (False); None where
     numba's cache is not laid out as known here. Ask before the first simulation: a flush
     (:func:`ensure_fresh_cache`) leaves an empty index behind."""
     from . import kernel
 
     try:
-        cache = kernel.run_batch._cache
+        cache = kernel.run_swt._cache
         index = Path(cache._cache_file._index_path)
         stamp = Path(cache._cache_path) / STAMP_NAME
     except AttributeError:

@@ -8,6 +8,10 @@ with the contact, footprint (b_eff) and border taper evaluated at the trial heig
 Newton inside a bracket). At SWT speeds the soil acts on the vertical motion as a very stiff damper
 (elastic unloading modulus K times the footprint area), which an explicit step resolves only below a
 millisecond; the implicit step is stable at 10-20 ms. Then the nodes are updated and the soil flows.
+
+Flags and small integers passed to jitted callees are np.bool_ / np.int64 values, not literals:
+numba compiles a separate copy of a callee for every literal argument (with literals, and a
+parallel batch loop, a cold compile took 49 s; now about 20 s).
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .contact import (
     N_RES,
@@ -181,7 +185,7 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
     zpred = zn + dt * vn
     z_free = zpred - W / c_in  # free fall: no soil force
     if z_free >= ztop:  # the wheel touches nothing at the free-fall height
-        _evaluate(z_free, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
+        _evaluate(z_free, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(False), diag)
         return z_free, True
     z = min(max(zpred, z_free), max(ztop, z_free))
     z_tol = min(Z_TOL, G_TOL * W / c_in)  # the height change whose inertia is G_TOL W
@@ -208,12 +212,12 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
         )
         if not converged or outer == MAX_OUTER - 1:
             # the footprint keeps changing (e.g. k_c << 0): end on the balanced frozen solve
-            _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, True, diag)
+            _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(True), diag)
             break
         g = (
             c_in * (z - zpred)
             + W
-            - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, False, diag)
+            - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(False), diag)
         )
         if abs(g) < OUTER_TOL * W:
             break
@@ -315,7 +319,7 @@ def _volume(h0: np.ndarray, sp: np.ndarray, hl: np.ndarray, dA: float) -> float:
     return total * dA
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # batches run it on several threads (swt.simulate_packed)
 def run_swt(prm: np.ndarray):
     """Simulate one SWT. Returns (series (n_out, N_SERIES), n_out, status, surface, diag).
 
@@ -381,7 +385,7 @@ def run_swt(prm: np.ndarray):
     queue = np.zeros((1 << int(math.ceil(math.log2(nx * ny))), 2), np.int64)  # erosion work list
     inq = np.zeros((nx, ny), np.int8)
     bulldoze = prm[P_BULLDOZE] > 0.5
-    tail = 0  # erosion's work list: nodes that received soil since it last ran
+    tail = np.int64(0)  # erosion's work list: nodes that received soil since it last ran
     erode_every = int(prm[P_EROSIONEVERY])
     for k in range(ncw_max):
         e[k] = np.inf
@@ -411,9 +415,9 @@ def run_swt(prm: np.ndarray):
             h0, sp, sy, ke, js, c0, ncw, n_margin, nyw, e, eb, z_low, pc, pj0, pj1, pst, gtop
         )
         diag[D_PATCH_STEPS] += npatch
-        tick = _lap(diag, D_CYC_GEOMETRY, tick)
+        tick = _lap(diag, np.int64(D_CYC_GEOMETRY), tick)
         z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag)
-        tick = _lap(diag, D_CYC_SOLVE, tick)
+        tick = _lap(diag, np.int64(D_CYC_SOLVE), tick)
         if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
             status = STATUS_UNSTABLE
             break
@@ -451,7 +455,7 @@ def run_swt(prm: np.ndarray):
             ncw,
             nyw,
         )
-        tick = _lap(diag, D_CYC_COMMIT, tick)
+        tick = _lap(diag, np.int64(D_CYC_COMMIT), tick)
         if bulldoze:
             compacted, spilled, tail = flow_and_deposit(
                 prm,
@@ -482,12 +486,12 @@ def run_swt(prm: np.ndarray):
             )
             diag[D_COMPACTED] += compacted
             diag[D_SPILLED] += spilled
-            tick = _lap(diag, D_CYC_FLOW, tick)
+            tick = _lap(diag, np.int64(D_CYC_FLOW), tick)
             if (step + 1) % erode_every == 0 or step == n_steps - 1:
                 grid = (c0, ncw, n_margin, nyw, fwork[0], h0, sp, hl, cflag, queue, inq)
                 diag[D_EROSION_VISITS] += erode(grid, dx, dy, tan_repose, tail)
-                tail = 0
-            tick = _lap(diag, D_CYC_EROSION, tick)
+                tail = np.int64(0)
+            tick = _lap(diag, np.int64(D_CYC_EROSION), tick)
         else:
             diag[D_COMPACTED] += flow * dA  # without flow the displaced soil is compacted
         for k in range(ncw):  # clear the marks of the nodes under the wheel
@@ -514,7 +518,7 @@ def run_swt(prm: np.ndarray):
     return series[:n_out], n_out, status, h0 - sp + hl, diag
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def steady_means(series: np.ndarray, prm: np.ndarray) -> np.ndarray:
     """Means of F, T and z over t >= their offsets (paper section 4.3: 20 s, 20 s, 1 s)."""
     out = np.full(3, np.nan)
@@ -530,23 +534,3 @@ def steady_means(series: np.ndarray, prm: np.ndarray) -> np.ndarray:
         if n > 0:
             out[q] = s / n
     return out
-
-
-@njit(cache=True, parallel=True)
-def run_batch(prms: np.ndarray):
-    """Run many parameter vectors (rows of ``prms``) on all threads.
-
-    Returns (means (n, 3): F [N], T [N m], z [m]; status (n,); diagnostics (n, N_DIAG)).
-    Means of runs that did not finish are NaN.
-    """
-    n = prms.shape[0]
-    means = np.full((n, 3), np.nan)
-    status = np.zeros(n, np.int64)
-    diags = np.zeros((n, N_DIAG))
-    for i in prange(n):
-        series, _, st, _, diag = run_swt(prms[i])
-        status[i] = st
-        diags[i, :] = diag
-        if st == STATUS_OK:
-            means[i, :] = steady_means(series, prms[i])
-    return means, status, diags

@@ -110,7 +110,7 @@ def open_store_or_fail(settings, wait: float = 0.0):
 
 def compile_simulator_once(quiet: bool = False) -> None:
     """Compile the simulator in this process, saying so, when numba's disk cache does not hold
-    it yet (the first run after an install or an upgrade: about a minute, silent otherwise);
+    it yet (the first run after an install or an upgrade: about 20 s, silent otherwise);
     worker processes started afterwards load it from the cache instead of each compiling it."""
     from scm_core.simulator import warm_up
     from scm_core.simulator.jit_cache import kernel_is_cached
@@ -118,7 +118,7 @@ def compile_simulator_once(quiet: bool = False) -> None:
     if kernel_is_cached() is not False:
         return
     if not quiet:
-        click.echo("compiling the simulator, first run only (about a minute) ...", err=True)
+        click.echo("compiling the simulator, first run only (about 20 s) ...", err=True)
     seconds = warm_up()
     if not quiet:
         click.echo(f"simulator compiled in {seconds:.0f} s", err=True)

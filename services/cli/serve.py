@@ -108,8 +108,8 @@ def serve(host: str, port: int, workers: int | None, no_local_workers: bool, log
 
         if kernel_is_cached() is False:
             click.echo(
-                "compiling the simulator in the worker processes, first run only (about a "
-                "minute); /health/ready answers 503 until they are ready",
+                "compiling the simulator in the worker processes, first run only (about 20 "
+                "s); /health/ready answers 503 until they are ready",
                 err=True,
             )
     app = create_app(settings, start_local_runtime=not no_local_workers)

@@ -467,7 +467,7 @@ def test_every_json_file_the_cli_wrote_is_strict_json(work: Path, reference: Pat
 @pytest.mark.slow
 def test_first_run_says_it_compiles_the_simulator(work: Path, tmp_path: Path) -> None:
     """A fresh install (an empty numba cache) is told once that the simulator compiles
-    (about a minute, silent otherwise); the next run loads it from the cache and says nothing."""
+    (about 20 s, silent otherwise); the next run loads it from the cache and says nothing."""
     env = {
         **os.environ,
         "PYTHONPATH": str(Path(__file__).resolve().parents[2]),
