@@ -13,6 +13,10 @@ single-run kernel), after a warm-up. Prints two tables:
 * over ``--draws`` draws of the CMU case's prior at the four calibration rim speeds: mean, median
   and largest wall time per run and the share of runs that did not finish.
 
+Every run averages its whole window: the CMU case's early stop of settled runs
+(``steady_tolerance``) is left out, so the tables measure the simulator itself
+(``benchmarks/bench_steady_stop.py`` measures what the early stop saves).
+
 ``benchmarks/bench_simulator.py`` prints these tables after its own (``--no-lab`` skips them).
 
 Wheels: the paper's (its wheel, soil and rig at the nine slips), the CMU smooth wheel (R 58 mm,
@@ -101,6 +105,7 @@ def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
     case = load_case(CASE)
     terms = sorted((dataset_terms(load_dataset(p)) for p in DATA), key=_slip_key)
     model = StudyModel(case, terms)
+    simulator = {**model.simulator, "steady_tolerance": None}  # the whole window (see above)
     prior = case.prior()
     medians = prior.ppf(np.full((1, prior.dim), 0.5))[0]
     base = dict(zip(case.parameter_names, medians, strict=True))
@@ -122,7 +127,7 @@ def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
     for name, extra in wheels.items():
         for t in terms:
             cfg = build_configs(
-                model.nominal, model.simulator, {**t.conditions, **extra}, {**base, **SOIL}
+                model.nominal, simulator, {**t.conditions, **extra}, {**base, **SOIL}
             )
             _row(fixed, name, f"{_slip_key(t):+.2f}", _median_run(cfg, repeats))
 
@@ -138,9 +143,7 @@ def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
             walls, failed = [], 0
             for theta in thetas:
                 values = dict(zip(case.parameter_names, theta, strict=True))
-                cfg = build_configs(
-                    model.nominal, model.simulator, {**t.conditions, **extra}, values
-                )
+                cfg = build_configs(model.nominal, simulator, {**t.conditions, **extra}, values)
                 r = _run(*cfg)
                 walls.append(float(r["wall"]))
                 failed += r["status"] != "ok"

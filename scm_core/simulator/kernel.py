@@ -58,6 +58,7 @@ from .layout import (
     P_OMEGA,
     P_OUTEVERY,
     P_R,
+    P_SETTLE,
     P_TANREPOSE,
     P_TG,
     P_V,
@@ -116,6 +117,8 @@ OUTER_TOL = 0.05  # footprint re-solves while its change moves the balance by mo
 # nodes jumps by that column's share), so more solves only alternate; the last one is balanced
 MAX_OUTER = 2
 X_PAD = 0.02  # m of untouched soil before the start and after the end of the run
+# fractions of the averaging window of F and T at which a run with a steady tolerance may stop
+SETTLE_CHECKS = (0.25, 0.5, 0.75)
 
 
 @njit(cache=True)
@@ -397,6 +400,9 @@ def run_swt(prm: np.ndarray):
     status = STATUS_OK
     n_out = 0
     t_steady = min(prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z])  # the first averaged sample [s]
+    off_ft = max(prm[P_OFF_F], prm[P_OFF_T])
+    n_checks = len(SETTLE_CHECKS) if prm[P_SETTLE] > 0.0 else 0
+    check = 0  # the next early-stop check
     for step in range(n_steps):
         tick = cycles()
         t = (step + 1) * dt
@@ -512,11 +518,52 @@ def run_swt(prm: np.ndarray):
                 series[n_out, col] = acc[col] / out_every
                 acc[col] = 0.0
             n_out += 1
+            if check < n_checks and t >= off_ft + SETTLE_CHECKS[check] * (n_steps * dt - off_ft):
+                check += 1
+                if settled(series[:n_out], prm, n_steps * dt):
+                    break
         if r_out - zw > prm[P_MAXSINK]:
             status = STATUS_BOTTOMED_OUT
             break
     diag[D_VOLUME1] = _volume(h0, sp, hl, dA)
     return series[:n_out], n_out, status, h0 - sp + hl, diag
+
+
+@njit(cache=True, nogil=True)
+def settled(series: np.ndarray, prm: np.ndarray, duration: float) -> bool:
+    """Whether the steady means of F, T and z so far are settled for early stop: each mean over
+    its window so far (offset to the last sample, length L), extrapolated linearly to the whole
+    window (offset to ``duration``, length L_f), moves by at most the tolerance. For a mean
+    drifting at rate a the two halves of the window so far differ by a L / 2 and the whole
+    window's mean by a (L_f - L) / 2 from the one so far, so the test is
+    |mean(second half) - mean(first half)| (L_f - L) / L <= tol, with tol = P_SETTLE times W
+    (F), W R (T) and R (z)."""
+    n = series.shape[0]
+    if n < 8:
+        return False
+    t_now = series[n - 1, S_T]
+    offs = (prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z])
+    cols = (S_F, S_TORQUE, S_Z)
+    scales = (prm[P_W], prm[P_W] * prm[P_R], prm[P_R])
+    for q in range(3):
+        i0 = 0
+        while i0 < n and series[i0, S_T] < offs[q] - 1e-9:
+            i0 += 1
+        m = n - i0
+        length = t_now - offs[q]
+        if m < 4 or length <= 0.0:
+            return False
+        half = m // 2
+        a = 0.0
+        for i in range(i0, i0 + half):
+            a += series[i, cols[q]]
+        b = 0.0
+        for i in range(i0 + half, n):
+            b += series[i, cols[q]]
+        change = abs(b / (m - half) - a / half) * (duration - offs[q] - length) / length
+        if change > prm[P_SETTLE] * scales[q]:
+            return False
+    return True
 
 
 @njit(cache=True, nogil=True)

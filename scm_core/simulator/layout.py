@@ -51,7 +51,8 @@ P_PLOUGH = 35  # fraction of a skidding wheel's path pushed ahead (0: off)
 P_DIGMOB = 36  # drive digging: 1 mobilised (dug depth d f), 0 thinning
 P_FACEPLOUGH = 37  # skid ploughing: 1 the front face's sliding zone (derived), 0 kappa
 P_EROSIONEVERY = 38  # steps between erosion passes
-N_PARAMS = 39
+P_SETTLE = 39  # early stop once the steady means are settled (fraction of W, W R, R; 0: off)
+N_PARAMS = 40
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -108,4 +109,5 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_DIGMOB] = 1.0 if rig.drive_digging == "mobilised" else 0.0
     p[P_FACEPLOUGH] = 1.0 if rig.skid_ploughing == "sliding_face" else 0.0
     p[P_EROSIONEVERY] = rig.erosion_every
+    p[P_SETTLE] = rig.steady_tolerance
     return p

@@ -201,6 +201,16 @@ class RigConfig(_Frozen):
         "50 s suits a wheel whose sinkage settles at once; 0.4 (the window of F and T) for "
         "one that digs in or skids",
     )
+    steady_tolerance: float | None = Field(
+        None,
+        gt=0.0,
+        lt=1.0,
+        description="Stop a run once its steady means are settled: at a quarter, a half and "
+        "three quarters of the averaging window of F and T, the run ends if each mean so far, "
+        "extrapolated linearly to the whole window (from the difference of its two halves), "
+        "moves by at most this fraction of W (F), W R (T) and R (z); None: average the whole "
+        "window (the paper's set-up). An approximation: the case records it",
+    )
     border_taper: bool = Field(True, description="Pressure border taper gamma_i of eq. (7)")
     bulldozing: bool = Field(True, description="Plastic soil flow and erosion (section 3.2)")
     shear: Literal["velocity", "displacement"] = Field(

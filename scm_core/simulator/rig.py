@@ -61,6 +61,7 @@ class ResolvedRig:
     output_rate: float
     output_every: int
     erosion_every: int  # steps between erosion passes
+    steady_tolerance: float  # early stop of a settled run (fraction of W, W R, R; 0: off)
     offset_F: float
     offset_T: float
     offset_z: float
@@ -135,6 +136,7 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         output_rate=rig.output_rate,
         output_every=max(1, round(1.0 / (rig.output_rate * dt))),
         erosion_every=max(1, int(dt_carriage / dt + 1e-9)),
+        steady_tolerance=rig.steady_tolerance or 0.0,
         offset_F=off_F,
         offset_T=off_T,
         offset_z=off_z,
