@@ -14,7 +14,7 @@ import json
 import math
 from typing import Any
 
-__all__ = ["decode_float", "dumps", "encode_float"]
+__all__ = ["decode_float", "dumps", "encode_float", "finite_or_none"]
 
 _NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
 
@@ -27,6 +27,16 @@ def encode_float(x: float) -> float | str:
     if math.isnan(x):
         return "nan"
     return "inf" if x > 0 else "-inf"
+
+
+def finite_or_none(x: Any) -> float | None:
+    """A float for a JSON value that has no room for NaN or infinity: the finite float, or None
+    (also for what is not a number)."""
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
 
 
 def decode_float(x: float | int | str) -> float:

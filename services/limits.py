@@ -14,7 +14,7 @@ from typing import Any
 
 from services.config import Settings
 
-#: largest id or count a database integer column (BIGINT) holds
+#: largest id, count or seed a database integer column (BIGINT) holds
 INT64_MAX = 2**63 - 1
 #: largest stage or batch index (INTEGER columns)
 INT32_MAX = 2**31 - 1

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -11,20 +10,12 @@ from numpy.typing import NDArray
 
 from scm_core.inference.posterior import credible_interval, summarize_result
 from scm_core.inference.tmcmc import TMCMCResult
+from scm_core.jsondoc import finite_or_none
 
 from .case import RESPONSES, CaseDefinition
 from .model import StudyModel
 
-__all__ = ["finite_or_none", "stage_table", "study_summary"]
-
-
-def finite_or_none(x: Any) -> float | None:
-    """A float for JSON, or None for NaN / inf (strict JSON has neither)."""
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
+__all__ = ["stage_table", "study_summary"]
 
 
 def _by_name(names: Sequence[str], values: NDArray[np.float64]) -> dict[str, float | None]:

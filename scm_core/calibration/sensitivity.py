@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from pydantic import ValidationError
 
 from scm_core.inference.morris import MorrisDesign, morris_analyze, morris_design
+from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
 from scm_core.simulator import simulate_packed
 from scm_core.simulator.layout import N_PARAMS, pack
@@ -204,7 +205,7 @@ class SensitivityResult:
 
         def table(a: NDArray[np.float64]) -> dict[str, dict[str, float | None]]:
             return {
-                resp: {n: _num(a[i, k]) for i, n in enumerate(self.names)}
+                resp: {n: finite_or_none(a[i, k]) for i, n in enumerate(self.names)}
                 for k, resp in enumerate(RESPONSES)
             }
 
@@ -236,11 +237,6 @@ class SensitivityResult:
                 for k, resp in enumerate(RESPONSES)
             },
         }
-
-
-def _num(x: float) -> float | None:
-    x = float(x)
-    return x if np.isfinite(x) else None
 
 
 def _nan_stats(ee: NDArray[np.float64]):

@@ -6,26 +6,29 @@ as a whole."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference.early_rejection import evaluate_staged, n_parts
-from scm_core.inference.population_jump import JUMP_DOF, jump_log_density, jump_proposal
+from scm_core.inference.early_rejection import n_parts
+from scm_core.inference.population_jump import JUMP_DOF
 from scm_core.inference.surrogate import ResponseSurrogate, fit_surrogate, supports_surrogate
-from scm_core.inference.tmcmc_eval import batch_output, tempered
-from scm_core.inference.tmcmc_moves import move_of
-from scm_core.inference.tmcmc_types import ChainBatchResult, LogLikelihoodBatch, StagePlan
-from scm_core.inference.walk_space import (
-    from_walk,
-    log_columns,
-    log_proposal_ratio,
-    rows_times,
-    to_walk,
+from scm_core.inference.tmcmc_eval import tempered
+from scm_core.inference.tmcmc_moves import Move, move_of
+from scm_core.inference.tmcmc_steps import (
+    ChainNumbers,
+    ChainState,
+    MoveStrategy,
+    PlainSteps,
+    StepContext,
+    SurrogateTransition,
 )
+from scm_core.inference.tmcmc_types import ChainBatchResult, LogLikelihoodBatch, StagePlan
+from scm_core.inference.walk_space import log_columns
 
-__all__ = ["chain_rng", "run_chains", "surrogate_floor"]
+__all__ = ["chain_rng", "draw_numbers", "run_chains", "surrogate_floor"]
 
 #: nats below the lowest tempered likelihood part of a stage's starting states at which the
 #: surrogate target is floored where the surrogate gives no finite value
@@ -72,24 +75,6 @@ def surrogate_floor(plan: StagePlan) -> float:
     return float(finite.min() - FLOOR_MARGIN) if finite.size else 0.0
 
 
-def _surrogate_target(
-    sur: ResponseSurrogate,
-    f: LogLikelihoodBatch,
-    X: NDArray[np.float64],
-    log_prior: NDArray[np.float64],
-    exponent: float,
-    floor: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(log pi~ = log prior + (log b~ + exponent log L~, or ``floor`` where that is not
-    finite), log L~) at X, from the surrogate's responses."""
-    if X.shape[0] == 0:
-        return np.empty(0), np.empty(0)
-    ll, _, _, base = batch_output(f.from_responses(X, sur.predict(X)), X)
-    with np.errstate(invalid="ignore"):
-        part = tempered(np.zeros(X.shape[0]) if base is None else base, ll, exponent)
-    return log_prior + np.where(np.isfinite(part), part, floor), ll
-
-
 def run_chains(
     plan: StagePlan,
     chain_indices: Sequence[int] | NDArray[np.integer],
@@ -124,22 +109,72 @@ def run_chains(
     if np.unique(idx).size != idx.size:
         raise ValueError("chain indices must be distinct")
     f = log_likelihood_batch
-    prior = plan.prior
-    d = plan.start_samples.shape[1]
-    p = plan.exponent
     settings = plan.settings
     lengths = plan.chain_length[idx]
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-    total = int(offsets[-1])
     sur = _surrogate_for(plan, f)
     K = int(settings.surrogate_steps) if settings.delayed_acceptance else 1
-
     jumps = sur is not None and settings.surrogate_jumps > 0.0 and plan.jump_chol is not None
-    Z = np.empty((total * K, d))
-    log_u = np.empty(total * K)
-    log_u1 = np.empty(total * K)
-    jump_at = np.zeros(total * K, dtype=bool)
-    chi2 = np.ones(total * K)
+    parts = n_parts(f)
+    ctx = StepContext(
+        plan=plan,
+        f=f,
+        numbers=draw_numbers(plan, idx, offsets, K, jumps),
+        offsets=offsets,
+        K=K,
+        logs=log_columns(plan.prior, settings.proposal_scale),
+        jumps=jumps,
+        staged=settings.early_rejection and parts > 1,
+        parts=parts,
+    )
+    state = ChainState(
+        x=plan.start_samples[idx].copy(),
+        ll=plan.start_log_likelihood[idx].copy(),
+        lp=plan.start_log_prior[idx].copy(),
+        resp=None if plan.start_responses is None else plan.start_responses[idx].copy(),
+        keep_evaluated=settings.delayed_acceptance and plan.start_responses is not None,
+    )
+    strategy: MoveStrategy = (
+        PlainSteps(count_inner=settings.delayed_acceptance)
+        if sur is None
+        else SurrogateTransition(sur, surrogate_floor(plan), ctx, state)
+    )
+    accepted = np.zeros(idx.size, dtype=np.int64)
+    proposed = np.zeros(idx.size, dtype=np.int64)
+    out = _Output(move_of(settings.moves), lengths, state)
+    for t in range(int(lengths.max()) if idx.size else 0):
+        active = np.flatnonzero(lengths > t)
+        accepted[active] += strategy.move(ctx, state, active, t)
+        proposed[active] += 1
+        out.emit(state, active, t)
+    return ChainBatchResult(
+        stage=plan.stage,
+        chain_indices=idx,
+        **out.result(state),
+        accepted=accepted,
+        proposed=proposed,
+        surrogate_error=state.error,
+        **_evaluated(state, idx.size, plan.start_samples.shape[1]),
+        **dataclasses.asdict(state.counters),
+    )
+
+
+def draw_numbers(
+    plan: StagePlan, idx: NDArray[np.int64], offsets: NDArray[np.int64], K: int, jumps: bool
+) -> ChainNumbers:
+    """Every random number of the chains ``idx``, each chain's from :func:`chain_rng` in a
+    fixed order: the normal variates, the acceptance numbers, with delayed acceptance the inner
+    steps' numbers, then (with jumps) the jumps' choices and chi-square variates; so a chain's
+    numbers do not depend on its batch, and a chain without jumps draws what it drew before
+    jumps existed."""
+    d = plan.start_samples.shape[1]
+    settings = plan.settings
+    total = int(offsets[-1]) * K
+    Z = np.empty((total, d))
+    log_u = np.empty(total)
+    log_u1 = np.empty(total)
+    jump_at = np.zeros(total, dtype=bool)
+    chi2 = np.ones(total)
     for k, c in enumerate(idx):
         rng = chain_rng(plan.seed, plan.stage, int(c))
         a, b = offsets[k] * K, offsets[k + 1] * K
@@ -148,253 +183,76 @@ def run_chains(
             log_u[a:b] = np.log(rng.random(b - a))
             if settings.delayed_acceptance:
                 log_u1[a:b] = np.log(rng.random(b - a))
-        if jumps:  # drawn last: the other numbers are those of a chain without jumps
+        if jumps:
             jump_at[a:b] = rng.random(b - a) < settings.surrogate_jumps
             chi2[a:b] = rng.chisquare(JUMP_DOF, b - a)
+    return ChainNumbers(Z, log_u, log_u1, jump_at, chi2)
 
-    x = plan.start_samples[idx].copy()
-    ll = plan.start_log_likelihood[idx].copy()
-    lp = plan.start_log_prior[idx].copy()
-    resp = None if plan.start_responses is None else plan.start_responses[idx].copy()
-    accepted = np.zeros(idx.size, dtype=np.int64)
-    proposed = np.zeros(idx.size, dtype=np.int64)
-    n = dict.fromkeys(
-        (
-            "model_runs",
-            "failed_runs",
-            "out_of_support",
-            "part_runs",
-            "part_runs_saved",
-            "early_rejections",
-            "first_stage_rejections",
-            "surrogate_checks",
-            "inner_accepted",
-            "inner_proposed",
-            "jump_accepted",
-            "jump_proposed",
-        ),
-        0,
-    )
-    error = np.zeros(idx.size)  # per chain: sum of |log L~ - log L| at its full evaluations
-    # states the model evaluated (chain position, state, responses), in step order
-    keep_evaluated = settings.delayed_acceptance and resp is not None
-    ev_pos: list[NDArray[np.int64]] = []
-    ev_x: list[NDArray[np.float64]] = []
-    ev_r: list[NDArray[np.float64]] = []
-    parts = n_parts(f)
-    staged = settings.early_rejection and parts > 1
-    if sur is not None:
-        floor = surrogate_floor(plan)
-        sur_x, _ = _surrogate_target(sur, f, x, np.asarray(prior.log_pdf(x), float), p, floor)
 
-    logs = log_columns(prior, settings.proposal_scale)
+class _Output:
+    """The samples a batch's chains give: their final states, or (a move that keeps every
+    step: leader, waste-free) every state after each move, and the start where kept."""
 
-    def propose(y: NDArray[np.float64], rows: NDArray[np.int64]):
-        """(x', log prior at x' (-inf outside the support), inside, log q(x | x') -
-        log q(x' | x)) for states y: a random-walk step in walk coordinates
-        (:mod:`scm_core.inference.walk_space`)."""
-        if logs.any():
-            u = to_walk(y, logs)
-            u_prop = u + rows_times(plan.proposal_chol, Z[rows])
-            y_prop = from_walk(u_prop, logs)
-            q_ratio = log_proposal_ratio(u_prop, u, logs)
-        else:
-            y_prop = y + rows_times(plan.proposal_chol, Z[rows])
-            q_ratio = np.zeros(y.shape[0])
-        if jumps:
-            jump = jump_at[rows]
-            if jump.any():
-                # population jumps: an independence proposal from the t of the population
-                u_old = to_walk(y[jump], logs)
-                u_new = jump_proposal(
-                    plan.jump_mean, plan.jump_chol, Z[rows[jump]], chi2[rows[jump]]
-                )
-                y_prop[jump] = from_walk(u_new, logs)
-                q_ratio[jump] = (
-                    jump_log_density(u_old, plan.jump_mean, plan.jump_inv)
-                    - jump_log_density(u_new, plan.jump_mean, plan.jump_inv)
-                    + log_proposal_ratio(u_new, u_old, logs)
-                )
-        lp_prop = np.asarray(prior.log_pdf(y_prop), dtype=float)
-        ok = np.isfinite(lp_prop) & np.asarray(prior.in_support(y_prop))
-        n["out_of_support"] += ok.size - int(np.count_nonzero(ok))
-        return y_prop, np.where(ok, lp_prop, -np.inf), ok, q_ratio
+    def __init__(self, move: Move, lengths: NDArray[np.int64], state: ChainState) -> None:
+        self.keep_all = move.keeps_every_step
+        if not self.keep_all:
+            return
+        self.first = int(move.keeps_start)
+        self.counts = (lengths + self.first).astype(np.int64)
+        self.off = np.concatenate([[0], np.cumsum(self.counts)]).astype(np.int64)
+        n_out, d = int(self.off[-1]), state.x.shape[1]
+        self.x = np.empty((n_out, d))
+        self.ll = np.empty(n_out)
+        self.lp = np.empty(n_out)
+        self.resp = None if state.resp is None else np.empty((n_out, state.resp.shape[1]))
+        if self.first:
+            self._put(state, np.arange(state.x.shape[0]), self.off[:-1])
 
-    def model_step(
-        active: NDArray[np.int64],
-        x_prop: NDArray[np.float64],
-        lp_prop: NDArray[np.float64],
-        run: NDArray[np.bool_],
-        log_un: NDArray[np.float64],
-        gate: NDArray[np.float64],
-        sur_ll: NDArray[np.float64] | None,
-    ) -> NDArray[np.bool_]:
-        """Run the model at x_prop[run] and accept with log u < log pi(x') - log pi(x) - gate
-        (gate: the surrogate's log pi~(x') - log pi~(x), 0 for a plain step); the accepted
-        chains move. Returns the accepted mask."""
-        with np.errstate(invalid="ignore"):
-            current = tempered(lp[active], ll[active], p)  # log pi(x)
-        lp_prop = lp_prop.copy()
-        ll_prop = np.full(active.size, -np.inf)
-        resp_prop = None
-        n_run = int(np.count_nonzero(run))
-        if n_run:
-            evaluated = run
-            if staged:
-                with np.errstate(invalid="ignore"):
-                    threshold = (log_un + current + gate - lp_prop)[run]
-                ev = evaluate_staged(f, x_prop[run], threshold, p)
-                evaluated = run.copy()
-                evaluated[run] = ev.complete
-                n["part_runs"] += ev.part_runs
-                n["part_runs_saved"] += ev.part_runs_saved
-                n["early_rejections"] += int(np.count_nonzero(ev.rejected))
-                n["failed_runs"] += ev.failed_rejected
-                out = ev.output
-            else:
-                out = f(x_prop[run])
-                n["part_runs"] += n_run * parts
-            n["model_runs"] += n_run
-            lp_prop[run & ~evaluated] = -np.inf
-            if out is not None:
-                ll_ok, resp_ok, n_failed, base_ok = batch_output(out, x_prop[evaluated])
-                ll_prop[evaluated] = ll_ok
-                if base_ok is not None:
-                    lp_prop[evaluated] = lp_prop[evaluated] + base_ok
-                n["failed_runs"] += n_failed
-                if resp is not None:
-                    if resp_ok is None or resp_ok.shape[1] != resp.shape[1]:
-                        raise ValueError(
-                            "log_likelihood_batch must return the same responses shape"
-                        )
-                    resp_prop = np.full((active.size, resp.shape[1]), np.nan)
-                    resp_prop[evaluated] = resp_ok
-                    if keep_evaluated:
-                        fin = np.all(np.isfinite(resp_ok), axis=1)
-                        ev_pos.append(active[evaluated][fin])
-                        ev_x.append(x_prop[evaluated][fin])
-                        ev_r.append(resp_ok[fin])
-                if sur_ll is not None:
-                    diff = np.abs(ll_ok - sur_ll[evaluated])
-                    fin = np.isfinite(diff)
-                    n["surrogate_checks"] += int(np.count_nonzero(fin))
-                    chains = active[evaluated][fin]
-                    error[chains] = error[chains] + diff[fin]
-        with np.errstate(invalid="ignore"):
-            log_ratio = tempered(lp_prop, ll_prop, p) - current - gate
-        acc = run & (log_un < log_ratio)
-        moved = active[acc]
-        x[moved] = x_prop[acc]
-        ll[moved] = ll_prop[acc]
-        lp[moved] = lp_prop[acc]
-        if resp is not None and resp_prop is not None:
-            resp[moved] = resp_prop[acc]
-        return acc
+    def _put(self, state: ChainState, active: NDArray[np.int64], rows: NDArray[np.int64]):
+        self.x[rows] = state.x[active]
+        self.ll[rows] = state.ll[active]
+        self.lp[rows] = state.lp[active]
+        if self.resp is not None:
+            self.resp[rows] = state.resp[active]
 
-    def plain_move(active: NDArray[np.int64], t: int) -> NDArray[np.bool_]:
-        """K plain Metropolis steps (one without delayed acceptance): moved mask."""
-        moved = np.zeros(active.size, dtype=bool)
-        for j in range(K):
-            rows = (offsets[active] + t) * K + j
-            x_prop, lp_prop, ok, q_ratio = propose(x[active], rows)
-            acc = model_step(active, x_prop, lp_prop, ok, log_u[rows], -q_ratio, None)
-            moved |= acc
-            if settings.delayed_acceptance:
-                n["inner_proposed"] += active.size
-                n["inner_accepted"] += int(np.count_nonzero(acc))
-        return moved
+    def emit(self, state: ChainState, active: NDArray[np.int64], t: int) -> None:
+        """After move t of the chains ``active``."""
+        if self.keep_all:
+            self._put(state, active, self.off[active] + self.first + t)
 
-    def surrogate_move(active: NDArray[np.int64], t: int) -> NDArray[np.bool_]:
-        """K Metropolis steps on pi~ from x to y, then the model's correction: moved mask."""
-        y = x[active].copy()
-        lp_y = np.asarray(prior.log_pdf(y), dtype=float)
-        sur_y = sur_x[active].copy()
-        sur_ll = np.full(active.size, np.nan)
-        for j in range(K):
-            rows = (offsets[active] + t) * K + j
-            y_prop, lp_prop, ok, q_ratio = propose(y, rows)
-            s_prop = np.full(active.size, -np.inf)
-            ll_tilde = np.full(active.size, np.nan)
-            s_prop[ok], ll_tilde[ok] = _surrogate_target(sur, f, y_prop[ok], lp_prop[ok], p, floor)
-            acc = ok & (log_u1[rows] < s_prop - sur_y + q_ratio)
-            if jumps:
-                n["jump_proposed"] += int(np.count_nonzero(jump_at[rows]))
-                n["jump_accepted"] += int(np.count_nonzero(acc & jump_at[rows]))
-            y[acc], lp_y[acc], sur_y[acc], sur_ll[acc] = (
-                y_prop[acc],
-                lp_prop[acc],
-                s_prop[acc],
-                ll_tilde[acc],
-            )
-            n["inner_proposed"] += active.size
-            n["inner_accepted"] += int(np.count_nonzero(acc))
-        run = np.any(y != x[active], axis=1)
-        n["first_stage_rejections"] += active.size - int(np.count_nonzero(run))
-        gate = np.where(run, sur_y - sur_x[active], 0.0)
-        rows = (offsets[active] + t) * K
-        acc = model_step(active, y, lp_y, run, log_u[rows], gate, sur_ll)
-        sur_x[active[acc]] = sur_y[acc]
-        return acc
-
-    move = move_of(settings.moves)
-    keep_all = move.keeps_every_step
-    if keep_all:
-        # every state after each move is a sample, and the start too where the move keeps it
-        first = int(move.keeps_start)
-        counts = (lengths + first).astype(np.int64)
-        out_off = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        n_out = int(out_off[-1])
-        out_x = np.empty((n_out, d))
-        out_ll = np.empty(n_out)
-        out_lp = np.empty(n_out)
-        out_resp = None if resp is None else np.empty((n_out, resp.shape[1]))
-
-        def emit(active: NDArray[np.int64], rows: NDArray[np.int64]) -> None:
-            out_x[rows] = x[active]
-            out_ll[rows] = ll[active]
-            out_lp[rows] = lp[active]
-            if out_resp is not None:
-                out_resp[rows] = resp[active]
-
-        if first:
-            emit(np.arange(idx.size), out_off[:-1])
-
-    n_max = int(lengths.max()) if idx.size else 0
-    for t in range(n_max):
-        active = np.flatnonzero(lengths > t)
-        moved = surrogate_move(active, t) if sur is not None else plain_move(active, t)
-        accepted[active] += moved
-        proposed[active] += 1
-        if keep_all:
-            emit(active, out_off[active] + first + t)
-
-    if keep_all:
-        samples, log_l, log_p, responses = out_x, out_ll, out_lp, out_resp
-    else:
-        counts = np.ones(idx.size, dtype=np.int64)
-        samples, log_l, log_p, responses = x, ll, lp, resp
-    evaluated = {}
-    if keep_evaluated:
-        pos = np.concatenate(ev_pos) if ev_pos else np.empty(0, dtype=np.int64)
-        order = np.argsort(pos, kind="stable")  # chain by chain, each in step order
-        evaluated = {
-            "evaluated_counts": np.bincount(pos, minlength=idx.size).astype(np.int64),
-            "evaluated_samples": (np.concatenate(ev_x) if ev_x else np.empty((0, d)))[order],
-            "evaluated_responses": (np.concatenate(ev_r) if ev_r else np.empty((0, resp.shape[1])))[
-                order
-            ],
+    def result(self, state: ChainState) -> dict[str, object]:
+        if self.keep_all:
+            return {
+                "output_counts": self.counts,
+                "samples": self.x,
+                "log_likelihood": self.ll,
+                "log_prior": self.lp,
+                "responses": self.resp,
+            }
+        return {
+            "output_counts": np.ones(state.x.shape[0], dtype=np.int64),
+            "samples": state.x,
+            "log_likelihood": state.ll,
+            "log_prior": state.lp,
+            "responses": state.resp,
         }
-    return ChainBatchResult(
-        stage=plan.stage,
-        chain_indices=idx,
-        output_counts=counts,
-        samples=samples,
-        log_likelihood=log_l,
-        log_prior=log_p,
-        responses=responses,
-        accepted=accepted,
-        proposed=proposed,
-        surrogate_error=error,
-        **evaluated,
-        **n,
-    )
+
+
+def _evaluated(state: ChainState, c: int, d: int) -> dict[str, NDArray]:
+    """The states the chains' model runs evaluated, chain by chain in step order (the
+    surrogate's next training states), as ChainBatchResult fields; empty without delayed
+    acceptance."""
+    if not state.keep_evaluated:
+        return {}
+    pos = np.concatenate(state.ev_pos) if state.ev_pos else np.empty(0, dtype=np.int64)
+    order = np.argsort(pos, kind="stable")
+    k = state.resp.shape[1]
+    return {
+        "evaluated_counts": np.bincount(pos, minlength=c).astype(np.int64),
+        "evaluated_samples": (np.concatenate(state.ev_x) if state.ev_x else np.empty((0, d)))[
+            order
+        ],
+        "evaluated_responses": (np.concatenate(state.ev_r) if state.ev_r else np.empty((0, k)))[
+            order
+        ],
+    }

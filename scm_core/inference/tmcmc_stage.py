@@ -31,11 +31,13 @@ prior: the stages then temper from prior x b (exponent 0) to prior x b x L (expo
 5.3) uses it with b = L(earlier data) and stage 0 = the earlier posterior's population, so the
 evidence it accumulates is the incremental one, Z(new | old) (see :func:`initial_state`).
 
-Two move schemes (``TMCMCSettings.moves``):
+Three move schemes (``TMCMCSettings.moves``):
 
-* ``"resample-move"`` (default): every resampled point starts a chain of ``n_steps`` Metropolis
-  steps; the chain's final state is the new sample. ``n_steps`` is fixed or adapted so that a
-  chain moves at least once with probability ``move_probability`` given the last acceptance rate.
+* ``"resample-move"`` (the default of :class:`TMCMCSettings`; a study that names no moves runs
+  ``"waste-free"``, :data:`~scm_core.inference.tmcmc_moves.STUDY_MOVES`): every resampled
+  point starts a chain of ``n_steps`` Metropolis steps; the chain's final state is the new
+  sample. ``n_steps`` is fixed or adapted so that a chain moves at least once with probability
+  ``move_probability`` given the last acceptance rate.
 * ``"leader"`` (the paper's form): each distinct resampled point leads one chain whose length is
   its multiplicity and every visited state is a new sample, i.e. at most one model run per sample
   and stage (out-of-support proposals are rejected without one). Cheap, but measurably biased on
@@ -49,6 +51,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import fields
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,6 +66,7 @@ from scm_core.inference.tmcmc_stage0 import (
     initial_state,
     stage_rng,
 )
+from scm_core.inference.tmcmc_steps import ChainCounters
 from scm_core.inference.tmcmc_types import (
     MOVES,
     ChainBatchResult,
@@ -296,15 +300,12 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
     accepted = int(sum(int(r.accepted.sum()) for r in results))
     proposed = int(sum(int(r.proposed.sum()) for r in results))
     acceptance = accepted / proposed if proposed else math.nan
-    inner_accepted = int(sum(r.inner_accepted for r in results))
-    inner_proposed = int(sum(r.inner_proposed for r in results))
-    jump_accepted = int(sum(r.jump_accepted for r in results))
-    jump_proposed = int(sum(r.jump_proposed for r in results))
+    n = {c.name: int(sum(getattr(r, c.name) for r in results)) for c in fields(ChainCounters)}
     # the proposal scale follows the random-walk steps it drives: a surrogate transition's
     # inner steps (less its population jumps) when there are any, else the moves themselves
-    walk_proposed = inner_proposed - jump_proposed
+    walk_proposed = n["inner_proposed"] - n["jump_proposed"]
     step_acceptance = (
-        (inner_accepted - jump_accepted) / walk_proposed if walk_proposed else acceptance
+        (n["inner_accepted"] - n["jump_accepted"]) / walk_proposed if walk_proposed else acceptance
     )
     stalled = (plan.exponent - plan.prev_exponent) < plan.settings.stall_tol
     return StageState(
@@ -322,26 +323,15 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
             if math.isnan(plan.log_evidence_var)
             else plan.log_evidence_var
         ),
-        model_runs=int(sum(r.model_runs for r in results)),
-        failed_runs=int(sum(r.failed_runs for r in results)),
         proposals=proposed,
         accepted=accepted,
-        out_of_support=int(sum(r.out_of_support for r in results)),
         n_chains=plan.n_chains,
         n_steps=int(plan.chain_length.max()),
         ess=float(plan.ess),
         stall_count=plan.prev_stall_count + 1 if stalled else 0,
         seed=plan.seed,
-        part_runs=int(sum(r.part_runs for r in results)),
-        early_rejections=int(sum(r.early_rejections for r in results)),
-        part_runs_saved=int(sum(r.part_runs_saved for r in results)),
-        first_stage_rejections=int(sum(r.first_stage_rejections for r in results)),
-        surrogate_checks=int(sum(r.surrogate_checks for r in results)),
         surrogate_error_sum=float(np.sum(_chain_ordered(results, "surrogate_error"))),
-        inner_accepted=inner_accepted,
-        inner_proposed=inner_proposed,
-        jump_accepted=jump_accepted,
-        jump_proposed=jump_proposed,
+        **n,
         eve=None if plan.start_eve is None else plan.start_eve[row_chain[order]],
         **_training_set(plan, results),
     )

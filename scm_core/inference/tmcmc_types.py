@@ -62,16 +62,20 @@ class _Fields:
 class TMCMCSettings(_Fields):
     """Tuning of the sampler; stored with a study so that every stage is reproducible.
 
-    The defaults are the unaccelerated accurate form (resample-move without a surrogate);
-    the accelerated accurate form of issue 12 (docs/calibration.md) is ``moves="waste-free",
-    n_steps=4, delayed_acceptance=True, surrogate_steps=10, proposal_scale="log"``, with
-    ``resampling="multinomial"`` for a right evidence standard error. Each part is exact.
+    These field defaults are the unaccelerated accurate form (resample-move without a
+    surrogate), the sampler's own. A study that names no moves gets the accelerated accurate
+    form instead (:data:`scm_core.inference.tmcmc_moves.STUDY_MOVES`, its settings from
+    :func:`~scm_core.inference.tmcmc_moves.form_defaults`: waste-free chains of surrogate
+    transitions, ``ACCELERATED_STEPS`` inner steps with a share ``ACCELERATED_JUMPS`` of
+    population jumps, the log walk and multinomial resampling; docs/calibration.md). Each part
+    is exact.
 
     moves: "resample-move" (default, accurate), "leader" (paper's budget, one run per sample) or
         "waste-free" (Dau & Chopin 2022: under one run per sample, every chain state kept).
     n_steps: Metropolis steps per chain for resample-move; None adapts it per stage with
         :func:`steps_for_acceptance` (``initial_steps`` for stage 1, where no acceptance is known).
-        For waste-free: the moves of each chain (states per chain less one; None: 9).
+        For waste-free: the moves of each chain (states per chain less one; None:
+        :data:`~scm_core.inference.tmcmc_moves.WASTE_FREE_STEPS`).
     min_steps, max_steps: clip of the adapted n_steps.
     move_probability: adapted n_steps makes P(chain moves at least once) reach this value.
     target_cov: coefficient of variation of the plausibility weights (Ching & Chen: 1.0).

@@ -15,7 +15,6 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from services.limits import INT32_MAX, INT64_MAX
 
-SEED_MAX = 2**63 - 1
 #: ids: what a BIGINT column holds; counts and sizes: what an INTEGER column holds
 ID_MAX = INT64_MAX
 COUNT_MAX = INT32_MAX
@@ -154,7 +153,7 @@ class StudyCreate(_In):
         default_factory=list, description="Stored datasets (POST /datasets), likelihood order."
     )
     name: str | None = Field(None, min_length=1, max_length=200)
-    seed: int | None = Field(None, ge=0, le=SEED_MAX)
+    seed: int | None = Field(None, ge=0, le=INT64_MAX)
     n_samples: int | None = Field(None, le=COUNT_MAX, description="Samples per stage (>= 10).")
     moves: Literal["resample-move", "leader", "waste-free"] | None = Field(
         None,
@@ -297,7 +296,7 @@ class SensitivityCreate(_In):
     )
     r: int = Field(20, ge=2, le=1000, description="Morris trajectories.")
     levels: int = Field(4, ge=2, le=20, description="Grid levels (even).")
-    seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the design.")
+    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the design.")
     separate_k: bool = Field(
         False, description="Screen k_c and k_phi apart instead of jointly through k* (eq. 11)."
     )
@@ -448,7 +447,7 @@ class PooledRequest(_In):
         le=COUNT_MAX,
         description="Samples taken from each study (default: the smallest study's).",
     )
-    seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the subsampling.")
+    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the subsampling.")
     include_samples: bool = Field(False, description="Also return the pooled samples.")
 
 

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scm_core.calibration import RESPONSES
 from scm_core.inference.posterior import credible_interval, summarize
 from scm_core.inference.priors import LOG_SCALE_KINDS
+from scm_core.jsondoc import finite_or_none
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 from services.store.records import Page
 from services.studies.kinds import kind_of, study_terms
@@ -48,15 +49,6 @@ def page_out(model: Callable[..., PageT], page: Page, item: Callable[[Any], Any]
         offset=page.offset,
         next_offset=page.next_offset,
     )
-
-
-def num(x: Any) -> float | None:
-    """A finite float, or None (JSON has no NaN or infinity)."""
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 def num_list(a: NDArray[np.float64]) -> list:
@@ -112,7 +104,7 @@ def study_brief(study: StudyRecord) -> StudyBrief:
         n_samples=study.n_samples,
         batch_size=study.batch_size,
         current_stage=study.current_stage,
-        log_evidence=num(study.log_evidence),
+        log_evidence=finite_or_none(study.log_evidence),
         model_runs=study.model_runs,
         failed_runs=study.failed_runs,
         created_at=study.created_at,
@@ -127,7 +119,7 @@ def study_out(store: Store, study: StudyRecord) -> StudyOut:
     terms = study_terms(study)
     return StudyOut(
         **study_brief(study).model_dump(),
-        log_evidence_var=num(study.log_evidence_var),
+        log_evidence_var=finite_or_none(study.log_evidence_var),
         case=study.case,
         priors=terms.priors,
         sampler=terms.sampler,
@@ -216,7 +208,7 @@ def study_progress(store: Store, study: StudyRecord, now: datetime | None = None
         status=study.status,
         stage=study.current_stage,
         stage_status=None if stage is None else stage.status,
-        exponent=None if stage is None else num(stage.exponent),
+        exponent=None if stage is None else finite_or_none(stage.exponent),
         evaluations_done=done,
         evaluations_planned=planned,
         batches_done=batches_done,
@@ -234,13 +226,13 @@ def stage_out(store: Store, stage: StageRecord) -> StageOut:
     return StageOut(
         stage=stage.stage_index,
         status=stage.status,
-        exponent=num(stage.exponent),
-        prev_exponent=num(stage.prev_exponent),
-        beta=num(stage.beta),
-        acceptance=num(stage.acceptance),
-        ess=num(stage.ess),
-        log_evidence_increment=num(stage.log_evidence_increment),
-        log_evidence=num(stage.log_evidence),
+        exponent=finite_or_none(stage.exponent),
+        prev_exponent=finite_or_none(stage.prev_exponent),
+        beta=finite_or_none(stage.beta),
+        acceptance=finite_or_none(stage.acceptance),
+        ess=finite_or_none(stage.ess),
+        log_evidence_increment=finite_or_none(stage.log_evidence_increment),
+        log_evidence=finite_or_none(stage.log_evidence),
         n_chains=stage.n_chains,
         n_steps=stage.n_steps,
         n_batches=stage.n_batches,
@@ -301,15 +293,15 @@ def parameter_summaries(
             ParameterSummary(
                 name=name,
                 unit=units.get(name),
-                mean=num(post.mean[k]),
-                sd=num(post.sd[k]),
+                mean=finite_or_none(post.mean[k]),
+                sd=finite_or_none(post.sd[k]),
                 quantiles={
-                    f"q{100 * q:g}": num(v)
+                    f"q{100 * q:g}": finite_or_none(v)
                     for q, v in zip(post.quantile_levels, post.quantiles[:, k], strict=True)
                 },
-                ci95=[num(ci[k, 0]), num(ci[k, 1])],
-                map=None if post.map_sample is None else num(post.map_sample[k]),
+                ci95=[finite_or_none(ci[k, 0]), finite_or_none(ci[k, 1])],
+                map=None if post.map_sample is None else finite_or_none(post.map_sample[k]),
             )
         )
-    corr = [[num(v) for v in row] for row in np.asarray(post.correlation)]
+    corr = [[finite_or_none(v) for v in row] for row in np.asarray(post.correlation)]
     return params, corr, post

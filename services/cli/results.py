@@ -28,8 +28,8 @@ from pydantic import ValidationError
 
 from scm_core import jsondoc
 from scm_core.calibration import CaseDefinition, StudyModel, study_summary
-from scm_core.calibration.report import finite_or_none
 from scm_core.inference import LOG_SCALE_KINDS, StageState, TMCMCResult
+from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
 
 from .common import CLIError

@@ -25,7 +25,7 @@ ALLOWED: dict[str, set[str]] = {
     "services.limits": {"services.config", "scm_core"},
     "services.plots": {"services.plots", "scm_core"},
     "services.client": {"services.client", "services.config"},
-    "services.store": {"services.store", "services.config", "scm_core"},
+    "services.store": {"services.store", "services.config", "services.limits", "scm_core"},
     "services.studies": {
         "services.studies",
         "services.store",

@@ -20,6 +20,7 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
+from scm_core.jsondoc import finite_or_none
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset, load_summary
 from scm_core.signals.hashing import canonical_json
 from scm_core.signals.loaders import looks_like_json
@@ -87,14 +88,6 @@ _UPLOAD_BODY = {
 }
 
 
-def _num(x: Any) -> float | None:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
-
-
 def dataset_out(rec: DatasetRecord, created: bool | None = None) -> DatasetOut:
     p = rec.processed
     responses = p.get("responses") or {}
@@ -109,11 +102,11 @@ def dataset_out(rec: DatasetRecord, created: bool | None = None) -> DatasetOut:
         size_bytes=rec.size_bytes,
         created_at=rec.created_at,
         conditions=dict(p.get("conditions") or {}),
-        means={k: _num(v.get("mean")) for k, v in responses.items()},
-        standard_errors={k: _num(v.get("se")) for k, v in responses.items()},
-        offset=_num(p.get("offset")),
-        window=None if window is None else [_num(w) for w in window],
-        rate_hz=_num(p.get("rate_hz")),
+        means={k: finite_or_none(v.get("mean")) for k, v in responses.items()},
+        standard_errors={k: finite_or_none(v.get("se")) for k, v in responses.items()},
+        offset=finite_or_none(p.get("offset")),
+        window=None if window is None else [finite_or_none(w) for w in window],
+        rate_hz=finite_or_none(p.get("rate_hz")),
         n_samples=p.get("n_samples"),
         n_trials=p.get("n_trials"),
         meta=rec.meta,
@@ -369,6 +362,6 @@ def get_series(
         window=None if ds.window is None else [float(w) for w in ds.window],
         offset=ds.offset,
         cutoff_hz=ds.cutoff_hz,
-        means={k: _num(v) for k, v in ds.means.items()},
-        standard_errors={k: _num(v) for k, v in ds.standard_errors.items()},
+        means={k: finite_or_none(v) for k, v in ds.means.items()},
+        standard_errors={k: finite_or_none(v) for k, v in ds.standard_errors.items()},
     )

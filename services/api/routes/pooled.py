@@ -13,12 +13,14 @@ import numpy as np
 from fastapi import APIRouter, Depends, HTTPException, Query
 
 from scm_core.inference.posterior import pool_samples
+from scm_core.jsondoc import finite_or_none
+from services.limits import INT64_MAX
 from services.store import NotFoundError, Store
 
 from ..deps import StoreDep, require_read
 from ..params import parse_id_list
-from ..schemas import COUNT_MAX, SEED_MAX, PooledOut, PooledRequest, PooledStudy
-from ..views import num, parameter_names, parameter_summaries, parameter_units, resolve_stage
+from ..schemas import COUNT_MAX, PooledOut, PooledRequest, PooledStudy
+from ..views import parameter_names, parameter_summaries, parameter_units, resolve_stage
 from . import errors
 
 router = APIRouter(prefix="/pooled", tags=["pooled"], dependencies=[Depends(require_read)])
@@ -79,9 +81,9 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
             study_id=s.id,
             name=s.name,
             n_samples=len(x),
-            log_evidence=num(s.log_evidence),
-            mean={n: num(v) for n, v in zip(names, x.mean(axis=0), strict=True)},
-            sd={n: num(v) for n, v in zip(names, x.std(axis=0, ddof=1), strict=True)},
+            log_evidence=finite_or_none(s.log_evidence),
+            mean={n: finite_or_none(v) for n, v in zip(names, x.mean(axis=0), strict=True)},
+            sd={n: finite_or_none(v) for n, v in zip(names, x.std(axis=0, ddof=1), strict=True)},
         )
         for s, x in zip(studies, finals, strict=True)
     ]
@@ -126,7 +128,7 @@ def pooled_get(
         ),
     ],
     n_per_study: Annotated[int | None, Query(ge=2, le=COUNT_MAX)] = None,
-    seed: Annotated[int, Query(ge=0, le=SEED_MAX)] = 0,
+    seed: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> PooledOut:
     ids = parse_id_list(study_ids, "query.study_ids")
     return pooled_summary(store, PooledRequest(study_ids=ids, n_per_study=n_per_study, seed=seed))

@@ -18,6 +18,7 @@ from fastapi import APIRouter, Body, Depends, HTTPException, Query, Request, Res
 from fastapi.responses import StreamingResponse
 
 from scm_core.calibration import CaseDefinition
+from scm_core.jsondoc import finite_or_none
 from services.config import Settings
 from services.limits import (
     INT64_MAX,
@@ -47,7 +48,6 @@ from ..schemas import (
     SummaryOut,
 )
 from ..views import (
-    num,
     num_list,
     page_out,
     parameter_names,
@@ -351,7 +351,7 @@ def get_summary(study_id: StudyId, store: StoreDep) -> SummaryOut:
     )
     last = st.stage_index == max(s.stage_index for s in store.stages.list(study_id))
     var = study.log_evidence_var if (last and study.status not in ("queued", "running")) else None
-    exponent = num(st.exponent)
+    exponent = finite_or_none(st.exponent)
     return SummaryOut(
         study_id=study_id,
         status=study.status,
@@ -364,10 +364,10 @@ def get_summary(study_id: StudyId, store: StoreDep) -> SummaryOut:
         correlation=corr,
         map=None
         if post.map_sample is None
-        else {n: num(v) for n, v in zip(names, post.map_sample, strict=True)},
-        map_log_posterior=num(post.map_log_posterior),
-        log_evidence=num(st.log_evidence),
-        log_evidence_sd=None if var is None or var < 0 else num(math.sqrt(var)),
+        else {n: finite_or_none(v) for n, v in zip(names, post.map_sample, strict=True)},
+        map_log_posterior=finite_or_none(post.map_log_posterior),
+        log_evidence=finite_or_none(st.log_evidence),
+        log_evidence_sd=None if var is None or var < 0 else finite_or_none(math.sqrt(var)),
         model_runs=study.model_runs,
     )
 

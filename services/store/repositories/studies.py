@@ -15,15 +15,16 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from services.limits import INT64_MAX
+
 from ..errors import NotFoundError
 from ..models import STUDY_ACTIVE, STUDY_KIND_PATTERN, STUDY_STATUSES, Dataset, Study, StudyDataset
 from ..records import Page, PlannedStage, StageRecord, StudyRecord, StudySpec
 from .base import Database
 from .events import append_event
+from .stage_rows import create_stage, stage_record
 
 __all__ = ["StudyRepository", "fail_study", "load_study", "set_study_status"]
-
-_SEED_LIMIT = 2**63
 
 
 def _dataset_ids(session: Session, study_ids: Iterable[int]) -> dict[int, tuple[int, ...]]:
@@ -135,7 +136,7 @@ class StudyRepository:
 
     def create(self, spec: StudySpec) -> StudyRecord:
         """Insert a queued study with its datasets (in order) and a "study_created" event."""
-        if not 0 <= int(spec.seed) < _SEED_LIMIT:
+        if not 0 <= int(spec.seed) <= INT64_MAX:
             raise ValueError(f"seed must satisfy 0 <= seed < 2**63, got {spec.seed}")
         _check_kind(spec.kind)
         if int(spec.n_samples) < 1:
@@ -268,8 +269,6 @@ class StudyRepository:
         one transaction. Stage 0 normally has no plan: its points are
         ``initial_samples(prior, n_samples, seed)``, rows ``batch.chain_start:chain_stop``.
         Returns the stage, or None if the study was not queued (started only once)."""
-        from .stages import create_stage, stage_record
-
         now = self.db.now()
         with self.db.write() as s:
             if not set_study_status(

@@ -1,0 +1,142 @@
+"""The rows of one stage: insert a stage with its plan and pending work batches
+(:func:`create_stage`), read one back as a record (:func:`stage_record`). Shared by the study
+repository (stage 0, when a study starts) and the stage repository (the stages after it)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from datetime import datetime
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from ..models import Stage, WorkBatch
+from ..records import PlannedStage, StageRecord
+from .events import append_event
+
+__all__ = ["STAGE_COUNTS", "create_stage", "optional_float", "stage_record"]
+
+
+def optional_float(x: float | None) -> float | None:
+    """A stored float column's value: None stays None, anything else becomes a float."""
+    return None if x is None else float(x)
+
+
+#: scalars of a done stage's stored state that its record exposes as ``counts``
+STAGE_COUNTS = (
+    "part_runs",
+    "early_rejections",
+    "part_runs_saved",
+    "first_stage_rejections",
+    "surrogate_checks",
+    "inner_accepted",
+    "inner_proposed",
+    "jump_accepted",
+    "jump_proposed",
+    "unique_samples",
+)
+
+
+def stage_record(st: Stage) -> StageRecord:
+    return StageRecord(
+        id=st.id,
+        study_id=st.study_id,
+        stage_index=st.stage_index,
+        status=st.status,
+        exponent=st.exponent,
+        prev_exponent=st.prev_exponent,
+        beta=st.beta,
+        acceptance=st.acceptance,
+        ess=st.ess,
+        log_evidence_increment=st.log_evidence_increment,
+        log_evidence=st.log_evidence,
+        n_chains=st.n_chains,
+        n_steps=st.n_steps,
+        n_batches=st.n_batches,
+        model_runs=st.model_runs,
+        failed_runs=st.failed_runs,
+        created_at=st.created_at,
+        updated_at=st.updated_at,
+        finished_at=st.finished_at,
+        counts={k: int(st.state_meta[k]) for k in STAGE_COUNTS if k in (st.state_meta or {})},
+    )
+
+
+def _check_batches(batches: Sequence[range], n_chains: int | None) -> int:
+    """Batches must be consecutive, step-1, non-empty ranges from 0; returns the chain count."""
+    if not batches:
+        raise ValueError("a stage needs at least one work batch")
+    pos = 0
+    for i, r in enumerate(batches):
+        if r.step != 1 or r.start != pos or r.stop <= r.start:
+            raise ValueError(f"batch {i} {r} does not continue consecutively from chain {pos}")
+        pos = r.stop
+    if n_chains is not None and pos != n_chains:
+        raise ValueError(f"batches cover {pos} chains, the plan has {n_chains}")
+    return pos
+
+
+def create_stage(
+    session: Session,
+    study_id: int,
+    stage_index: int,
+    plan: PlannedStage | None,
+    batches: Sequence[range],
+    now: datetime,
+    *,
+    exponent: float | None = None,
+) -> Stage:
+    """Insert stage ``stage_index`` (status planned) with its plan blob and pending batches."""
+    n_chains = _check_batches(batches, None if plan is None else plan.n_chains)
+    stage = Stage(
+        study_id=study_id,
+        stage_index=stage_index,
+        status="planned",
+        n_chains=n_chains,
+        n_batches=len(batches),
+        created_at=now,
+        updated_at=now,
+    )
+    if plan is not None:
+        if plan.stage != stage_index:
+            raise ValueError(f"plan is for stage {plan.stage}, not {stage_index}")
+        stage.plan = plan.blob
+        stage.exponent = optional_float(plan.exponent)
+        stage.prev_exponent = optional_float(plan.prev_exponent)
+        stage.beta = optional_float(plan.beta)
+        stage.ess = optional_float(plan.ess)
+        stage.log_evidence_increment = optional_float(plan.log_evidence_increment)
+        stage.n_steps = plan.n_steps
+    else:
+        stage.exponent = exponent
+    session.add(stage)
+    session.flush()
+    session.execute(
+        sa.insert(WorkBatch),
+        [
+            {
+                "study_id": study_id,
+                "stage_index": stage_index,
+                "batch_index": i,
+                "chain_start": r.start,
+                "chain_stop": r.stop,
+                "status": "pending",
+                "attempts": 0,
+                "created_at": now,
+            }
+            for i, r in enumerate(batches)
+        ],
+    )
+    append_event(
+        session,
+        study_id,
+        "stage_planned",
+        {
+            "stage": stage_index,
+            "exponent": stage.exponent,
+            "n_chains": n_chains,
+            "n_batches": len(batches),
+        },
+        now,
+    )
+    return stage
