@@ -15,7 +15,27 @@ from scm_core.jsondoc import finite_or_none
 from .case import RESPONSES, CaseDefinition
 from .model import StudyModel
 
-__all__ = ["stage_table", "study_summary"]
+__all__ = ["not_a_posterior", "stage_table", "study_summary"]
+
+#: what to do about a run that stopped before the posterior, by status
+_NEXT = {
+    "max_stages": "re-run the same command with a larger --max-stages to go on",
+    "stalled": "the tempering exponent stopped increasing (see summary.json's stages)",
+    "cancelled": "the study was cancelled",
+}
+
+
+def not_a_posterior(status: str, exponent: float | None) -> str:
+    """A one-line warning for a run that ended before the posterior ("" if it completed):
+    its samples are those of the tempered target prior x L^p with p < 1."""
+    if status == "completed":
+        return ""
+    p = "?" if exponent is None else f"{exponent:.3g}"
+    why = _NEXT.get(status, f"status {status}")
+    return (
+        f"NOT A POSTERIOR: the run ended '{status}' at tempering exponent p = {p} < 1, so the "
+        f"samples are of prior x L^p; {why}"
+    )
 
 
 def _by_name(names: Sequence[str], values: NDArray[np.float64]) -> dict[str, float | None]:
@@ -98,6 +118,8 @@ def study_summary(
         },
         "log_evidence": finite_or_none(result.log_evidence),
         "log_evidence_se": finite_or_none(result.log_evidence_se),
+        "final_exponent": finite_or_none(result.final.exponent),
+        "is_posterior": result.status == "completed",
         "stages": stage_table(result, wall_times),
         "n_stages": len(result.stages) - 1,
         "model_runs": int(result.n_model_runs),

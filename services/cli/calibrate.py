@@ -29,6 +29,7 @@ from scm_core.calibration import (
     UpdateLikelihood,
     run_tmcmc,
 )
+from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import SWTDataset
@@ -134,6 +135,12 @@ def _update_inputs(
     default=None,
     help="Chains per batch (does not change the results).",
 )
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0, max=2**63 - 1),
+    default=None,
+    help="Override the case's seed (the same seed gives the same posterior).",
+)
 @click.option("--no-plots", is_flag=True, help="Skip the figures.")
 @click.option("--quiet", is_flag=True, help="No progress display.")
 def calibrate(
@@ -146,6 +153,7 @@ def calibrate(
     samples: int | None,
     max_stages: int | None,
     batch_size: int | None,
+    seed: int | None,
     no_plots: bool,
     quiet: bool,
 ) -> None:
@@ -163,6 +171,8 @@ def calibrate(
                 "--update-of keeps the earlier study's sampler; --moves and --samples cannot "
                 "change it"
             )
+        if seed is not None:
+            raise CLIError("--update-of seeds the update from the earlier study; drop --seed")
         if not data:
             raise CLIError("--update-of needs the new datasets: give --data NEW.csv")
         parent = load_parent(update_of)
@@ -172,6 +182,11 @@ def calibrate(
         if case_file is None:
             raise CLIError("missing CASE_FILE (or --update-of DIR to update a finished study)")
         case = read_case(case_file)
+        if seed is not None and seed != case.seed:
+            try:
+                case = case.with_changes(seed=seed)
+            except CaseError as exc:
+                raise CLIError(f"--seed: {exc}") from None
         case = _with_sampler(
             case,
             {
@@ -300,6 +315,8 @@ def calibrate(
     )
     if not quiet:
         _print_summary(summary, out)
+    if result.status not in ("completed", "stalled"):
+        click.echo(f"warning: {not_a_posterior(result.status, result.final.exponent)}", err=True)
     if result.status == "stalled":
         click.echo(
             "error: TMCMC stalled (the tempering exponent stopped increasing); see summary.json",
@@ -310,9 +327,10 @@ def calibrate(
 
 def _print_summary(summary: dict[str, Any], out: Path) -> None:
     post = summary["posterior"]
+    stopped = "" if summary["status"] == "completed" else " - NOT A POSTERIOR"
     table = Table(
         title=f"{summary['case']['name']}: {summary['status']} after {summary['n_stages']} "
-        f"stages, {summary['model_runs']} model runs ({summary['failed_runs']} failed)"
+        f"stages, {summary['model_runs']} model runs ({summary['failed_runs']} failed){stopped}"
     )
     for col in ("parameter", "mean", "sd", "2.5 %", "97.5 %", "MAP"):
         table.add_column(col, justify="right" if col != "parameter" else "left")
@@ -332,7 +350,8 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
         )
     console = Console()
     console.print(table)
+    warning = not_a_posterior(summary["status"], summary.get("final_exponent"))
     console.print(
-        f"log evidence {g(summary['log_evidence'])} +- {g(summary['log_evidence_se'])}; "
-        f"results in {out}"
+        f"log evidence {g(summary['log_evidence'])} +- {g(summary['log_evidence_se'])}"
+        f"{' (of the tempered target, not the model)' if warning else ''}; results in {out}"
     )

@@ -204,6 +204,7 @@ def write_outputs(
         units = dict(prior.units or {})
         log_params = {n for n, d in prior.dists.items() if d.kind in LOG_SCALE_KINDS}
         updated = bool(sections and "update" in sections)
+        stopped = "" if result.status == "completed" else f" - NOT A POSTERIOR ({result.status})"
         plot_prior_posterior(
             names,
             result.stages[0].samples,
@@ -214,7 +215,7 @@ def write_outputs(
             map_sample=theta,
             reference=case.reference,
             title=f"{case.name}: {'earlier' if updated else 'prior'} "
-            f"and posterior ({result.status})",
+            f"and posterior ({result.status}){stopped}",
             log_params=log_params,
             labels=("earlier posterior", "updated posterior")
             if updated
@@ -229,14 +230,14 @@ def write_outputs(
             units=units,
             reference=case.reference,
             k_star_line=(k_star, b_eff) if k_star and b_eff else None,
-            title=f"{case.name}: bivariate posterior densities",
+            title=f"{case.name}: bivariate posterior densities{stopped}",
             log_params=log_params,
         )
         plot_fit(
             datasets,
             sims,
             fig_dir / "fit_map.png",
-            title=f"{case.name}: measured vs simulated at the MAP sample",
+            title=f"{case.name}: measured vs simulated at the MAP sample{stopped}",
             responses=case.responses,
             offsets=model.measurement_offsets(theta),
         )

@@ -488,3 +488,40 @@ def test_first_run_says_it_compiles_the_simulator(work: Path, tmp_path: Path) ->
     second = calibrate("second")
     assert second.returncode == 0, second.stderr
     assert "compiling the simulator" not in second.stderr
+
+
+def test_a_stopped_run_says_it_is_not_a_posterior(work: Path, reference: Path) -> None:
+    """--max-stages 1 ends before the posterior: the table, a stderr warning and summary.json
+    say so (the tempering exponent is below one)."""
+    proc = run_cli(
+        "calibrate", "tiny.toml", "--out", "stop1", "--max-stages", "1", "--no-plots", cwd=work
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "NOT A POSTERIOR" in proc.stdout
+    warning = [line for line in proc.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warning) == 1 and "--max-stages" in warning[0], proc.stderr
+    summary = json.loads((work / "stop1" / "summary.json").read_text())
+    assert summary["status"] == "max_stages" and summary["is_posterior"] is False
+    assert 0.0 < summary["final_exponent"] < 1.0
+    done = json.loads((reference / "summary.json").read_text())
+    assert done["is_posterior"] is True and done["final_exponent"] == 1.0
+
+
+def test_seed_option_overrides_the_case_seed(work: Path, reference: Path) -> None:
+    """--seed 4 is the case's own seed: the same bits; another seed gives another population,
+    recorded in the summary's case."""
+    same = run_cli(
+        "calibrate", "tiny.toml", "--out", "s4", "--seed", "4", "--quiet", "--no-plots", cwd=work
+    )
+    assert same.returncode == 0, same.stderr
+    assert stage_files(work / "s4") == stage_files(reference)
+    other = run_cli(
+        "calibrate", "tiny.toml", "--out", "s5", "--seed", "5", "--max-stages", "1", "--quiet",
+        "--no-plots", cwd=work,
+    )  # fmt: skip
+    assert other.returncode == 0, other.stderr
+    assert json.loads((work / "s5" / "summary.json").read_text())["case"]["seed"] == 5
+    stage0 = (work / "s5" / "samples" / "stage_00.csv").read_bytes()
+    assert stage0 != (reference / "samples" / "stage_00.csv").read_bytes()
+    bad = run_cli("calibrate", "tiny.toml", "--seed", "-1", cwd=work)
+    assert bad.returncode == 2 and "--seed" in bad.stderr
