@@ -3,6 +3,7 @@
 Header fields are ``name [unit]``; see :data:`COLUMNS` for names, aliases and quantities.
 Columns with unknown names are ignored (they need no unit). Known columns without a unit in
 brackets are refused, as are duplicate columns, empty, non-numeric or non-finite cells.
+For users: docs/data-formats.md (both formats, every metadata key, examples).
 """
 
 import io

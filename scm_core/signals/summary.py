@@ -26,6 +26,7 @@ or one row per trial (no ``time`` column; mean and sd, ddof=1, across >= 2 rows)
     1,20.3,5.2,11.8
 
 Missing ``unit`` means SI. Standard error = sd / sqrt(n_trials).
+For users: docs/data-formats.md (both formats, every metadata key, examples).
 """
 
 import json

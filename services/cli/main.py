@@ -15,6 +15,7 @@ COMMANDS = {
     "calibrate": "services.cli.calibrate:calibrate",
     "sensitivity": "services.cli.sensitivity:sensitivity",
     "predict": "services.cli.predict:predict_cmd",
+    "check": "services.cli.check:check",
     "db": "services.cli.db:db",
     "serve": "services.cli.serve:serve",
     "worker": "services.cli.worker_cmd:worker",
