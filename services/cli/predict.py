@@ -1,8 +1,9 @@
 """``scm-calib predict``: posterior predictions of a finished study under other test conditions.
 
 Reads a ``calibrate`` results folder (``summary.json`` holds the case, ``posterior.csv`` the
-final samples), simulates ``--draws`` posterior samples under each dataset's test conditions
-(and along ``--sweep slip=LO:HI:N``), and reports per dataset and response the median and 95 %
+final samples), simulates ``--draws`` posterior samples under each dataset's test conditions,
+at conditions nobody measured (``--at KEY=VALUE,...``) and along ``--sweep slip=LO:HI:N``, and
+reports per dataset and response the median and 95 %
 band of the simulated means, the same with the prediction-error noise, and the measured value
 with whether it falls inside. Writes ``predictions.json`` and ``predictions.png`` to ``--out``
 (default ``RESULTS_DIR/predictions``).
@@ -28,6 +29,8 @@ from scm_core.calibration.predict import (
     sweep_loads,
     sweep_targets,
 )
+from scm_core.signals import LogFormatError
+from scm_core.signals.metadata import merge_metadata
 
 from .common import CLIError, compile_simulator_once, data_option, read_datasets
 from .pool import batch_map
@@ -64,6 +67,41 @@ def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, A
     return case, samples, summary
 
 
+#: wheel geometry an ``--at`` condition takes from the study's datasets when it leaves it out
+_GEOMETRY = ("R", "b", "n_grousers", "grouser_height")
+
+
+def study_geometry(summary: dict[str, Any]) -> dict[str, float | int]:
+    """The wheel geometry every dataset of the study shares (keys of :data:`_GEOMETRY`)."""
+    conds = [d.get("conditions") or {} for d in summary.get("datasets", [])]
+    out = {}
+    for key in _GEOMETRY:
+        values = {c.get(key) for c in conds}
+        if conds and len(values) == 1 and None not in values:
+            out[key] = values.pop()
+    return out
+
+
+def parse_at(specs: tuple[str, ...], geometry: dict[str, float | int]) -> list[DatasetTerms]:
+    """``--at W=25,slip=0.3`` -> test conditions with no measurement (metadata keys and units as
+    in a lab file's ``# key: value`` lines, docs/data-formats.md); the wheel geometry it leaves
+    out is the study's (``geometry``), so a condition is the calibrated wheel's unless it says
+    otherwise."""
+    out = []
+    for spec in specs:
+        pairs = [p.partition("=") for p in spec.split(",") if p.strip()]
+        if not pairs or any(not sep or not k.strip() for k, sep, _ in pairs):
+            raise CLIError(f"--at {spec!r}: expected KEY=VALUE,KEY=VALUE, e.g. W=25,slip=0.3")
+        raw = {k.strip(): v.strip() for k, _, v in pairs}
+        try:
+            meta = merge_metadata([(f"--at {spec}", raw)])
+        except (LogFormatError, ValueError) as exc:
+            raise CLIError(f"--at {spec!r}: {' '.join(str(exc).split())}") from None
+        conditions = {**geometry, **meta.conditions.to_sim_config()}
+        out.append(DatasetTerms(f"at {spec}", conditions, (math.nan,) * 3))
+    return out
+
+
 def parse_sweep(spec: str | None) -> list[float]:
     """``slip=LO:HI:N`` -> N slips from LO to HI (symmetric convention, -1 = locked)."""
     if spec is None:
@@ -91,6 +129,15 @@ def parse_sweep(spec: str | None) -> list[float]:
     default=200,
     show_default=True,
     help="Posterior samples to simulate.",
+)
+@click.option(
+    "--at",
+    "at",
+    multiple=True,
+    metavar="KEY=VALUE,...",
+    help="Also predict at test conditions nobody measured, e.g. --at W=25,slip=0.3 "
+    "(keys and units as in a lab file's metadata; the wheel geometry left out is the study's "
+    "datasets'; repeatable).",
 )
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @click.option(
@@ -120,6 +167,7 @@ def predict_cmd(
     more_data: tuple[Path, ...],
     data: tuple[Path, ...],
     draws: int,
+    at: tuple[str, ...],
     seed: int,
     sweep: str | None,
     out: Path | None,
@@ -132,8 +180,12 @@ def predict_cmd(
     data = (*data, *more_data)
     case, samples, summary = load_results(results)
     slips = parse_sweep(sweep)
-    if not data and not slips:
-        raise CLIError("nothing to predict: give --data DATASET (repeatable) and/or --sweep")
+    at_terms = parse_at(at, study_geometry(summary))
+    if not data and not slips and not at_terms:
+        raise CLIError(
+            "nothing to predict: give --data DATASET (repeatable), --at KEY=VALUE,... and/or "
+            "--sweep"
+        )
     datasets = read_datasets(case, list(data)) if data else []
     used = {d.get("content_hash") for d in summary.get("datasets", [])}
     roles = ["calibration" if d.content_hash in used else "predicted" for d in datasets]
@@ -146,6 +198,8 @@ def predict_cmd(
             ]
             template = terms[0]
             loads = sweep_loads(terms)
+        elif at_terms:
+            template = at_terms[0]
         else:
             first = (summary.get("datasets") or [{}])[0]
             template = DatasetTerms("study", dict(first.get("conditions") or {}), (math.nan,) * 3)
@@ -157,6 +211,15 @@ def predict_cmd(
         try:
             preds = predict(
                 case, samples, datasets, draws=draws, seed=seed, map=mapper, roles=roles
+            )
+            untested = predict(
+                case,
+                samples,
+                at_terms,
+                draws=draws,
+                seed=seed,
+                map=mapper,
+                roles=["untested"] * len(at_terms),
             )
             swept = predict(
                 case,
@@ -181,6 +244,7 @@ def predict_cmd(
         "seed": seed,
         "level": 0.95,
         "datasets": [p.to_dict() for p in preds],
+        "conditions": [p.to_dict() for p in untested],
         "sweep": [p.to_dict() for p in swept],
     }
     out = out or results / "predictions"
@@ -193,7 +257,7 @@ def predict_cmd(
         from services.plots.predict import plot_predictions
 
         plot_predictions(
-            preds,
+            preds + untested,
             swept,
             out / "predictions.png",
             title=f"{case.name}: posterior predictions ({draws} draws)",
@@ -202,7 +266,7 @@ def predict_cmd(
     if as_json:
         click.echo(json.dumps(doc, indent=2))
     else:
-        _print_table(preds, out)
+        _print_table(preds + untested, out)
 
 
 def _shown_responses(case: CaseDefinition, preds: list[ConditionPrediction]) -> tuple[str, ...]:

@@ -174,9 +174,35 @@ def test_predict_bands_sweep_and_reproducible(work: Path, reference: Path) -> No
     assert json.loads(again.stdout) == doc  # same seed, same numbers
 
 
+def test_predict_at_conditions_nobody_measured(work: Path, reference: Path) -> None:
+    """--at gives bands with no measurement, the same numbers as a dataset with those
+    conditions would get; units as in lab metadata."""
+    proc = run_cli(
+        "predict", "ref", "--at", "W=315 N,slip=0.3", "--at", "W=0.3 kN,slip=-0.2,"
+        "slip_convention=symmetric", "--draws", "8", "--json", "--no-plots", cwd=work,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert doc["datasets"] == [] and len(doc["conditions"]) == 2
+    first, skid = doc["conditions"]
+    assert first["role"] == "untested" and first["slip_symmetric"] == pytest.approx(0.3)
+    assert skid["slip_symmetric"] == pytest.approx(-0.2)
+    for r in ("F", "T", "z"):
+        band = first["responses"][r]
+        assert band["measured"] is None
+        assert band["simulated"]["lo"] <= band["simulated"]["median"] <= band["simulated"]["hi"]
+    # skidding brakes: the median drawbar pull at -0.2 is below the one at +0.3
+    assert (
+        skid["responses"]["F"]["simulated"]["median"]
+        < first["responses"]["F"]["simulated"]["median"]
+    )
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
+        (("predict", "ref", "--at", "W"), "expected KEY=VALUE"),
+        (("predict", "ref", "--at", "W=abc,slip=0.2"), "--at"),
         (("predict", "nowhere", "--data", "log.csv"), "no summary.json"),
         (("predict", "ref"), "nothing to predict"),
         (("predict", "ref", "--sweep", "slip=1:2"), "expected slip=LO:HI:N"),
