@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -208,28 +209,11 @@ def predict_cmd(
         sweep_terms = []
     compile_simulator_once(as_json)
     with batch_map(workers) as mapper:
+        run = partial(predict, case, samples, draws=draws, seed=seed, map=mapper)
         try:
-            preds = predict(
-                case, samples, datasets, draws=draws, seed=seed, map=mapper, roles=roles
-            )
-            untested = predict(
-                case,
-                samples,
-                at_terms,
-                draws=draws,
-                seed=seed,
-                map=mapper,
-                roles=["untested"] * len(at_terms),
-            )
-            swept = predict(
-                case,
-                samples,
-                sweep_terms,
-                draws=draws,
-                seed=seed,
-                map=mapper,
-                roles=["sweep"] * len(sweep_terms),
-            )
+            preds = run(datasets, roles=roles)
+            untested = run(at_terms, roles=["untested"] * len(at_terms))
+            swept = run(sweep_terms, roles=["sweep"] * len(sweep_terms))
         except ValueError as exc:
             raise CLIError(str(exc)) from None
     doc = {

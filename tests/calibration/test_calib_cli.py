@@ -453,6 +453,10 @@ def test_update_is_the_in_memory_update_bit_for_bit(
             ["calibrate", "--update-of", "ref", "--data", "log50.csv", "--samples", "20"],
             "--moves and --samples",
         ),
+        (
+            ["calibrate", "--update-of", "ref", "--data", "log50.csv", "--seed", "9"],
+            "drop --seed",
+        ),
     ],
 )
 def test_bad_update_inputs_one_line_exit_2(
