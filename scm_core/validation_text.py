@@ -32,3 +32,13 @@ def one_line(exc: ValidationError | ValueError, where: str = "") -> str:
     loc, message, _ = first_error(exc)
     path = ".".join(p for p in (where, ".".join(loc)) if p)
     return f"{path}: {message}" if path else message
+
+
+def quoted(value: Any, width: int = 40) -> str:
+    """``repr(value)`` for a message, cut to about ``width`` characters with the full length
+    said: an error quotes enough of the offending input to find it, never the whole of a huge
+    cell, header or key (``'xxxxx...' (10485760 characters)``)."""
+    if isinstance(value, str) and len(value) > width:
+        return f"{value[:width]!r}... ({len(value)} characters)"
+    text = repr(value)
+    return text if len(text) <= width else f"{text[: width - 3]}..."

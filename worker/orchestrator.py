@@ -9,20 +9,32 @@ or a Celery worker) is the :class:`~services.studies.lifecycle.Dispatcher`'s bus
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import socket
 import threading
 import time
+from collections.abc import Callable
+from typing import TypeVar
 
 from scm_core.inference.wrapped import WrappedLikelihood
 from services.store import Store
+from services.store.engine import is_transient
 from services.store.records import BatchKey, BatchLease
 from services.studies.batching import DEFAULT_WORKERS
 from services.studies.kinds import StudyRun, kind_of
 from services.studies.lifecycle import Dispatcher, dispatch_stage, start_study
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+
+#: waits between attempts to store a batch's result while the database takes no writes: from
+#: the first, doubling up to the longest (so a study moves within that long of the database's
+#: return), for as long as the batch's lease holds
+RETRY_FIRST_S = 0.1
+RETRY_LONGEST_S = 2.0
 
 #: seconds a study may stay queued before the reaper starts it (a submission stores and starts
 #: a study within milliseconds; only a submitter that died in between leaves it queued)
@@ -64,18 +76,22 @@ def worker_id() -> str:
 
 
 class _Heartbeat:
-    """Renews a lease from a background thread while a batch runs."""
+    """Renews a lease from a background thread while a batch runs; ``renewed`` is the
+    monotonic time of the last renewal (the lease holds until ``lease_seconds`` after it)."""
 
     def __init__(self, store: Store, lease: BatchLease, every: float) -> None:
         self._store, self._lease, self._every = store, lease, every
+        self.renewed = time.monotonic()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name="heartbeat")
 
     def _run(self) -> None:
         while not self._stop.wait(self._every):
+            beat = time.monotonic()
             try:
                 if not self._store.batches.heartbeat(self._lease):
                     return
+                self.renewed = beat
             except Exception:  # the next beat retries; the reaper covers a dead worker
                 log.exception("heartbeat failed for %s", self._lease.key)
 
@@ -120,11 +136,12 @@ def execute_batch(
     if lease is None:
         return "skipped"
     t0 = time.perf_counter()
+    every = heartbeat_every or max(0.2, store.db.lease_seconds / 4.0)
+    beat = _Heartbeat(store, lease, every)
     try:
         ctx = cache.get(store, key.study_id)
         timed = _TimedLikelihood(ctx.model_function)
-        every = heartbeat_every or max(0.2, store.db.lease_seconds / 4.0)
-        with _Heartbeat(store, lease, every):
+        with beat:
             result = ctx.compute(store, lease, timed)
     except Exception as exc:
         log.exception("batch %s failed", key)
@@ -132,10 +149,50 @@ def execute_batch(
         raise
     compute_s = time.perf_counter() - t0
     done = {"worker": lease.worker_id, "compute_s": compute_s, "model_s": timed.seconds}
-    outcome = store.batches.complete(key, result, event=done)
+    deadline = beat.renewed + store.db.lease_seconds
+    try:
+        outcome = retry_while_transient(
+            lambda: store.batches.complete(key, result, event=done), deadline, f"batch {key}"
+        )
+    except Exception as exc:
+        if is_transient(exc):  # the lease ran out: give the batch back if the store takes it
+            with contextlib.suppress(Exception):
+                store.batches.release(lease, f"result not stored: {type(exc).__name__}")
+        raise
     if outcome.status == "stored" and outcome.stage_complete:
         advance(store, key.study_id, key.stage_index, cache, dispatcher)
     return outcome.status
+
+
+def retry_while_transient(
+    write: Callable[[], T],
+    deadline: float,
+    what: str,
+    first_wait: float = RETRY_FIRST_S,
+    longest_wait: float = RETRY_LONGEST_S,
+) -> T:
+    """``write()``, repeated while it fails with a transient database error (unreachable,
+    busy, not taking writes: :func:`services.store.engine.is_transient`) and
+    ``time.monotonic()`` is before ``deadline``; waits double from ``first_wait`` up to
+    ``longest_wait`` seconds, so the write lands within ``longest_wait`` of the database
+    taking writes again. Other errors, and the last transient one, are raised."""
+    wait = first_wait
+    failures = 0
+    while True:
+        try:
+            result = write()
+        except Exception as exc:
+            if not is_transient(exc) or time.monotonic() + wait > deadline:
+                raise
+            failures += 1
+            if failures == 1:
+                log.warning("%s: the database did not take the write (%s); retrying", what, exc)
+            time.sleep(wait)
+            wait = min(2.0 * wait, longest_wait)
+            continue
+        if failures:
+            log.warning("%s: written after %d failed attempt(s)", what, failures)
+        return result
 
 
 def advance(

@@ -144,7 +144,7 @@ def initial_state(
     if ll.shape[0] != n:
         raise ValueError(f"{ll.shape[0]} evaluations for {n} samples")
     pick = _check_source(source, n)
-    ran = [e for e in evaluations if _runs(e) > 0]
+    ran = [e for e in evaluations if e.runs > 0]
     responses = _stacked(evaluations, ran, "responses")
     base = _stacked(evaluations, ran, "log_base")
     if base is None and any(e.log_base is not None for e in ran):
@@ -165,7 +165,7 @@ def initial_state(
         acceptance_rate=math.nan if tuning is None else float(tuning[1]),
         log_evidence=0.0,
         log_evidence_var=0.0,
-        model_runs=int(sum(_runs(e) for e in evaluations)),
+        model_runs=int(sum(e.runs for e in evaluations)),
         failed_runs=int(sum(e.failed_runs for e in evaluations)),
         proposals=0,
         accepted=0,
@@ -203,18 +203,11 @@ def _stacked(
     width = arrays[0].shape[1:]
     return np.concatenate(
         [
-            getattr(e, name)
-            if _runs(e) > 0
-            else np.full((e.log_likelihood.shape[0], *width), np.nan)
+            getattr(e, name) if e.runs > 0 else np.full((e.log_likelihood.shape[0], *width), np.nan)
             for e in evaluations
         ],
         axis=0,
     )
-
-
-def _runs(e: PointEvaluation) -> int:
-    """Model runs of a stage-0 evaluation (older stored ones: one per point)."""
-    return e.log_likelihood.shape[0] if e.model_runs is None else int(e.model_runs)
 
 
 def _start_beta(tuning: tuple[float, float] | None, settings: TMCMCSettings) -> float:

@@ -374,3 +374,8 @@ class PointEvaluation(_Fields):
     log_base: NDArray[np.float64] | None = None
     part_runs: int = 0
     model_runs: int | None = None
+
+    @property
+    def runs(self) -> int:
+        """Model runs of this evaluation (older stored ones, without the count: one per point)."""
+        return self.log_likelihood.shape[0] if self.model_runs is None else int(self.model_runs)

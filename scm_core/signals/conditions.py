@@ -14,6 +14,7 @@ from scm_core.slip import (
     slips_from_speeds,
     symmetric_to_drive,
 )
+from scm_core.validation_text import quoted
 
 from .errors import LogFormatError
 
@@ -176,7 +177,7 @@ def _describe(exc: ValidationError) -> str:
             hint = " (or 'normal_load')" if key == "W" else ""
             parts.append(f"'{key}'{hint} is required")
         elif key:
-            parts.append(f"{key} = {err.get('input')!r}: {err['msg']}")
+            parts.append(f"{key} = {quoted(err.get('input'))}: {err['msg']}")
         else:
             parts.append(err["msg"].removeprefix("Value error, "))
     return "; ".join(parts)

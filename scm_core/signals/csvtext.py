@@ -23,6 +23,9 @@ from .errors import LogFormatError
 #: rows per chunk handed to the column parsers (bounded memory: a few MB of cells per chunk)
 CHUNK_ROWS = 8192
 _READ_BYTES = 1 << 20
+#: the longest line read [characters]: far beyond any row or metadata line of an SWT file (a
+#: JSON dataset is read whole, not by lines)
+MAX_LINE_CHARS = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -36,11 +39,15 @@ class CsvTable:
     row_lines: list[int]
 
 
-def text_lines(stream: BinaryIO) -> Iterator[str]:
+def text_lines(stream: BinaryIO, max_line: int = MAX_LINE_CHARS) -> Iterator[str]:
     """Physical lines of UTF-8 bytes (BOM dropped, ``\\r\\n`` and ``\\r`` read as ``\\n``),
-    without their line ending; read in 1 MB pieces."""
+    without their line ending; read in 1 MB pieces. A line longer than ``max_line``
+    characters is refused as soon as that much of it is read (memory: a few times
+    ``max_line``, whatever the file holds)."""
     decoder = codecs.getincrementaldecoder("utf-8-sig")()
-    pending = ""
+    pending: list[str] = []  # the pieces of the line not ended yet
+    pending_len = 0
+    carry_cr = False  # the last read ended in "\r": a "\r\n" may straddle two reads
     line_no = 1
     position = 0
     while True:
@@ -54,19 +61,34 @@ def text_lines(stream: BinaryIO) -> Iterator[str]:
                 f"line {line}: file is not UTF-8 text (byte {position + start})"
             ) from None
         position += len(chunk)
-        text = pending + text
-        if chunk and text.endswith("\r"):
-            text, pending = text[:-1], "\r"  # a "\r\n" may straddle two reads
-        else:
-            pending = ""
+        if carry_cr:
+            text = "\r" + text
+        carry_cr = bool(chunk) and text.endswith("\r")
+        if carry_cr:
+            text = text[:-1]
         lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
-        if chunk:
-            pending = lines.pop() + pending
+        last = lines.pop() if chunk else None
+        if lines:
+            lines[0] = "".join([*pending, lines[0]])
+            pending, pending_len = [], 0
         for line in lines:
+            if len(line) > max_line:
+                raise _long_line(line_no, max_line)
             line_no += 1
             yield line
-        if not chunk:
+        if last is None:
             return
+        pending.append(last)
+        pending_len += len(last)
+        if pending_len > max_line:
+            raise _long_line(line_no, max_line)
+
+
+def _long_line(line_no: int, max_line: int) -> LogFormatError:
+    return LogFormatError(
+        f"line {line_no}: longer than {max_line} characters (no SWT log, summary or metadata "
+        "line is; is this a CSV file?)"
+    )
 
 
 def decode_text(data: bytes | str) -> str:

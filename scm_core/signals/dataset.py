@@ -6,6 +6,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from scm_core.validation_text import quoted
+
 from .conditions import TestConditions, make_conditions
 from .errors import LogFormatError
 from .processing import ResponseStat
@@ -122,7 +124,7 @@ class SWTDataset:
         if d.get("format") != DICT_FORMAT or d.get("version") not in (1, DICT_VERSION):
             raise LogFormatError(
                 f"not an {DICT_FORMAT} v1 or v{DICT_VERSION} dict "
-                f"(format={d.get('format')!r}, version={d.get('version')!r})"
+                f"(format={quoted(d.get('format'))}, version={quoted(d.get('version'))})"
             )
         try:
             conditions = dict(d["conditions"])
@@ -135,7 +137,7 @@ class SWTDataset:
                 raise LogFormatError("dataset dict: no response (F, T or z)")
             kind = d["source_kind"]
             if kind not in ("timeseries", "summary"):
-                raise LogFormatError(f"unknown source_kind {kind!r}")
+                raise LogFormatError(f"unknown source_kind {quoted(kind)}")
             series = d.get("series")
             window = d.get("window")
             return cls(

@@ -15,6 +15,8 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
+from scm_core.validation_text import quoted
+
 from .csvtext import CanonicalDigest, TableReader, text_lines
 from .errors import LogFormatError
 from .metadata import CONDITION_KEYS, parse_metadata_lines
@@ -69,7 +71,8 @@ def _parse_header(header: list[str], line: int) -> dict[str, tuple[int, str]]:
     for i, field in enumerate(header):
         if field in seen:
             raise LogFormatError(
-                f"line {line}: duplicate column '{field}' (columns {seen[field] + 1} and {i + 1})"
+                f"line {line}: duplicate column {quoted(field)} "
+                f"(columns {seen[field] + 1} and {i + 1})"
             )
         seen[field] = i
         name, unit = parse_header_field(field)
@@ -78,14 +81,14 @@ def _parse_header(header: list[str], line: int) -> dict[str, tuple[int, str]]:
         if unit is None:
             quantity = COLUMNS[name][0]
             raise LogFormatError(
-                f"line {line}: column '{field}' (column {i + 1}) has no unit in brackets, "
-                f"e.g. '{field} [{SI_UNIT[quantity]}]'"
+                f"line {line}: column {quoted(field)} (column {i + 1}) has no unit in brackets, "
+                f"e.g. {quoted(f'{field} [{SI_UNIT[quantity]}]')}"
             )
         if name in found:
             other = header[found[name][0]]
             raise LogFormatError(
-                f"line {line}: duplicate column '{name}': '{other}' (column {found[name][0] + 1})"
-                f" and '{field}' (column {i + 1})"
+                f"line {line}: duplicate column '{name}': {quoted(other)} "
+                f"(column {found[name][0] + 1}) and {quoted(field)} (column {i + 1})"
             )
         found[name] = (i, unit)
     missing = [c for c in REQUIRED_COLUMNS if c not in found]
@@ -93,7 +96,7 @@ def _parse_header(header: list[str], line: int) -> dict[str, tuple[int, str]]:
         raise LogFormatError(
             f"line {line}: missing required column(s) "
             f"{', '.join(missing) or 'drawbar_pull, torque or sinkage'} (header has: "
-            f"{', '.join(header)}; required: time and at least one of drawbar_pull, "
+            f"{quoted(', '.join(header), 200)}; required: time and at least one of drawbar_pull, "
             "torque, sinkage, or t and F, T, z, each with its unit in brackets)"
         )
     return found
@@ -108,21 +111,21 @@ def cells_to_float(cells: list[str], rows: list[int], header: str) -> np.ndarray
     except ValueError:
         for cell, line in zip(cells, rows, strict=True):
             if not cell.strip():
-                raise LogFormatError(f"line {line}, column '{header}': empty cell") from None
+                raise LogFormatError(f"line {line}, column {quoted(header)}: empty cell") from None
             try:
                 if "_" in cell:
                     raise ValueError
                 float(cell)
             except ValueError:
                 raise LogFormatError(
-                    f"line {line}, column '{header}': '{cell.strip()}' is not a number"
+                    f"line {line}, column {quoted(header)}: {quoted(cell.strip())} is not a number"
                 ) from None
         raise  # pragma: no cover - numpy and float() disagree
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         k = int(bad[0])
         raise LogFormatError(
-            f"line {rows[k]}, column '{header}': non-finite value '{cells[k].strip()}'"
+            f"line {rows[k]}, column {quoted(header)}: non-finite value {quoted(cells[k].strip())}"
         )
     return values
 
@@ -136,7 +139,7 @@ def check_plausible(
         k = int(bad[0])
         problem = plausible_message(quantity, float(values[k]))
         raise LogFormatError(
-            f"line {rows[k]}, column '{header}': '{cells[k].strip()}' is {problem}"
+            f"line {rows[k]}, column {quoted(header)}: {quoted(cells[k].strip())} is {problem}"
         )
 
 
@@ -236,7 +239,7 @@ def parse_log_stream(stream: BinaryIO, digest: CanonicalDigest | None = None) ->
     found = _parse_header(reader.header, reader.header_line)
     factors = {}
     for name, (index, unit) in found.items():
-        where = f"line {reader.header_line}, column '{reader.header[index]}'"
+        where = f"line {reader.header_line}, column {quoted(reader.header[index])}"
         factors[name] = unit_factor(COLUMNS[name][0], unit, where)
     size = _remaining_bytes(stream)
     columns: dict[str, _Column] = {}

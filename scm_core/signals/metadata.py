@@ -12,6 +12,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from scm_core.validation_text import quoted
+
 from .conditions import TestConditions, make_conditions
 from .errors import LogFormatError
 from .units import parse_value
@@ -59,7 +61,7 @@ def parse_metadata_lines(lines: Iterable[tuple[int, str]]) -> dict[str, str]:
         if not key:
             raise LogFormatError(f"line {lineno}: metadata line has no key before ':'")
         if key in out:
-            raise LogFormatError(f"line {lineno}: metadata key '{key}' given twice")
+            raise LogFormatError(f"line {lineno}: metadata key {quoted(key)} given twice")
         out[key] = value.strip()
     return out
 
@@ -79,10 +81,10 @@ def _condition_value(name: str, value: Any, unit: str | None, where: str) -> flo
     quantity = CONDITION_KEYS[name][0]
     if quantity == "text":
         if not isinstance(value, str):
-            raise LogFormatError(f"{where}: expected a name, got {value!r}")
+            raise LogFormatError(f"{where}: expected a name, got {quoted(value)}")
         return value.strip()
     if isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise LogFormatError(f"{where}: expected a number, got {value!r}")
+        raise LogFormatError(f"{where}: expected a number, got {quoted(value)}")
     if isinstance(value, str):
         number = parse_value(value, quantity, where, default_unit=unit)
     else:
@@ -90,7 +92,7 @@ def _condition_value(name: str, value: Any, unit: str | None, where: str) -> flo
         number = parse_value(text, quantity, where, default_unit=unit)
     if quantity == "count":
         if number != int(number):
-            raise LogFormatError(f"{where}: expected a whole number, got {value!r}")
+            raise LogFormatError(f"{where}: expected a whole number, got {quoted(value)}")
         return int(number)
     return number
 
@@ -104,12 +106,14 @@ def parse_metadata_source(raw: Mapping[str, Any], source: str) -> tuple[dict, di
         key, unit = (m.group("key"), m.group("unit")) if m else (str(raw_key), None)
         norm = normalise_key(key)
         name = _ALIAS.get(norm)
-        where = f"{source} '{raw_key}'"
+        where = f"{source} {quoted(raw_key)}"
         if name is None:
             try:
                 json.dumps(value)
             except (TypeError, ValueError):
-                raise LogFormatError(f"{where}: value {value!r} is not JSON-compatible") from None
+                raise LogFormatError(
+                    f"{where}: value {quoted(value)} is not JSON-compatible"
+                ) from None
             provenance[norm] = value
             continue
         if value is None or value == "":
@@ -141,8 +145,8 @@ def merge_metadata(sources: Iterable[tuple[str, Mapping[str, Any]]]) -> Metadata
         for key, value in cond.items():
             if key in conditions and not _same(conditions[key], value):
                 raise LogFormatError(
-                    f"metadata '{key}' conflicts: {conditions[key]!r} in the {origin[key]}, "
-                    f"{value!r} in the {source}"
+                    f"metadata '{key}' conflicts: {quoted(conditions[key])} in the {origin[key]}, "
+                    f"{quoted(value)} in the {source}"
                 )
             conditions[key] = value
             origin[key] = source

@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from scm_core.validation_text import quoted
+
 from .csvtext import CsvTable, split_table
 from .errors import LogFormatError
 from .logformat import COLUMNS, cells_to_float, check_plausible, column_name, parse_header_field
@@ -95,17 +97,17 @@ def _n_trials(value: Any, where: str) -> int:
         try:
             value = float(value)
         except ValueError:
-            raise LogFormatError(f"{where}: n_trials '{value}' is not a number") from None
+            raise LogFormatError(f"{where}: n_trials {quoted(value)} is not a number") from None
     if isinstance(value, bool) or not isinstance(value, int | float) or value != int(value):
-        raise LogFormatError(f"{where}: n_trials must be a whole number, got {value!r}")
+        raise LogFormatError(f"{where}: n_trials must be a whole number, got {quoted(value)}")
     if value < 1:
-        raise LogFormatError(f"{where}: n_trials must be >= 1, got {value!r}")
+        raise LogFormatError(f"{where}: n_trials must be >= 1, got {quoted(value)}")
     return int(value)
 
 
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise LogFormatError(f"{where}: expected a number, got {value!r}")
+        raise LogFormatError(f"{where}: expected a number, got {quoted(value)}")
     return float(value)
 
 
@@ -128,7 +130,7 @@ def parse_summary_json(
         raise LogFormatError(f"{where}: unknown key(s) {unknown} (accepted: {list(_TOP_KEYS)})")
     for key in ("conditions", "responses", "n_trials"):
         if key not in doc:
-            raise LogFormatError(f"{where}: missing '{key}'")
+            raise LogFormatError(f"{where}: missing {quoted(key)}")
     n_trials = _n_trials(doc["n_trials"], where)
     responses = doc["responses"]
     if not isinstance(responses, Mapping):
@@ -136,7 +138,7 @@ def parse_summary_json(
     stats: dict[str, ResponseStat] = {}
     for raw_key, entry in responses.items():
         key = response_key(raw_key)
-        at = f"{where} response '{raw_key}'"
+        at = f"{where} response {quoted(raw_key)}"
         if key is None:
             raise LogFormatError(f"{at}: unknown response (accepted: F, T, z)")
         if key in stats:
@@ -148,13 +150,13 @@ def parse_summary_json(
             raise LogFormatError(f"{at}: unknown field(s) {sorted(extra)}")
         unit = entry.get("unit", SI_UNIT[COLUMNS[RESPONSE_COLUMNS[key]][0]])
         if not isinstance(unit, str):
-            raise LogFormatError(f"{at}: unit must be a string, got {unit!r}")
+            raise LogFormatError(f"{at}: unit must be a string, got {quoted(unit)}")
         mean, sd = _number(entry["mean"], f"{at} mean"), _number(entry["sd"], f"{at} sd")
         stats[key] = _stat(key, mean, sd, n_trials, unit, at)
     _check_complete(stats, where)
     for key in ("conditions", "provenance"):
         if not isinstance(doc.get(key, {}), Mapping):
-            raise LogFormatError(f"{where}: '{key}' must be an object")
+            raise LogFormatError(f"{where}: {quoted(key)} must be an object")
     metadata = merge_metadata(
         [
             ("summary conditions", doc["conditions"]),
@@ -180,7 +182,7 @@ def _per_response(table: CsvTable, n_trials: int, where: str) -> dict[str, Respo
     for row, line in zip(table.rows, table.row_lines, strict=True):
         raw_key = row[cols["response"]].strip()
         key = response_key(raw_key)
-        at = f"line {line}, response '{raw_key}'"
+        at = f"line {line}, response {quoted(raw_key)}"
         if key is None:
             raise LogFormatError(f"{at}: unknown response (accepted: F, T, z)")
         if key in stats:
@@ -200,7 +202,7 @@ def _per_trial(table: CsvTable, where: str) -> tuple[dict[str, ResponseStat], in
         name, unit = parse_header_field(field)
         if name == "time":
             raise LogFormatError(
-                f"line {table.header_line}: '{field}' column: this is a time-series log, "
+                f"line {table.header_line}: {quoted(field)} column: this is a time-series log, "
                 "not a summary"
             )
         key = _COLUMN_RESPONSE.get(name or "")
@@ -208,7 +210,7 @@ def _per_trial(table: CsvTable, where: str) -> tuple[dict[str, ResponseStat], in
             continue
         if unit is None:
             raise LogFormatError(
-                f"line {table.header_line}: column '{field}' (column {i + 1}) has no unit in "
+                f"line {table.header_line}: column {quoted(field)} (column {i + 1}) has no unit in "
                 "brackets"
             )
         if key in found:
@@ -223,7 +225,7 @@ def _per_trial(table: CsvTable, where: str) -> tuple[dict[str, ResponseStat], in
         cells = [r[i] for r in table.rows]
         x = cells_to_float(cells, table.row_lines, table.header[i])
         quantity = COLUMNS[RESPONSE_COLUMNS[key]][0]
-        factor = unit_factor(quantity, unit, f"{where} column '{table.header[i]}'")
+        factor = unit_factor(quantity, unit, f"{where} column {quoted(table.header[i])}")
         check_plausible(x * factor, quantity, cells, table.row_lines, table.header[i])
         stats[key] = _stat(key, float(x.mean()), float(np.std(x, ddof=1)), n, unit, where)
     return stats, n

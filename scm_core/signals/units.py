@@ -7,6 +7,8 @@ torque); spaces and the middle dot act as multiplication signs (``N m`` == ``N*m
 import math
 import re
 
+from scm_core.validation_text import quoted
+
 from .errors import LogFormatError
 
 #: quantity -> {canonical unit spelling: factor to SI}
@@ -66,7 +68,7 @@ def plausible_message(quantity: str, value: float) -> str | None:
     """Why ``value`` (SI) is not a plausible ``quantity``, or None when it is."""
     bound = PLAUSIBLE_MAX[quantity]
     if not math.isfinite(value):
-        return f"non-finite value {value!r}"
+        return f"non-finite value {quoted(value)}"
     if abs(value) > bound:
         unit = SI_UNIT[quantity]
         unit = "" if unit in ("", "-") else f" {unit}"
@@ -103,7 +105,7 @@ def unit_factor(quantity: str, unit: str, where: str) -> float:
     key = _normalise(unit)
     if key not in lookup:
         raise LogFormatError(
-            f"{where}: unknown {quantity.replace('_', ' ')} unit '{unit}' "
+            f"{where}: unknown {quantity.replace('_', ' ')} unit {quoted(unit)} "
             f"(accepted: {accepted_units(quantity)})"
         )
     return lookup[key]
@@ -116,13 +118,13 @@ def parse_value(text: str, quantity: str, where: str, default_unit: str | None =
     """
     m = _NUMBER_WITH_UNIT.match(text)
     if m is None:
-        raise LogFormatError(f"{where}: '{text}' is not a number with an optional unit")
+        raise LogFormatError(f"{where}: {quoted(text)} is not a number with an optional unit")
     unit = m.group("unit")
     if unit is None:
         unit = default_unit if default_unit is not None else SI_UNIT[quantity]
     value = float(m.group("num")) * unit_factor(quantity, unit, where)
     if not math.isfinite(value):
-        raise LogFormatError(f"{where}: value '{text}' is not finite")
+        raise LogFormatError(f"{where}: value {quoted(text)} is not finite")
     problem = plausible_message(quantity, value)
     if problem is not None:
         raise LogFormatError(f"{where}: {problem}")

@@ -18,6 +18,7 @@ for such an endpoint is answered 401 before its body is read (:class:`TokenFirst
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import AsyncIterator, Iterable
 from contextlib import asynccontextmanager
 from importlib import metadata
@@ -32,6 +33,7 @@ from fastapi.routing import APIRoute
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.formparsers import MultiPartException
 
+from scm_core.validation_text import quoted
 from services.config import Settings, get_settings
 from services.store import NotFoundError, SchemaVersionError, Store
 from services.studies import StudyRequestError
@@ -102,11 +104,6 @@ def _version() -> str:
 # ---------------------------------------------------------------------------- error handling
 
 
-def _short(value: Any, width: int = 60) -> str:
-    text = repr(value)
-    return text if len(text) <= width else text[: width - 3] + "..."
-
-
 def format_validation_errors(errors: list[dict[str, Any]], limit: int = 3) -> str:
     """One line from pydantic/FastAPI validation errors, each naming its location.
 
@@ -114,7 +111,7 @@ def format_validation_errors(errors: list[dict[str, Any]], limit: int = 3) -> st
     place (``query.limit``, ``path.study_id``)."""
     parts = []
     for err in errors[:limit]:
-        loc = [str(p) for p in err.get("loc", ())]
+        loc = [str(p) if len(str(p)) <= 40 else quoted(str(p)) for p in err.get("loc", ())]
         kind = err.get("type", "")
         if kind == "json_invalid":
             pos = f" at character {loc[1]}" if len(loc) > 1 else ""
@@ -130,8 +127,10 @@ def format_validation_errors(errors: list[dict[str, Any]], limit: int = 3) -> st
             msg = "unknown field"
         else:
             msg = str(err.get("msg", "invalid value")).removeprefix("Value error, ")
-            if "input" in err and not isinstance(err["input"], dict | list | bytes):
-                msg += f" (got {_short(err['input'])})"
+            if item := re.match(r"item (\d+): ", msg):  # an array's item (RequestModel)
+                where, msg = f"{where}.{item.group(1)}", msg[item.end() :]
+            elif "input" in err and not isinstance(err["input"], dict | list | bytes):
+                msg += f" (got {quoted(err['input'])})"
         parts.append(f"{where}: {msg}")
     if len(errors) > limit:
         parts.append(f"and {len(errors) - limit} more")

@@ -57,7 +57,7 @@ def parse_statuses(status: str | None) -> list[str] | None:
 def parse_id_list(items: list[str], field: str, limit: int = 1000) -> list[int]:
     """Ids from query items, each one id or several comma-separated (spaces and empty items
     around commas ignored), in order; 422 naming ``field`` for anything else, and "no study"
-    for an id beyond what the database can hold."""
+    for an id no row can have (0, or beyond what the database can hold)."""
     ids: list[int] = []
     for item in items:
         parts = [p.strip(" ") for p in item.split(",")]
@@ -66,7 +66,7 @@ def parse_id_list(items: list[str], field: str, limit: int = 1000) -> list[int]:
         for part in filter(None, parts):
             if not (part.isascii() and part.isdigit()):
                 raise HTTPException(422, f"{field}: not a study id: {part[:40]!r}")
-            if len(part.lstrip("0")) > 19 or int(part) > INT64_MAX:  # beyond BIGINT
+            if len(part.lstrip("0")) > 19 or not 0 < int(part) <= INT64_MAX:  # ids: 1..BIGINT
                 raise HTTPException(422, f"{field}: no study with id {part[:40]}")
             ids.append(int(part))
     if len(ids) > limit:

@@ -14,16 +14,15 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field
 
 from services.limits import INT32_MAX, INT64_MAX
+from services.studies.request_model import RequestModel
 
 #: ids: what a BIGINT column holds; counts and sizes: what an INTEGER column holds
 ID_MAX = INT64_MAX
 COUNT_MAX = INT32_MAX
 
 
-class _In(BaseModel):
-    """Request bodies: unknown fields are refused (a typo must not pass silently)."""
-
-    model_config = ConfigDict(extra="forbid")
+class _In(RequestModel):
+    """Request bodies (:class:`services.studies.request_model.RequestModel`)."""
 
 
 #: a study is made from exactly one of a preset name and a case document (the other absent or
@@ -149,7 +148,7 @@ class StudyCreate(_In):
         "dataset_ids: stage 0 is its final population and only the new datasets' likelihood "
         "is tempered. Its log_evidence is then log Z(new | old); the total is in its result.",
     )
-    dataset_ids: list[Annotated[int, Field(ge=0, le=ID_MAX)]] = Field(
+    dataset_ids: list[Annotated[int, Field(ge=1, le=ID_MAX)]] = Field(
         default_factory=list, description="Stored datasets (POST /datasets), likelihood order."
     )
     name: str | None = Field(None, min_length=1, max_length=200)
@@ -206,7 +205,10 @@ class ProgressOut(BaseModel):
     evaluations_planned: int
     batches_done: int
     batches_total: int
-    model_runs: int = Field(description="Finished stages' model runs plus evaluations done now.")
+    model_runs: int = Field(
+        description="Finished stages' model runs plus those the current stage's done batches "
+        "ran (never decreases: at a stage's end its runs are exactly these)."
+    )
     failed_runs: int
     elapsed_seconds: float | None
     runs_per_second: float | None
@@ -292,7 +294,7 @@ class SensitivityCreate(_In):
         None, description="A case document (the TOML case file as JSON); data.files is ignored."
     )
     dataset_id: int = Field(
-        ge=0, le=ID_MAX, description="Stored dataset whose test conditions are simulated."
+        ge=1, le=ID_MAX, description="Stored dataset whose test conditions are simulated."
     )
     r: int = Field(20, ge=2, le=1000, description="Morris trajectories.")
     levels: int = Field(4, ge=2, le=20, description="Grid levels (even).")
@@ -438,7 +440,7 @@ class SummaryOut(BaseModel):
 
 
 class PooledRequest(_In):
-    study_ids: list[Annotated[int, Field(ge=0, le=ID_MAX)]] = Field(
+    study_ids: list[Annotated[int, Field(ge=1, le=ID_MAX)]] = Field(
         min_length=1, max_length=1000, description="Completed studies with the same parameters."
     )
     n_per_study: int | None = Field(

@@ -164,8 +164,8 @@ def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
 
 
 def _stage_evaluations(store: Store, study: StudyRecord, stage: StageRecord) -> tuple:
-    """(planned, done, batches_done, batches_total) evaluations of a stage, from its batches
-    and (by the study's kind) its plan."""
+    """(planned, done, ran, batches_done, batches_total) of a stage, from its batches and (by
+    the study's kind) its plan: evaluations planned and done, and the model runs done."""
     batches = store.batches.list(study.id, stage.stage_index)
     plan = store.stages.plan(study.id, stage.stage_index) if stage.stage_index else None
     ranges = [range(b.chain_start, b.chain_stop) for b in batches]
@@ -173,7 +173,16 @@ def _stage_evaluations(store: Store, study: StudyRecord, stage: StageRecord) -> 
     planned = int(sum(lengths))
     done_flags = [b.status == "done" for b in batches]
     done = int(sum(n for n, ok in zip(lengths, done_flags, strict=True) if ok))
-    return planned, done, int(sum(done_flags)), len(batches)
+    # the runs done batches did (fewer than planned where proposals fell outside the prior or
+    # a surrogate stage rejected them): what the stage's reduction adds to the study's runs
+    ran = int(
+        sum(
+            (n if b.model_runs is None else b.model_runs)
+            for n, b in zip(lengths, batches, strict=True)
+            if b.status == "done"
+        )
+    )
+    return planned, done, ran, int(sum(done_flags)), len(batches)
 
 
 def study_progress(store: Store, study: StudyRecord, now: datetime | None = None) -> ProgressOut:
@@ -185,14 +194,14 @@ def study_progress(store: Store, study: StudyRecord, now: datetime | None = None
             stage = store.stages.get(study.id, study.current_stage)
         except NotFoundError:
             stage = None
-    planned = done = batches_done = batches_total = 0
+    planned = done = ran = batches_done = batches_total = 0
     runs = study.model_runs
     if stage is not None:
-        planned, done, batches_done, batches_total = _stage_evaluations(store, study, stage)
+        planned, done, ran, batches_done, batches_total = _stage_evaluations(store, study, stage)
         if stage.status == "done":
             done = planned
         else:
-            runs += done
+            runs += ran
     elapsed = rate = eta = None
     if study.started_at is not None:
         end = study.finished_at or now

@@ -11,6 +11,8 @@
   waits for it (busy timeout) instead of failing on a lock upgrade half-way. See
   :func:`write_session`. In-memory SQLite is not supported by the store (each pooled connection
   would see its own database); use a file.
+* A connection that saw a write fault (:func:`is_write_fault`) is discarded, not pooled
+  again: one opened while the database did not take writes would stay read-only after it does.
 * JSON columns are written as strict JSON by :func:`scm_core.jsondoc.dumps`, which converts
   nothing: documents are built of plain JSON values (non-finite floats as the strings "nan",
   "inf", "-inf": :func:`scm_core.jsondoc.encode_float`), and anything else fails
@@ -32,6 +34,8 @@ from scm_core import jsondoc
 
 __all__ = [
     "is_sqlite",
+    "is_transient",
+    "is_write_fault",
     "make_engine",
     "make_sessionmaker",
     "normalise_url",
@@ -42,6 +46,14 @@ __all__ = [
 
 SQLITE_BUSY_TIMEOUT_S = 30.0
 _BEGIN_OPTION = "scm_sqlite_begin"
+
+#: SQLite primary result codes of a database that does not take writes: SQLITE_READONLY,
+#: SQLITE_IOERR, SQLITE_FULL, SQLITE_CANTOPEN
+_SQLITE_WRITE_FAULTS = {8, 10, 13, 14}
+_SQLITE_FAULT_TEXT = ("readonly database", "disk i/o error", "database or disk is full")
+#: PostgreSQL SQLSTATEs of the same: read_only_sql_transaction, disk_full, io_error,
+#: insufficient_resources, out_of_memory
+_PG_WRITE_FAULTS = {"25006", "53100", "58030", "53000", "53200"}
 
 
 def normalise_url(url: str | URL) -> URL:
@@ -62,13 +74,52 @@ def is_sqlite(bind: Engine | sa.Connection | Session) -> bool:
     return engine.dialect.name == "sqlite"
 
 
+def is_write_fault(exc: BaseException) -> bool:
+    """Whether ``exc`` (a driver error, or SQLAlchemy's wrapper of one) says the database does
+    not take writes now: a read-only or vanished SQLite file, a full disk, an I/O error, a
+    read-only PostgreSQL session or server."""
+    orig = getattr(exc, "orig", None) or exc
+    code = getattr(orig, "sqlite_errorcode", None)
+    if code is not None:
+        return (code & 0xFF) in _SQLITE_WRITE_FAULTS
+    state = getattr(orig, "sqlstate", None) or getattr(orig, "pgcode", None)
+    if state is not None:
+        return state in _PG_WRITE_FAULTS
+    text = str(orig).lower()
+    return any(t in text for t in _SQLITE_FAULT_TEXT)
+
+
+def is_transient(exc: BaseException) -> bool:
+    """Whether retrying the same transaction later may succeed: the database is unreachable,
+    busy or not taking writes for now (not a bad statement or a violated constraint)."""
+    if isinstance(exc, sa.exc.DBAPIError) and exc.connection_invalidated:
+        return True
+    if isinstance(exc, sa.exc.OperationalError | sa.exc.InterfaceError):
+        return True
+    return isinstance(exc, sa.exc.DBAPIError) and is_write_fault(exc)
+
+
+def _discard_faulty_connections(engine: Engine) -> None:
+    """A connection that saw a write fault is discarded with the pool's older ones, not reused:
+    a SQLite connection opened while its file was not writable stays read-only for its life,
+    a PostgreSQL session opened in read-only mode stays so after the server takes writes."""
+
+    @sa.event.listens_for(engine, "handle_error")
+    def _on_error(ctx: sa.engine.ExceptionContext) -> None:
+        if not ctx.is_disconnect and is_write_fault(ctx.original_exception):
+            ctx.is_disconnect = True
+
+
 def make_engine(url: str | URL, *, echo: bool = False, **kwargs: Any) -> Engine:
     """An engine for ``url`` set up as described in the module docstring."""
     u = normalise_url(url)
     if u.get_backend_name() == "sqlite":
-        return _sqlite_engine(u, echo=echo, **kwargs)
-    kwargs.setdefault("pool_pre_ping", True)
-    return sa.create_engine(u, echo=echo, json_serializer=jsondoc.dumps, **kwargs)
+        engine = _sqlite_engine(u, echo=echo, **kwargs)
+    else:
+        kwargs.setdefault("pool_pre_ping", True)
+        engine = sa.create_engine(u, echo=echo, json_serializer=jsondoc.dumps, **kwargs)
+    _discard_faulty_connections(engine)
+    return engine
 
 
 def _sqlite_engine(u: URL, *, echo: bool, **kwargs: Any) -> Engine:

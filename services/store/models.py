@@ -29,6 +29,7 @@ __all__ = [
     "DatasetChunk",
     "DatasetUpload",
     "Event",
+    "Heartbeat",
     "Sample",
     "Stage",
     "Study",
@@ -231,6 +232,8 @@ class WorkBatch(Base):
     result: Mapped[bytes | None] = mapped_column(sa.LargeBinary, deferred=True)
     error: Mapped[str | None] = mapped_column(sa.Text)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    #: model runs of the stored result (None: as planned for the batch's items)
+    model_runs: Mapped[int | None] = mapped_column(sa.BigInteger)
 
 
 class Sample(Base):
@@ -269,3 +272,13 @@ def _event_update(mapper: Any, connection: Any, target: Event) -> None:
 @sa.event.listens_for(Event, "before_delete")
 def _event_delete(mapper: Any, connection: Any, target: Event) -> None:
     raise TypeError("events are append-only")
+
+
+class Heartbeat(Base):
+    """A row a server commits to prove the database takes writes (``/health/ready``)."""
+
+    __tablename__ = "heartbeats"
+
+    name: Mapped[str] = mapped_column(sa.String(64), primary_key=True)
+    beat_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    beats: Mapped[int] = mapped_column(sa.BigInteger)

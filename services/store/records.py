@@ -186,6 +186,7 @@ class BatchRecord:
     dispatched_at: datetime | None
     finished_at: datetime | None
     error: str | None
+    model_runs: int | None = None  # of the stored result (None: as planned)
 
 
 @dataclass(frozen=True)
@@ -320,6 +321,7 @@ class BatchOutput:
     start: int
     stop: int
     blob: bytes
+    model_runs: int | None = None  # the runs the result holds (None: as planned)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from sqlalchemy.engine import URL, Engine
 
 from .engine import make_engine
 from .migrate import check_revision
+from .models import Heartbeat
 from .repositories import (
     BatchRepository,
     Database,
@@ -84,17 +85,27 @@ class Store:
             check=check,
         )
 
-    def check_writable(self) -> str:
-        """Prove the database takes writes: a no-op UPDATE of the revision row, rolled back
-        (fails on a read-only SQLite file, a read-only PostgreSQL replica or role, a full
-        disk). Returns the schema revision; raises otherwise."""
+    def check_writable(self, name: str = "ready") -> str:
+        """Prove the database takes writes: commit a beat of the heartbeat row ``name`` (fails
+        on a read-only SQLite file, a full disk, a read-only PostgreSQL replica, role or
+        session, whichever of statement or commit it fails at). Returns the schema revision;
+        raises otherwise."""
         head = check_revision(self.engine)
-        with self.engine.connect() as conn:
-            trans = conn.begin()
+        for attempt in range(2):
+            now = self.db.now()
             try:
-                conn.execute(sa.text("UPDATE alembic_version SET version_num = version_num"))
-            finally:
-                trans.rollback()
+                with self.db.write() as s:
+                    beat = (
+                        sa.update(Heartbeat)
+                        .where(Heartbeat.name == name)
+                        .values(beat_at=now, beats=Heartbeat.beats + 1)
+                    )
+                    if s.execute(beat).rowcount == 0:
+                        s.add(Heartbeat(name=name, beat_at=now, beats=1))
+                break
+            except sa.exc.IntegrityError:  # a concurrent first beat inserted the row
+                if attempt:
+                    raise
         return head
 
     @property

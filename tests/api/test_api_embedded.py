@@ -95,6 +95,14 @@ def test_stages_and_events(finished) -> None:
     events = client.get(f"/studies/{study_id}/events", params={"limit": 2}).json()
     rest = client.get(f"/studies/{study_id}/events", params={"after_id": events[-1]["id"]}).json()
     assert [e["kind"] for e in events + rest] == kinds
+    # which host and process ran a batch: only for a token (issue 46)
+    public = client.get(f"/studies/{study_id}/events", params={"limit": 1000}).json()
+    private = client.get(f"/studies/{study_id}/events", params={"limit": 1000}, headers=AUTH).json()
+    done = [e["payload"] for e in private if e["kind"] == "batch_done"]
+    assert done and all(p["worker"].startswith("local/") for p in done)
+    assert all("worker" not in e["payload"] for e in public)
+    assert [e["id"] for e in public] == [e["id"] for e in private]
+    assert all("compute_s" in e["payload"] for e in public if e["kind"] == "batch_done")
 
 
 def test_samples_json_pages_and_csv_are_exact(finished) -> None:

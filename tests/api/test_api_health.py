@@ -68,7 +68,7 @@ def test_ready_refuses_a_read_only_database_and_hides_paths(tmp_path) -> None:
         with api_client(url) as client:
             body = client.get("/health/ready").json()
             assert str(tmp_path) not in str(body)  # no path without a token
-            assert body["checks"]["database"]["detail"] == "at revision 0008, writable"
+            assert body["checks"]["database"]["detail"] == "at revision 0009, writable"
             body = client.get("/health/ready", headers=AUTH).json()
             assert str(tmp_path) in body["checks"]["database"]["detail"]
         path = url.removeprefix("sqlite:///")

@@ -68,6 +68,9 @@ SCHEMA_VALID_YET_422 = {
     ("GET", "/pooled"): "the studies must exist and be completed calibrations with the same "
     "parameters",
     ("POST", "/pooled"): "as for GET /pooled",
+    ("POST", "/predictions"): "the study must exist and be a completed calibration, the "
+    "datasets must exist, and the conditions must make a simulator configuration within the "
+    "server's limits",
 }
 DEFAULT_ACCEPTED = ["2xx", "3xx", "401", "403", "404", "409", "429", "5xx"]
 

@@ -90,6 +90,34 @@ def test_60_mb_log_in_bounded_memory_and_identical_reupload(server: Server, tmp_
     assert _status_kb(pid, "VmHWM") - before < 0.2 * size_kb
 
 
+def test_a_40_mb_cell_is_refused_briefly_in_bounded_memory(server: Server, tmp_path) -> None:
+    """Issue 46: a log whose second row holds one 40 MB cell gets a short 422 naming the line
+    as soon as 1 MB of it is read (it echoed the cell: a 10 MB cell gave a 10.5 MB body); the API
+    process's peak RSS rises by less than 3 times the file size (it rose 397 MB for 40 MB) and
+    falls back to within a quarter of the file size of where it was."""
+    cell = "7" * 40_000_000
+    path = tmp_path / "cell.csv"
+    path.write_text(
+        f"# slip: 0.2\n# W: 315\ntime [s],F [N],T [Nm],z [mm]\n0,1,2,3\n1,1{cell}x,2,3\n"
+    )
+    size_kb = path.stat().st_size / 1024
+    pid = server.proc.pid
+    Path(f"/proc/{pid}/clear_refs").write_text("5")
+    before = _status_kb(pid, "VmRSS")
+    r = _upload(server.base, path)
+    rise = _status_kb(pid, "VmHWM") - before
+    time.sleep(1.0)
+    after = _status_kb(pid, "VmRSS") - before
+    assert r.status_code == 422, r.text[:300]
+    detail = r.json()["detail"]
+    assert len(r.content) < 400 and detail.startswith("file cell.csv: line 5: longer than"), detail
+    assert rise < 3 * size_kb, f"peak RSS rose {rise / 1024:.0f} MB for {size_kb / 1024:.0f} MB"
+    assert after < 0.25 * size_kb, f"RSS stayed {after / 1024:.0f} MB above where it was"
+    print(
+        f"422 of {len(r.content)} B; peak RSS +{rise / 1024:.0f} MB, +{after / 1024:.0f} MB after"
+    )
+
+
 def test_uploads_past_the_limit_get_429_and_store_nothing(server: Server, tmp_path) -> None:
     """With one upload slot: while a slow client holds it (its multipart body arrives in two
     parts; readiness reports the slot in use), another upload is refused with 429, Retry-After

@@ -33,6 +33,7 @@ TABLES = {
     "work_batches",
     "samples",
     "events",
+    "heartbeats",
 }
 
 
@@ -47,7 +48,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0008"
+    assert head_revision() == "0009"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -87,9 +88,9 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0008") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0009") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0008"
+    assert info.value.current == "ffff" and info.value.head == "0009"
 
     engine = make_engine(empty_url)
     try:
@@ -132,7 +133,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0008"
+        assert current_revision(url) == "0009"
     finally:
         get_settings.cache_clear()
 
@@ -395,3 +396,23 @@ def test_0008_writes_no_jumps_into_stored_cases_that_left_them_out(empty_url: st
         assert again == by_name
     finally:
         engine.dispose()
+
+
+def test_0009_adds_heartbeats_and_batch_run_counts_and_takes_them_back(empty_url: str) -> None:
+    upgrade(empty_url, "0008")
+    assert "heartbeats" not in _tables(empty_url)
+    upgrade(empty_url)
+    engine = make_engine(empty_url)
+    try:
+        columns = {c["name"] for c in sa.inspect(engine).get_columns("work_batches")}
+        assert "model_runs" in columns and "heartbeats" in _tables(empty_url)
+    finally:
+        engine.dispose()
+    downgrade(empty_url, "0008")
+    engine = make_engine(empty_url)
+    try:
+        columns = {c["name"] for c in sa.inspect(engine).get_columns("work_batches")}
+        assert "model_runs" not in columns and "heartbeats" not in _tables(empty_url)
+    finally:
+        engine.dispose()
+

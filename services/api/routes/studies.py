@@ -34,7 +34,7 @@ from services.studies import (
 from services.studies.kinds import KINDS
 from services.studies.kinds.update import update_spec
 
-from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
+from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write, token_ok
 from ..etags import etag_of, not_modified, set_etag
 from ..params import StageIndex, StudyId, parse_statuses, status_query
 from ..schemas import (
@@ -155,6 +155,7 @@ def list_studies(
         Query(
             max_length=16,
             description="Filter by kind: calibrations (tmcmc), sensitivity studies (morris) ...",
+            json_schema_extra={"enum": sorted(KINDS)},
         ),
     ] = None,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
@@ -383,21 +384,37 @@ def list_events(
     request: Request,
     response: Response,
     store: StoreDep,
+    settings: SettingsDep,
     after_id: Annotated[
         int | None, Query(ge=0, le=INT64_MAX, description="Only events after this id.")
     ] = None,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
 ) -> list[EventOut]:
     """The study's events in order (created, stage planned/done, cancelled, failed, ...);
-    304 for an unchanged study's ETag (every event raises the study's version)."""
-    tag = etag_of("events", study_id, after_id, limit, store.studies.version(study_id))
+    304 for an unchanged study's ETag (every event raises the study's version). Which worker
+    ran a batch (its host and process) is shown only to callers with a valid token."""
+    reveal = token_ok(request, settings)
+    tag = etag_of("events", study_id, after_id, limit, reveal, store.studies.version(study_id))
     if (unchanged := not_modified(request, tag)) is not None:
         return unchanged  # type: ignore[return-value]
     set_etag(response, tag)
     events = store.events.list(study_id, after_id=after_id, limit=limit)
     return [
         EventOut(
-            id=e.id, study_id=e.study_id, created_at=e.created_at, kind=e.kind, payload=e.payload
+            id=e.id,
+            study_id=e.study_id,
+            created_at=e.created_at,
+            kind=e.kind,
+            payload=e.payload if reveal else public_payload(e.payload),
         )
         for e in events
     ]
+
+
+#: event payload keys that name a machine and a process (host names, pids)
+PRIVATE_EVENT_KEYS = frozenset({"worker", "worker_id"})
+
+
+def public_payload(payload: dict) -> dict:
+    """An event's payload without the keys that name a host or a process."""
+    return {k: v for k, v in payload.items() if k not in PRIVATE_EVENT_KEYS}

@@ -103,6 +103,7 @@ def _record(b: WorkBatch) -> BatchRecord:
         dispatched_at=b.dispatched_at,
         finished_at=b.finished_at,
         error=b.error,
+        model_runs=b.model_runs,
     )
 
 
@@ -375,6 +376,7 @@ class BatchRepository:
                 .values(
                     status="done",
                     result=result.blob,
+                    model_runs=result.model_runs,
                     finished_at=now,
                     lease_expires_at=None,
                     error=None,

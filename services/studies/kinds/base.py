@@ -134,9 +134,13 @@ class StudyKind(Protocol):
         ...
 
 
-def batch_output(lease: BatchLease, result: Any) -> BatchOutput:
-    """A kind's batch result (a serialisable dataclass) as the store keeps it."""
-    return BatchOutput(lease.key.stage_index, lease.chain_start, lease.chain_stop, encode(result))
+def batch_output(lease: BatchLease, result: Any, model_runs: int | None = None) -> BatchOutput:
+    """A kind's batch result (a serialisable dataclass) as the store keeps it; ``model_runs``:
+    the runs it holds, where they may differ from the planned ones."""
+    k = lease.key
+    return BatchOutput(
+        k.stage_index, lease.chain_start, lease.chain_stop, encode(result), model_runs
+    )
 
 
 def one_run_per_item(batches: Sequence[range]) -> list[int]:

@@ -259,9 +259,9 @@ class CalibrationRun:
             known = self.known_parts(rows)
             copies = self.initial_source[rows] != np.arange(rows.start, rows.stop)
             points = evaluate_points(self.initial_points[rows], model_function, known, copies)
-            return batch_output(lease, points)
+            return batch_output(lease, points, points.runs)
         result = run_chains(self.plan(store, lease.key), lease.chains, model_function)
-        return batch_output(lease, result)
+        return batch_output(lease, result, result.model_runs)
 
     def result(self, final: StageState) -> dict[str, Any] | None:
         """What the study stores when it completes (a calibration: nothing beyond its

@@ -51,6 +51,7 @@ from services.store.codec import decode
 from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
+from ..request_model import RequestModel
 from .base import KindHttp, StudyTerms, batch_output, case_terms, one_run_per_item
 from .checks import check_runs
 from .update import completed_calibration, old_dataset_ids
@@ -62,7 +63,7 @@ DEFAULT_DRAWS_PER_BATCH = 25
 MAX_CONDITIONS = 200
 
 
-class PredictionRequest(BaseModel):
+class PredictionRequest(RequestModel):
     """Posterior predictions of a completed calibration (or update) under the test conditions
     of stored datasets or of conditions given here (exactly one of the two)."""
 
@@ -76,8 +77,8 @@ class PredictionRequest(BaseModel):
         },
     )
 
-    study_id: int = Field(ge=0, le=INT64_MAX, description="The completed calibration.")
-    dataset_ids: list[Annotated[int, Field(ge=0, le=INT64_MAX)]] | None = Field(
+    study_id: int = Field(ge=1, le=INT64_MAX, description="The completed calibration.")
+    dataset_ids: list[Annotated[int, Field(ge=1, le=INT64_MAX)]] | None = Field(
         None,
         min_length=1,
         description="Stored datasets whose test conditions are predicted (and whose measured "
