@@ -53,7 +53,8 @@ __all__ = ["DatasetTerms", "StudyModel", "dataset_terms"]
 class DatasetTerms:
     """What the likelihood needs from one dataset: its name, simulator condition keys (W, slip,
     omega, R, b, n_grousers, grouser_height, as available), the steady means (F N, T N m,
-    z m) and, for a summary of repeated trials, their number and sample sds (same units)."""
+    z m) with their standard errors (NaN where unknown) and, for a summary of repeated trials,
+    their number and sample sds (same units)."""
 
     name: str
     conditions: dict[str, float | int | str]
@@ -61,6 +62,7 @@ class DatasetTerms:
     content_hash: str = ""
     n_trials: int = 1
     trial_sd: tuple[float, float, float] = (np.nan, np.nan, np.nan)
+    standard_errors: tuple[float, float, float] = (np.nan, np.nan, np.nan)
 
     @property
     def measured(self) -> tuple[str, ...]:
@@ -82,6 +84,10 @@ def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
         n_trials=int(trials),
         trial_sd=tuple(
             float(dataset.responses[r].sd) if r in dataset.responses and trials > 1 else np.nan
+            for r in RESPONSES
+        ),
+        standard_errors=tuple(
+            float(dataset.responses[r].se) if r in dataset.responses else np.nan
             for r in RESPONSES
         ),
     )

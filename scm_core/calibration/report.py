@@ -88,6 +88,9 @@ def study_summary(
                 "means": {
                     r: finite_or_none(x) for r, x in zip(RESPONSES, model.x_exp[k], strict=True)
                 },
+                "standard_errors": {
+                    r: finite_or_none(x) for r, x in zip(RESPONSES, d.standard_errors, strict=True)
+                },
             }
         )
     summary: dict[str, Any] = {

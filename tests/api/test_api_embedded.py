@@ -182,3 +182,34 @@ def test_client_reads_the_same(finished) -> None:
     series = api.series(dataset_id, max_points=500)
     assert len(series["t"]) <= 500 and set(series["filtered"]) >= {"drawbar_pull", "torque"}
     assert series["window"] == [40.0, 180.0]
+
+
+def test_inference_data_is_the_last_stage_for_arviz(finished, tmp_path) -> None:
+    """``GET /studies/{id}/inference-data``: an ArviZ InferenceData file whose posterior is the
+    last finished stage's samples exactly and whose prior is stage 0 (issue 44 item 2)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        import arviz as az
+
+    client, url, study_id, _, _ = finished
+    r = client.get(f"/studies/{study_id}/inference-data")
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "application/x-netcdf"
+    path = tmp_path / "study.nc"
+    path.write_bytes(r.content)
+    idata = az.from_netcdf(path)
+    study = client.get(f"/studies/{study_id}").json()
+    with Store.open(url) as store:
+        last = store.samples.arrays(study_id, study["current_stage"])
+        prior = store.samples.arrays(study_id, 0)
+    for j, name in enumerate(study["parameter_names"]):
+        assert np.array_equal(idata.posterior[name].values[0], last.samples[:, j])
+        assert np.array_equal(idata.prior[name].values[0], prior.samples[:, j])
+    assert np.array_equal(idata.sample_stats["log_likelihood"].values[0], last.log_likelihood)
+    assert idata.posterior.attrs["status"] == study["status"]
+    assert list(idata.tempering["exponent"].values[0]) == sorted(
+        idata.tempering["exponent"].values[0]
+    )
+    assert client.get("/studies/999999/inference-data").status_code == 404

@@ -24,6 +24,7 @@ ALLOWED: dict[str, set[str]] = {
     "services.config": {"services.config"},
     "services.limits": {"services.config", "scm_core"},
     "services.plots": {"services.plots", "scm_core"},
+    "services.exports": {"services.exports", "scm_core"},
     "services.client": {"services.client", "services.config"},
     "services.store": {"services.store", "services.config", "services.limits", "scm_core"},
     "services.studies": {
@@ -40,6 +41,7 @@ ALLOWED["services.api"] = ALLOWED["worker"] | {
     "services.api",
     "services.limits",
     "services.plots",  # the dashboard's figures
+    "services.exports",  # files for other tools (ArviZ)
 }
 ALLOWED["services.cli"] = ALLOWED["services.api"] | {
     "services.cli",

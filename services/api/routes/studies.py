@@ -36,6 +36,7 @@ from services.studies.kinds.update import update_spec
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write, token_ok
 from ..etags import etag_of, not_modified, set_etag
+from ..inference_export import study_netcdf
 from ..params import StageIndex, StudyId, parse_statuses, status_query
 from ..schemas import (
     CancelRequest,
@@ -323,6 +324,29 @@ def get_samples_csv(study_id: StudyId, stage: StageIndex, store: StoreDep) -> St
         chunks,
         media_type="text/csv; charset=utf-8",
         headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+    )
+
+
+@router.get(
+    "/{study_id}/inference-data",
+    summary="The calibration as an ArviZ InferenceData file (NetCDF)",
+    response_class=Response,
+    responses={
+        200: {"content": {"application/x-netcdf": {}}, "description": "An InferenceData file."},
+        **errors(401, 404, 409),
+    },
+)
+def get_inference_data(study_id: StudyId, store: StoreDep) -> Response:
+    """The last finished stage as ``posterior`` (one chain), stage 0 as ``prior``,
+    ``sample_stats``, ``observed_data`` (the datasets' steady means and standard errors, SI)
+    and ``tempering`` (per stage), as ``scm-calib export --to netcdf`` writes it;
+    ``arviz.from_netcdf`` reads it. 409 for a study of another kind or without a finished
+    tempering stage."""
+    data = study_netcdf(store, study_id)
+    return Response(
+        data,
+        media_type="application/x-netcdf",
+        headers={"Content-Disposition": f'attachment; filename="study_{study_id}.nc"'},
     )
 
 

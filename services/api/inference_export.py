@@ -1,0 +1,66 @@
+"""A stored calibration as an ArviZ InferenceData file (``GET /studies/{id}/inference-data``):
+the same groups as ``scm-calib export --to netcdf`` (:mod:`services.exports.inference_data`),
+built from the store instead of a results folder."""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import warnings
+from pathlib import Path
+
+from fastapi import HTTPException
+
+from scm_core.jsondoc import finite_or_none
+from services.store import Store
+from services.studies.kinds.update import UPDATABLE
+
+from .views import parameter_names, parameter_units, resolve_stage
+
+
+def _num(v: float | None) -> float:
+    return math.nan if v is None else float(v)
+
+
+def study_netcdf(store: Store, study_id: int) -> bytes:
+    """The NetCDF bytes of study ``study_id``'s last finished stage (with its stage 0 as the
+    prior); 409 for a study that is not a calibration or has no finished stage after stage 0."""
+    from services.exports.inference_data import RunPopulation, StageRow, inference_data
+
+    study = store.studies.get(study_id)
+    if study.kind not in UPDATABLE:
+        raise HTTPException(409, f"study {study_id} is a {study.kind} study, not a calibration")
+    last = resolve_stage(store, study_id, -1)
+    if last.stage_index == 0:
+        raise HTTPException(409, f"study {study_id}: no tempering stage has finished yet")
+    names = parameter_names(study)
+    final = store.samples.arrays(study_id, last.stage_index)
+    prior = store.samples.arrays(study_id, 0)
+    stages = [
+        StageRow(_num(s.exponent), _num(s.acceptance), _num(s.log_evidence))
+        for s in store.stages.list(study_id)
+        if s.status == "done"
+    ]
+    run = RunPopulation(final.samples, final.log_likelihood, final.log_prior, prior.samples, stages)
+    observed = {}
+    for dataset_id in study.dataset_ids:
+        d = store.datasets.get(dataset_id)
+        observed[d.name] = {"means": d.means, "standard_errors": d.standard_errors}
+    exponent = finite_or_none(last.exponent)
+    attrs = {
+        "study_id": study_id,
+        "case": study.case,
+        "status": study.status,
+        "is_posterior": exponent is not None and exponent >= 1.0 - 1e-12,
+        "log_evidence": finite_or_none(last.log_evidence),
+        "seed": study.seed,
+    }
+    with warnings.catch_warnings():  # ArviZ announces its refactor on import
+        warnings.simplefilter("ignore", FutureWarning)
+        idata = inference_data(
+            names, [run], units=parameter_units(study), observed=observed, attrs=attrs
+        )
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "inference_data.nc"
+        idata.to_netcdf(str(path))
+        return path.read_bytes()
