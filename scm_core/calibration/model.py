@@ -87,8 +87,7 @@ def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
             for r in RESPONSES
         ),
         standard_errors=tuple(
-            float(dataset.responses[r].se) if r in dataset.responses else np.nan
-            for r in RESPONSES
+            float(dataset.responses[r].se) if r in dataset.responses else np.nan for r in RESPONSES
         ),
     )
 

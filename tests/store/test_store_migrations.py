@@ -415,4 +415,3 @@ def test_0009_adds_heartbeats_and_batch_run_counts_and_takes_them_back(empty_url
         assert "model_runs" not in columns and "heartbeats" not in _tables(empty_url)
     finally:
         engine.dispose()
-
