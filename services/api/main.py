@@ -32,6 +32,7 @@ from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.formparsers import MultiPartException
+from starlette.middleware.gzip import GZipMiddleware
 
 from scm_core.validation_text import quoted
 from services.config import Settings, get_settings
@@ -41,6 +42,7 @@ from services.studies.kinds.registry import KINDS
 
 from .dashboard import dashboard_router, mount_static
 from .deps import route_needs_token
+from .inference_export import NetcdfCache
 from .middleware import (
     BodyLimitMiddleware,
     JsonDepthMiddleware,
@@ -77,6 +79,8 @@ __all__ = [
 JSON_BODY_LIMIT = 4 * 1024 * 1024
 #: room for the multipart framing and the metadata field of an upload
 UPLOAD_SLACK = 64 * 1024
+#: responses shorter than this are sent as they are (gzip would not pay for its header)
+GZIP_MIN_BYTES = 1024
 
 API_DESCRIPTION = """\
 Bayesian (TMCMC) calibration of Soil Contact Model parameters from single-wheel tests.
@@ -370,6 +374,7 @@ def create_app(
     app.state.store = None
     app.state.dispatcher = None
     app.state.runtime = None
+    app.state.netcdf_cache = NetcdfCache()
 
     def limit_for(path: str) -> tuple[int, str]:
         if path.rstrip("/") == "/datasets":
@@ -381,6 +386,8 @@ def create_app(
 
     app.add_middleware(JsonDepthMiddleware, max_depth=settings.max_json_depth)
     app.add_middleware(BodyLimitMiddleware, limit_for=limit_for)
+    # HTML, JSON, CSV and SVG figures compress 5-10x; a client that does not ask gets them plain
+    app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     app.add_middleware(TokenFirstMiddleware)  # outermost: runs first
     _install_error_handlers(app)
     routers = [m.router for m in (health, datasets, presets, studies, sensitivity, pooled)]

@@ -412,6 +412,15 @@ def test_cancel_works_with_the_token_and_is_refused_without(server, browser) -> 
         w.page.click("button[data-cancel]")
         w.page.wait_for_selector("#study-status:has-text('cancelled')")
         assert httpx.get(f"{base}/studies/{to_cancel}").json()["status"] == "cancelled"
+        # issue 45: no stage left "running", no log evidence of 0 for a study that never got
+        # near its posterior, and no prior sample labelled a posterior
+        w.page.wait_for_function("() => !document.querySelector('.htmx-request')")
+        rows = w.page.locator("table.stages tbody tr").all_inner_texts()
+        assert rows and not any("running" in r for r in rows), rows
+        evidence = w.page.inner_text("dl.progress div:has(dt:text-is('log evidence')) dd")
+        assert evidence.strip() == "–", evidence
+        heading = w.page.locator("#results h2").all_inner_texts()
+        assert not any(h.startswith("Posterior summary") for h in heading), heading
         w.shoot("study_cancelled")
         w.clean()
     finally:
@@ -517,6 +526,34 @@ def test_polling_stops_while_hidden_and_once_the_study_has_ended(server, browser
         polls.clear()
         w.page.wait_for_timeout(5000)
         assert polls == []  # ended: the fragments have no trigger left
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_study_page_first_load_is_light(server, browser) -> None:
+    """Issue 45 item 5: HTML, JS, CSS, JSON and SVG go compressed (the browser asks for gzip);
+    a calibration's page, first load with its four figures, moves at most 150 KB (it was
+    429 KB uncompressed, 355 KB of it SVG)."""
+    w = Watched(browser)
+    sizes: list[tuple[str, int, str | None]] = []
+
+    def finished(request) -> None:
+        response = request.response()
+        encoding = response.header_value("content-encoding") if response else None
+        s = request.sizes()
+        sizes.append((request.url, s["responseBodySize"] + s["responseHeadersSize"], encoding))
+
+    w.page.on("requestfinished", finished)
+    try:
+        w.goto(f"{server['base']}/ui/studies/{server['a']}")
+        assert w.figures_loaded() == 4
+        w.page.wait_for_load_state("networkidle")
+        total = sum(n for _, n, _ in sizes)
+        big = [(u, n, e) for u, n, e in sizes if n > 4096]
+        assert all(e == "gzip" for _, _, e in big), big
+        print(f"study page first load: {len(sizes)} requests, {total / 1024:.0f} KB transferred")
+        assert total <= 150 * 1024, sorted(sizes, key=lambda x: -x[1])[:5]
         w.clean()
     finally:
         w.close()

@@ -23,6 +23,7 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from scm_core.calibration import PRESETS
+from scm_core.jsondoc import finite_or_none
 from services.limits import INT64_MAX
 from services.plots.figures import FORMATS
 from services.plots.posterior import default_pairs
@@ -241,11 +242,13 @@ def dashboard_router() -> APIRouter:
         tag = etag_of("ui-results", study_id, study.status, study.current_stage)
         if (unchanged := not_modified(request, tag)) is not None:
             return unchanged
-        done = [s.stage_index for s in store.stages.list(study_id) if s.status == "done"]
+        done_stages = [s for s in store.stages.list(study_id) if s.status == "done"]
+        done = [s.stage_index for s in done_stages]
         finished = done[-1] if done else None
         ctx: dict[str, Any] = {
             "study": study_brief(study),
             "stage": finished,
+            "exponent": finite_or_none(done_stages[-1].exponent) if done_stages else None,
             "stages_done": done,
             "summary": None,
             "pairs": [],

@@ -36,7 +36,6 @@ from services.studies.kinds.update import update_spec
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write, token_ok
 from ..etags import etag_of, not_modified, set_etag
-from ..inference_export import study_netcdf
 from ..params import StageIndex, StudyId, parse_statuses, status_query
 from ..schemas import (
     CancelRequest,
@@ -336,18 +335,24 @@ def get_samples_csv(study_id: StudyId, stage: StageIndex, store: StoreDep) -> St
         **errors(401, 404, 409),
     },
 )
-def get_inference_data(study_id: StudyId, store: StoreDep) -> Response:
+def get_inference_data(study_id: StudyId, request: Request, store: StoreDep) -> Response:
     """The last finished stage as ``posterior`` (one chain), stage 0 as ``prior``,
     ``sample_stats``, ``observed_data`` (the datasets' steady means and standard errors, SI)
     and ``tempering`` (per stage), as ``scm-calib export --to netcdf`` writes it;
     ``arviz.from_netcdf`` reads it. 409 for a study of another kind or without a finished
-    tempering stage."""
-    data = study_netcdf(store, study_id)
-    return Response(
+    tempering stage. ETag: the study's version (304 for an unchanged study)."""
+    version = store.studies.version(study_id)
+    tag = etag_of("inference-data", study_id, version)
+    if (unchanged := not_modified(request, tag)) is not None:
+        return unchanged
+    data = request.app.state.netcdf_cache.get(store, study_id, version)
+    out = Response(
         data,
         media_type="application/x-netcdf",
         headers={"Content-Disposition": f'attachment; filename="study_{study_id}.nc"'},
     )
+    set_etag(out, tag)
+    return out
 
 
 @router.get(
