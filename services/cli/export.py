@@ -1,8 +1,13 @@
-"""``scm-calib export DIR --to netcdf``: a ``calibrate`` results folder for other tools.
+"""``scm-calib export DIR --to netcdf|chrono``: a ``calibrate`` results folder for other tools.
 
 ``netcdf``: an ArviZ InferenceData file (``services.exports.inference_data``: posterior,
 prior, sample statistics, observed data), read back by ``arviz.from_netcdf``; default
 ``DIR/inference_data.nc``.
+
+``chrono``: the soil at the MAP and at the posterior medians (and ``--draws`` posterior
+samples) as Chrono's ``SCMTerrain::SetSoilParameters`` calls for C++ and PyChrono and a JSON
+block, with the units stated (``services.exports.chrono``); default ``DIR/chrono_soil.json``
+beside ``chrono_soil.cpp`` and ``chrono_soil.py``.
 """
 
 from __future__ import annotations
@@ -16,8 +21,9 @@ import click
 import numpy as np
 
 from .common import CLIError
+from .results import write_json
 
-FORMATS = ("netcdf",)
+FORMATS = ("netcdf", "chrono")
 
 
 def read_population(path: Path, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -49,20 +55,27 @@ def _float(v: object) -> float:
     return math.nan if v is None else float(v)  # type: ignore[arg-type]
 
 
-def results_inference_data(results: Path):
-    """The InferenceData of a ``calibrate`` results folder (one run: one chain)."""
-    from services.exports.inference_data import RunPopulation, StageRow, inference_data
-
-    summary_path = results / "summary.json"
-    if not summary_path.is_file():
+def _summary(results: Path) -> dict:
+    path = results / "summary.json"
+    if not path.is_file():
         raise CLIError(
             f"{results}: no summary.json; give the output folder of `scm-calib calibrate`"
         )
     try:
-        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise CLIError(f"{path}: unreadable study summary ({exc})") from None
+
+
+def results_inference_data(results: Path):
+    """The InferenceData of a ``calibrate`` results folder (one run: one chain)."""
+    from services.exports.inference_data import RunPopulation, StageRow, inference_data
+
+    summary = _summary(results)
+    try:
         names = list(summary["parameters"])
-    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise CLIError(f"{summary_path}: unreadable study summary ({exc})") from None
+    except (KeyError, TypeError) as exc:
+        raise CLIError(f"{results / 'summary.json'}: unreadable study summary ({exc})") from None
     samples, ll, lp = read_population(results / "posterior.csv", names)
     prior, _, _ = read_population(results / "samples" / "stage_00.csv", names)
     stages = [
@@ -85,18 +98,86 @@ def results_inference_data(results: Path):
     return inference_data(names, [run], units=summary.get("units"), observed=observed, attrs=attrs)
 
 
+def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -> None:
+    """The Chrono export of ``results`` to ``out`` (JSON) and its .cpp and .py siblings."""
+    from pydantic import ValidationError
+
+    from scm_core.calibration import CaseDefinition, CaseError
+    from scm_core.calibration.model import build_configs
+    from services.exports.chrono import (
+        ChronoExportError,
+        chrono_soil,
+        cpp_call,
+        python_call,
+        soils_document,
+    )
+
+    summary = _summary(results)
+    try:
+        case = CaseDefinition.from_dict(summary["case"], base_dir=results)
+        names = list(summary["parameters"])
+    except (KeyError, TypeError, CaseError) as exc:
+        raise CLIError(f"{results / 'summary.json'}: {exc}") from None
+    samples, _, _ = read_population(results / "posterior.csv", names)
+    points = {"posterior median": dict(zip(names, np.median(samples, axis=0), strict=True))}
+    map_values = (summary.get("posterior") or {}).get("map")
+    if map_values:
+        points = {"MAP": {k: float(v) for k, v in map_values.items()}, **points}
+    rng = np.random.default_rng(seed)
+    picks = rng.choice(samples.shape[0], size=draws, replace=True) if draws else []
+    draw_points = [dict(zip(names, samples[i], strict=True)) for i in picks]
+
+    def soil_at(values: dict) -> tuple:
+        try:
+            soil, _, rig = build_configs(case.nominal, case.simulator, {}, values)
+        except (ValidationError, ValueError) as exc:
+            raise CLIError(f"{results}: the soil does not build ({exc})") from None
+        try:
+            return chrono_soil(soil, rig, lossy=lossy)
+        except ChronoExportError as exc:
+            raise CLIError(str(exc)) from None
+
+    sets = {}
+    dropped: list[str] = []
+    for label, values in points.items():
+        sets[label], dropped = soil_at(values)
+    draw_sets = [soil_at(v)[0] for v in draw_points]
+    doc = soils_document(sets, dropped, draw_sets)
+    doc["study"] = {"case": case.name, "status": summary.get("status"), "results": str(results)}
+    write_json(out, doc, indent=2)
+    what = f"{case.name} ({summary.get('status')})"
+    cpp = "".join(cpp_call(s, comment=f"{what}: {label}") for label, s in sets.items())
+    py = "".join(python_call(s, comment=f"{what}: {label}") for label, s in sets.items())
+    out.with_suffix(".cpp").write_text(cpp, encoding="utf-8")
+    out.with_suffix(".py").write_text(py, encoding="utf-8")
+    click.echo(cpp, nl=False)
+    click.echo(f"wrote {out}, {out.with_suffix('.cpp').name}, {out.with_suffix('.py').name}")
+    for item in dropped:
+        click.echo(f"warning: dropped (--lossy): {item}", err=True)
+
+
 @click.command("export")
 @click.argument("results", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option(
     "--to", "fmt", type=click.Choice(FORMATS), default="netcdf", show_default=True,
-    help="netcdf: an ArviZ InferenceData file (arviz.from_netcdf reads it).",
+    help="netcdf: an ArviZ InferenceData file (arviz.from_netcdf reads it); chrono: "
+    "SCMTerrain::SetSoilParameters calls and a JSON block.",
 )  # fmt: skip
 @click.option(
     "--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
-    help="The file to write (default RESULTS/inference_data.nc).",
+    help="The file to write (default RESULTS/inference_data.nc or RESULTS/chrono_soil.json).",
 )  # fmt: skip
-def export(results: Path, fmt: str, out: Path | None) -> None:
+@click.option("--draws", type=click.IntRange(0, 100_000), default=0, show_default=True,
+              help="chrono: also this many posterior samples (drawn with --seed).")  # fmt: skip
+@click.option("--seed", type=click.IntRange(0), default=0, show_default=True,
+              help="chrono: seed of the --draws.")  # fmt: skip
+@click.option("--lossy", is_flag=True,
+              help="chrono: export what Chrono can take and list what was dropped.")  # fmt: skip
+def export(results: Path, fmt: str, out: Path | None, draws: int, seed: int, lossy: bool) -> None:
     """Export the calibration in RESULTS (a `scm-calib calibrate` folder) for other tools."""
+    if fmt == "chrono":
+        write_chrono(results, out or results / "chrono_soil.json", draws, seed, lossy)
+        return
     import warnings
 
     with warnings.catch_warnings():  # ArviZ announces its refactor on import
@@ -108,7 +189,7 @@ def export(results: Path, fmt: str, out: Path | None) -> None:
     except OSError as exc:
         raise CLIError(f"{target}: {exc.strerror or exc}") from None
     status = str(idata.posterior.attrs.get("status"))
-    chains, draws = idata.posterior.sizes["chain"], idata.posterior.sizes["draw"]
-    click.echo(f"wrote {target} ({chains} chain x {draws} draws, {status})")
+    chains, draws_n = idata.posterior.sizes["chain"], idata.posterior.sizes["draw"]
+    click.echo(f"wrote {target} ({chains} chain x {draws_n} draws, {status})")
     if not idata.posterior.attrs.get("is_posterior"):
         click.echo(f"warning: {results} holds a {status} run: NOT A POSTERIOR", err=True)
