@@ -138,43 +138,36 @@ _CHOOSE_J = (
 )
 
 
-def _args(s: ChronoSoil, janosi_name: str) -> list[str]:
+def _calls(s: ChronoSoil, terrain: str, comment: str, mark: str, end: str) -> str:
+    """The two calls in a language whose line comments start with ``mark`` and whose
+    statements end with ``end`` (a trailing comma after the last argument only where the
+    language allows it: Python)."""
     values = s.to_dict()
-    out = []
-    for name, unit in SOIL_ARGS:
+    lines = []
+    for k, (name, unit) in enumerate(SOIL_ARGS):
         v = values[name]
-        text = janosi_name if v is None else repr(float(v))
-        out.append(f"{text},  // {name} [{unit}]")
-    return out
+        text = "janosi_shear" if v is None else repr(float(v))
+        comma = "," if k < len(SOIL_ARGS) - 1 or not end else " "
+        lines.append(f"    {text}{comma}  {mark} {name} [{unit}]")
+    head = f"{mark} {comment}\n" if comment else ""
+    if s.Janosi_shear is None:
+        head += f"{mark} {_CHOOSE_J}\n"
+    body = "\n".join(lines)
+    return (
+        f"{head}{terrain}.SetSoilParameters(\n{body}\n){end}\n"
+        f"{terrain}.SetBulldozingParameters({s.erosion_angle!r}, {s.flow_factor!r}){end}"
+        f"  {mark} erosion_angle [deg], flow_factor [-]\n"
+    )
 
 
 def cpp_call(s: ChronoSoil, terrain: str = "terrain", comment: str = "") -> str:
     """The C++ calls for ``s`` (``janosi_shear`` a variable to define where J was dropped)."""
-    args = _args(s, "janosi_shear")
-    args[-1] = args[-1].replace(",  //", "   //", 1)
-    head = f"// {comment}\n" if comment else ""
-    if s.Janosi_shear is None:
-        head += f"// {_CHOOSE_J}\n"
-    body = "\n".join(f"    {a}" for a in args)
-    return (
-        f"{head}{terrain}.SetSoilParameters(\n{body}\n);\n"
-        f"{terrain}.SetBulldozingParameters({s.erosion_angle!r}, {s.flow_factor!r});"
-        "  // erosion_angle [deg], flow_factor [-]\n"
-    )
+    return _calls(s, terrain, comment, "//", ";")
 
 
 def python_call(s: ChronoSoil, terrain: str = "terrain", comment: str = "") -> str:
     """The PyChrono calls for ``s``."""
-    args = [a.replace("  //", "  #") for a in _args(s, "janosi_shear")]
-    head = f"# {comment}\n" if comment else ""
-    if s.Janosi_shear is None:
-        head += f"# {_CHOOSE_J}\n"
-    body = "\n".join(f"    {a}" for a in args)
-    return (
-        f"{head}{terrain}.SetSoilParameters(\n{body}\n)\n"
-        f"{terrain}.SetBulldozingParameters({s.erosion_angle!r}, {s.flow_factor!r})"
-        "  # erosion_angle [deg], flow_factor [-]\n"
-    )
+    return _calls(s, terrain, comment, "#", "")
 
 
 def soils_document(
