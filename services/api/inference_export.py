@@ -4,7 +4,6 @@ built from the store instead of a results folder."""
 
 from __future__ import annotations
 
-import math
 import tempfile
 import threading
 import warnings
@@ -43,10 +42,6 @@ class NetcdfCache:
         return data
 
 
-def _num(v: float | None) -> float:
-    return math.nan if v is None else float(v)
-
-
 def study_netcdf(store: Store, study_id: int) -> bytes:
     """The NetCDF bytes of study ``study_id``'s last finished stage (with its stage 0 as the
     prior); 409 for a study that is not a calibration or has no finished stage after stage 0."""
@@ -62,7 +57,7 @@ def study_netcdf(store: Store, study_id: int) -> bytes:
     final = store.samples.arrays(study_id, last.stage_index)
     prior = store.samples.arrays(study_id, 0)
     stages = [
-        StageRow(_num(s.exponent), _num(s.acceptance), _num(s.log_evidence))
+        StageRow.of(s.exponent, s.acceptance, s.log_evidence)
         for s in store.stages.list(study_id)
         if s.status == "done"
     ]

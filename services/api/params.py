@@ -7,6 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import HTTPException, Path, Query
 
+from scm_core.validation_text import quoted
 from services.limits import INT32_MAX, INT64_MAX
 from services.store.models import STUDY_STATUSES
 
@@ -62,10 +63,10 @@ def parse_id_list(items: list[str], field: str, limit: int = 1000) -> list[int]:
     for item in items:
         parts = [p.strip(" ") for p in item.split(",")]
         if not any(parts):
-            raise HTTPException(422, f"{field}: no study id in {item[:40]!r}")
+            raise HTTPException(422, f"{field}: no study id in {quoted(item)}")
         for part in filter(None, parts):
             if not (part.isascii() and part.isdigit()):
-                raise HTTPException(422, f"{field}: not a study id: {part[:40]!r}")
+                raise HTTPException(422, f"{field}: not a study id: {quoted(part)}")
             if len(part.lstrip("0")) > 19 or not 0 < int(part) <= INT64_MAX:  # ids: 1..BIGINT
                 raise HTTPException(422, f"{field}: no study with id {part[:40]}")
             ids.append(int(part))

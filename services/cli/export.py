@@ -12,74 +12,27 @@ beside ``chrono_soil.cpp`` and ``chrono_soil.py``.
 
 from __future__ import annotations
 
-import csv
-import json
-import math
 from pathlib import Path
 
 import click
 import numpy as np
 
 from .common import CLIError
-from .results import write_json
+from .results import load_results, read_population, write_json
 
 FORMATS = ("netcdf", "chrono")
-
-
-def read_population(path: Path, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(samples (n, d), log_likelihood (n,), log_prior (n,)) of a stage CSV of a results
-    folder (``posterior.csv``, ``samples/stage_NN.csv``), exactly as written."""
-    try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise CLIError(f"{path}: {exc.strerror or exc}") from None
-    if not rows:
-        raise CLIError(f"{path}: empty file")
-    header = rows[0]
-    wanted = [*names, "log_likelihood", "log_prior"]
-    missing = [c for c in wanted if c not in header]
-    if missing:
-        raise CLIError(f"{path}: no column {', '.join(missing)}; is this a results folder?")
-    cols = [header.index(c) for c in wanted]
-    try:
-        table = np.array([[float(r[c]) for c in cols] for r in rows[1:]], dtype=float)
-    except (ValueError, IndexError) as exc:
-        raise CLIError(f"{path}: unreadable row ({exc})") from None
-    table = table.reshape(-1, len(wanted))
-    d = len(names)
-    return table[:, :d], table[:, d], table[:, d + 1]
-
-
-def _float(v: object) -> float:
-    return math.nan if v is None else float(v)  # type: ignore[arg-type]
-
-
-def _summary(results: Path) -> dict:
-    path = results / "summary.json"
-    if not path.is_file():
-        raise CLIError(
-            f"{results}: no summary.json; give the output folder of `scm-calib calibrate`"
-        )
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise CLIError(f"{path}: unreadable study summary ({exc})") from None
 
 
 def results_inference_data(results: Path):
     """The InferenceData of a ``calibrate`` results folder (one run: one chain)."""
     from services.exports.inference_data import RunPopulation, StageRow, inference_data
 
-    summary = _summary(results)
-    try:
-        names = list(summary["parameters"])
-    except (KeyError, TypeError) as exc:
-        raise CLIError(f"{results / 'summary.json'}: unreadable study summary ({exc})") from None
+    case, _, summary = load_results(results)
+    names = list(case.parameter_names)
     samples, ll, lp = read_population(results / "posterior.csv", names)
     prior, _, _ = read_population(results / "samples" / "stage_00.csv", names)
     stages = [
-        StageRow(*(_float(s.get(k)) for k in ("exponent", "acceptance_rate", "log_evidence")))
+        StageRow.of(s.get("exponent"), s.get("acceptance_rate"), s.get("log_evidence"))
         for s in summary.get("stages") or []
     ]
     run = RunPopulation(samples, ll, lp, prior, stages)
@@ -102,7 +55,6 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
     """The Chrono export of ``results`` to ``out`` (JSON) and its .cpp and .py siblings."""
     from pydantic import ValidationError
 
-    from scm_core.calibration import CaseDefinition, CaseError
     from scm_core.calibration.model import build_configs
     from services.exports.chrono import (
         ChronoExportError,
@@ -112,13 +64,8 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
         soils_document,
     )
 
-    summary = _summary(results)
-    try:
-        case = CaseDefinition.from_dict(summary["case"], base_dir=results)
-        names = list(summary["parameters"])
-    except (KeyError, TypeError, CaseError) as exc:
-        raise CLIError(f"{results / 'summary.json'}: {exc}") from None
-    samples, _, _ = read_population(results / "posterior.csv", names)
+    case, samples, summary = load_results(results)
+    names = list(case.parameter_names)
     points = {"posterior median": dict(zip(names, np.median(samples, axis=0), strict=True))}
     map_values = (summary.get("posterior") or {}).get("map")
     if map_values:

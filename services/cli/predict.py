@@ -11,7 +11,6 @@ with whether it falls inside. Writes ``predictions.json`` and ``predictions.png`
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from functools import partial
@@ -23,7 +22,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from scm_core.calibration import CaseDefinition, CaseError, DatasetTerms
+from scm_core.calibration import CaseDefinition, DatasetTerms
 from scm_core.calibration.predict import (
     ConditionPrediction,
     predict,
@@ -35,37 +34,9 @@ from scm_core.signals.metadata import merge_metadata
 
 from .common import CLIError, compile_simulator_once, data_option, read_datasets
 from .pool import batch_map
-from .results import write_json
+from .results import load_results, write_json
 
 _SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
-
-
-def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, Any]]:
-    """(case, posterior samples (n, d), summary) of a ``calibrate`` results folder."""
-    summary_path = results / "summary.json"
-    post_path = results / "posterior.csv"
-    for p in (summary_path, post_path):
-        if not p.is_file():
-            raise CLIError(
-                f"{results}: no {p.name}; give the output folder of `scm-calib calibrate`"
-            )
-    try:
-        summary = json.loads(summary_path.read_text(encoding="utf-8"))
-        case = CaseDefinition.from_dict(summary["case"], base_dir=results)
-    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise CLIError(f"{summary_path}: unreadable study summary ({exc})") from None
-    except CaseError as exc:
-        raise CLIError(f"{summary_path}: {exc}") from None
-    names = list(case.parameter_names)
-    try:
-        with post_path.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.DictReader(fh))
-        samples = np.array([[float(r[n]) for n in names] for r in rows], dtype=float)
-    except (OSError, KeyError, ValueError) as exc:
-        raise CLIError(f"{post_path}: unreadable posterior samples ({exc})") from None
-    if samples.size == 0:
-        raise CLIError(f"{post_path}: no samples")
-    return case, samples, summary
 
 
 #: wheel geometry an ``--at`` condition takes from the study's datasets when it leaves it out

@@ -1,4 +1,5 @@
-"""The files of a ``scm-calib calibrate`` results folder: checkpoints (for resuming) and outputs.
+"""The files of a ``scm-calib calibrate`` results folder: checkpoints (for resuming), outputs, and
+reading them back (``predict``, ``export``).
 
 Layout::
 
@@ -27,7 +28,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from scm_core import jsondoc
-from scm_core.calibration import CaseDefinition, StudyModel, study_summary
+from scm_core.calibration import CaseDefinition, CaseError, StudyModel, study_summary
 from scm_core.inference import LOG_SCALE_KINDS, StageState, TMCMCResult
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
@@ -242,3 +243,53 @@ def write_outputs(
             offsets=model.measurement_offsets(theta),
         )
     return summary
+
+
+# ---------------------------------------------------------------------- reading back
+
+
+def read_population(path: Path, names: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(samples (n, d), log_likelihood (n,), log_prior (n,)) of a stage CSV of a results
+    folder (``posterior.csv``, ``samples/stage_NN.csv``), exactly as written."""
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise CLIError(f"{path}: {exc.strerror or exc}") from None
+    if not rows:
+        raise CLIError(f"{path}: empty file")
+    header = rows[0]
+    wanted = [*names, "log_likelihood", "log_prior"]
+    missing = [c for c in wanted if c not in header]
+    if missing:
+        raise CLIError(f"{path}: no column {', '.join(missing)}; is this a results folder?")
+    cols = [header.index(c) for c in wanted]
+    try:
+        table = np.array([[float(r[c]) for c in cols] for r in rows[1:]], dtype=float)
+    except (ValueError, IndexError) as exc:
+        raise CLIError(f"{path}: unreadable row ({exc})") from None
+    table = table.reshape(-1, len(wanted))
+    d = len(names)
+    return table[:, :d], table[:, d], table[:, d + 1]
+
+
+def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, Any]]:
+    """(case, posterior samples (n, d), summary) of a ``calibrate`` results folder."""
+    summary_path = results / "summary.json"
+    post_path = results / "posterior.csv"
+    for p in (summary_path, post_path):
+        if not p.is_file():
+            raise CLIError(
+                f"{results}: no {p.name}; give the output folder of `scm-calib calibrate`"
+            )
+    try:
+        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        case = CaseDefinition.from_dict(summary["case"], base_dir=results)
+    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise CLIError(f"{summary_path}: unreadable study summary ({exc})") from None
+    except CaseError as exc:
+        raise CLIError(f"{summary_path}: {exc}") from None
+    samples, _, _ = read_population(post_path, list(case.parameter_names))
+    if samples.size == 0:
+        raise CLIError(f"{post_path}: no samples")
+    return case, samples, summary

@@ -21,6 +21,7 @@ exponent 1), the log evidence and the versions of scm-calib, numpy and ArviZ.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
@@ -42,6 +43,11 @@ class StageRow:
     exponent: float
     acceptance_rate: float
     log_evidence: float
+
+    @classmethod
+    def of(cls, *values: float | None) -> StageRow:
+        """A row from stored values, None (undefined) read as NaN."""
+        return cls(*(math.nan if v is None else float(v) for v in values))
 
 
 @dataclass(frozen=True)
