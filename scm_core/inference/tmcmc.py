@@ -209,6 +209,7 @@ def run_tmcmc(
     *,
     map: MapFn = map,
     batch_size: int | None = None,
+    split: Callable[[int], Sequence[range]] | None = None,
     resume_from: Sequence[StageState] | None = None,
     stage0_samples: NDArray[np.float64] | None = None,
     stage0_tuning: tuple[float, float] | None = None,
@@ -223,8 +224,10 @@ def run_tmcmc(
     (-inf/NaN allowed: counted as failed runs) or (log L (m,), responses (m, k)) (see
     :class:`rowwise` for a likelihood of one vector). ``settings``: the sampler's tuning
     (:class:`TMCMCSettings`; default resample-move with adaptive steps). Chains of a stage are
-    split into batches of ``batch_size`` (None: one batch) and run through ``map(func,
-    batches)``; results are bit-identical for any ``map`` and ``batch_size``.
+    split into batches of ``batch_size`` (None: one batch), or by ``split(n)`` (consecutive
+    ranges covering 0..n-1, e.g. guided self-scheduling's shorter batches at a stage's end),
+    and run through ``map(func, batches)``; results are bit-identical for any ``map`` and
+    split.
 
     Hooks: ``on_stage_start(StageStart)`` before a stage runs, ``on_batch(k)`` after each batch
     with its number of evaluations, ``on_stage(state)`` after every finished stage, stage 0
@@ -258,7 +261,7 @@ def run_tmcmc(
                 raise ValueError(
                     f"stage0_samples has shape {X.shape}, expected ({n_samples}, {prior.dim})"
                 )
-        batches = chain_batches(n_samples, batch_size)
+        batches = split(n_samples) if split else chain_batches(n_samples, batch_size)
         if on_stage_start is not None:
             on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))
         known = dict(stage0_known_parts or {})
@@ -284,7 +287,7 @@ def run_tmcmc(
 
     while (status := stage_status(stages[-1], settings)) is None:
         plan = plan_stage(stages[-1], prior, settings)
-        batches = chain_batches(plan.n_chains, batch_size)
+        batches = split(plan.n_chains) if split else chain_batches(plan.n_chains, batch_size)
         if on_stage_start is not None:
             planned = int(np.sum(plan.chain_length))
             on_stage_start(StageStart(plan.stage, float(plan.exponent), planned, len(batches)))

@@ -14,6 +14,7 @@ service's update kind, which gives the same samples bit for bit.
 from __future__ import annotations
 
 import time
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,7 @@ from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import SWTDataset
-from services.studies.batching import local_batch_size
+from services.studies.batching import local_batch_size, work_batches
 from services.studies.kinds.checks import prior_medians
 
 from .common import (
@@ -267,7 +268,7 @@ def calibrate(
                 case.seed,
                 settings,
                 map=mapper,
-                batch_size=bs,
+                split=partial(work_batches, batch_size=bs, workers=workers or 1),
                 resume_from=stages or None,
                 on_stage_start=on_stage_start,
                 on_batch=on_batch,

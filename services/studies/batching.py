@@ -24,11 +24,12 @@ def batch_size_of(requested: int | None, configured: int | None, default: int) -
 
 
 def local_batch_size(n: int, workers: int | None) -> int:
-    """Chains per batch of a study run on this machine (``scm-calib calibrate``): four batches
-    of a stage's n chains (``stage_chains``: n / P for waste-free moves) per process
-    (``workers``; None: in-process on numba's threads), so that a slow batch leaves the others
-    little to wait for and progress is reported often."""
-    parts = 4 if workers is None else 4 * workers
+    """Largest batch of a stage's n chains (``stage_chains``: n / P for waste-free moves) run
+    on this machine (``scm-calib calibrate``). In-process (``workers`` None: numba's threads
+    share each batch) four batches, so that progress is reported often; on ``workers``
+    processes half a share each, the rest cut ever shorter by :func:`work_batches` (guided
+    self-scheduling) so that no process waits long at a stage's end."""
+    parts = 4 if workers is None else 2 * workers
     return max(1, math.ceil(n / parts))
 
 

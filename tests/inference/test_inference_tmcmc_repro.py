@@ -86,6 +86,24 @@ def test_batch_size_does_not_change_result(reference, batch_size: int) -> None:
     assert res.responses is not None and res.responses.shape == (2000, 3)
 
 
+def test_a_split_into_uneven_batches_does_not_change_result(reference) -> None:
+    # guided self-scheduling, as `scm-calib calibrate --workers N` cuts a stage
+    from services.studies.batching import work_batches
+
+    seen: list[list[int]] = []
+
+    def split(n: int) -> list[range]:
+        batches = work_batches(n, batch_size=600, workers=2)
+        seen.append([len(b) for b in batches])
+        return batches
+
+    res = run_tmcmc(
+        loglik, PRIOR, n_samples=2000, seed=11, settings=TMCMCSettings(n_steps=3), split=split
+    )
+    assert _same(res, reference)
+    assert seen[0] == [600, 600, 400, 200, 100, 75, 25]  # shorter batches at a stage's end
+
+
 def test_process_pool_map_gives_identical_result(reference) -> None:
     with multiprocessing.get_context("fork").Pool(2) as pool:
         res = run_tmcmc(
