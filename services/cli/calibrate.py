@@ -14,6 +14,7 @@ service's update kind, which gives the same samples bit for bit.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,17 @@ from .parent import ParentStudy, load_parent
 from .pool import batch_map
 from .progress import CheckedLikelihood, StageDisplay, StopRequest, is_interrupt
 from .results import Checkpoints, write_outputs
+from .runs import (
+    POOLED_FILE,
+    RUNS_FILE,
+    diagnose_folders,
+    print_verdict,
+    run_folders,
+    write_group,
+)
+
+#: most runs of one ``--runs`` group
+MAX_RUNS = 64
 
 
 def _precheck(case: CaseDefinition, model: StudyModel) -> None:
@@ -142,6 +154,14 @@ def _update_inputs(
     default=None,
     help="Override the case's seed (the same seed gives the same posterior).",
 )
+@click.option(
+    "--runs",
+    type=click.IntRange(min=1, max=MAX_RUNS),
+    default=1,
+    show_default=True,
+    help="Independent runs with the seeds seed, seed + 1, ... into OUT/run_1 ...; then their "
+    "R-hat, ESS, pooled posterior and a convergence verdict (OUT/runs.json).",
+)
 @click.option("--no-plots", is_flag=True, help="Skip the figures.")
 @click.option("--quiet", is_flag=True, help="No progress display.")
 def calibrate(
@@ -155,6 +175,7 @@ def calibrate(
     max_stages: int | None,
     batch_size: int | None,
     seed: int | None,
+    runs: int,
     no_plots: bool,
     quiet: bool,
 ) -> None:
@@ -176,6 +197,8 @@ def calibrate(
             raise CLIError("--update-of seeds the update from the earlier study; drop --seed")
         if not data:
             raise CLIError("--update-of needs the new datasets: give --data NEW.csv")
+        if runs > 1:
+            raise CLIError("--runs repeats a calibration; an update (--update-of) is one study")
         parent = load_parent(update_of)
         case, paths, datasets = _update_inputs(parent, list(data), max_stages)
         n_old = len(parent.dataset_paths)
@@ -201,17 +224,49 @@ def calibrate(
         n_old = 0
     model = StudyModel(case, datasets)
     _precheck(case, model)
+    if out is None:
+        out = Path(f"{update_of.name}_update" if update_of else f"{case_file.stem}_results")
+    options = _RunOptions(workers, batch_size, no_plots, quiet)
+    if runs == 1:
+        status = _run_study(case, model, datasets, paths, parent, n_old, out, options)
+        if status == "stalled":
+            raise SystemExit(1)
+        return
+    _run_group(case, model, datasets, paths, out, runs, options)
+
+
+@dataclass(frozen=True)
+class _RunOptions:
+    """How a study runs here (none of it changes its results)."""
+
+    workers: int | None
+    batch_size: int | None
+    no_plots: bool
+    quiet: bool
+
+
+def _run_study(
+    case: CaseDefinition,
+    model: StudyModel,
+    datasets: list[SWTDataset],
+    paths: list[Path],
+    parent: ParentStudy | None,
+    n_old: int,
+    out: Path,
+    options: _RunOptions,
+) -> str:
+    """Run (or resume) one study into the results folder ``out``; returns its status."""
+    workers, quiet = options.workers, options.quiet
+    update_of = parent.results if parent else None
     prior = case.prior()
     settings = case.tmcmc_settings()
     n = case.sampler.n_samples
     bs = (
-        batch_size
+        options.batch_size
         or case.sampler.batch_size
         or local_batch_size(stage_chains(n, settings), workers)
     )
 
-    if out is None:
-        out = Path(f"{update_of.name}_update" if update_of else f"{case_file.stem}_results")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -310,7 +365,7 @@ def calibrate(
         datasets,
         wall_times,
         extra,
-        plots=not no_plots,
+        plots=not options.no_plots,
         paths=paths,
         sections=sections,
     )
@@ -323,7 +378,39 @@ def calibrate(
             "error: TMCMC stalled (the tempering exponent stopped increasing); see summary.json",
             err=True,
         )
-        raise SystemExit(1)
+    return result.status
+
+
+def _run_group(
+    case: CaseDefinition,
+    model: StudyModel,
+    datasets: list[SWTDataset],
+    paths: list[Path],
+    out: Path,
+    runs: int,
+    options: _RunOptions,
+) -> None:
+    """``runs`` studies of ``case`` with the seeds seed, seed + 1, ... into ``out/run_k``
+    (one after another, each on ``options.workers``), then their agreement and pooled
+    posterior (:mod:`services.cli.runs`)."""
+    if case.seed + runs - 1 > 2**63 - 1:
+        raise CLIError(f"--runs {runs}: the seeds from {case.seed} on pass 2**63 - 1")
+    folders = run_folders(out, runs)
+    console = Console(stderr=True)
+    for k, folder in enumerate(folders):
+        if not options.quiet:
+            console.print(f"run {k + 1} of {runs} (seed {case.seed + k}) in {folder}")
+        status = _run_study(
+            case.with_changes(seed=case.seed + k), model, datasets, paths, None, 0, folder, options
+        )
+        if status != "completed":
+            raise CLIError(f"{folder}: the run ended {status!r}; no verdict over the runs")
+    _, verdict = diagnose_folders(folders)
+    write_group(out, folders, verdict)
+    print_verdict(verdict)
+    click.echo(f"pooled posterior and verdict in {out / POOLED_FILE}, {out / RUNS_FILE}")
+    if not verdict.converged:
+        click.echo(f"warning: the runs disagree ({', '.join(verdict.disagreeing)})", err=True)
 
 
 def _print_summary(summary: dict[str, Any], out: Path) -> None:

@@ -16,6 +16,7 @@ COMMANDS = {
     "sensitivity": "services.cli.sensitivity:sensitivity",
     "predict": "services.cli.predict:predict_cmd",
     "check": "services.cli.check:check",
+    "diagnose": "services.cli.runs:diagnose",
     "export": "services.cli.export:export",
     "db": "services.cli.db:db",
     "serve": "services.cli.serve:serve",

@@ -559,3 +559,48 @@ def test_seed_option_overrides_the_case_seed(work: Path, reference: Path) -> Non
     assert stage0 != (reference / "samples" / "stage_00.csv").read_bytes()
     bad = run_cli("calibrate", "tiny.toml", "--seed", "-1", cwd=work)
     assert bad.returncode == 2 and "--seed" in bad.stderr
+
+
+def test_runs_give_a_verdict_and_a_pooled_posterior(work: Path, reference: Path) -> None:
+    """--runs 2: run_1 is the case's own seed (the same bits as a plain run), run_2 the next
+    seed; runs.json's R-hat is what `diagnose` prints for the same folders; the pooled file is
+    the runs' posteriors one after the other."""
+    proc = run_cli("calibrate", "tiny.toml", "--runs", "2", "--out", "grp", "--no-plots", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    grp = work / "grp"
+    assert stage_files(grp / "run_1") == stage_files(reference)
+    assert json.loads((grp / "run_2" / "summary.json").read_text())["case"]["seed"] == 5
+    doc = json.loads((grp / "runs.json").read_text())
+    assert doc["runs"] == 2 and set(doc["parameters"]) == {"phi", "n"}
+    assert doc["verdict"] in proc.stdout.replace("\n", " ") or doc["verdict"][:40] in proc.stdout
+    assert doc["converged"] == all(p["rhat"] <= 1.01 for p in doc["parameters"].values())
+    pooled = (grp / "posterior_pooled.csv").read_text().splitlines()
+    runs = [(grp / f"run_{k}" / "posterior.csv").read_text().splitlines() for k in (1, 2)]
+    assert pooled[0] == "run," + runs[0][0]
+    assert pooled[1:] == [
+        f"{k},{row}" for k, rows in ((1, runs[0]), (2, runs[1])) for row in rows[1:]
+    ]
+    again = run_cli("diagnose", reference, grp / "run_2", "--out", "diag", cwd=work)
+    assert again.returncode == (0 if doc["converged"] else 1), again.stderr
+    redone = json.loads((work / "diag" / "runs.json").read_text())
+    assert redone["parameters"] == doc["parameters"] and redone["verdict"] == doc["verdict"]
+    # a re-run finds every run finished and gives the same verdict
+    rerun = run_cli("calibrate", "tiny.toml", "--runs", "2", "--out", "grp", "--no-plots", cwd=work)
+    assert rerun.returncode == 0, rerun.stderr
+    assert json.loads((grp / "runs.json").read_text())["parameters"] == doc["parameters"]
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["diagnose", "ref"], "at least two runs"),
+        (["diagnose", "ref", "ref"], "the same seed"),
+        (["diagnose", "ref", "nowhere"], "nowhere"),
+        (["calibrate", "--update-of", "ref", "--data", "log.csv", "--runs", "2"], "--runs"),
+        (["calibrate", "tiny.toml", "--runs", "0"], "--runs"),
+    ],
+)
+def test_bad_run_group_inputs_one_line_exit_2(
+    work: Path, reference: Path, args: list[str], needle: str
+) -> None:
+    assert needle in one_line_error(run_cli(*args, cwd=work))
