@@ -462,6 +462,28 @@ class PooledStudy(BaseModel):
     sd: dict[str, float | None]
 
 
+class ParameterAgreementOut(BaseModel):
+    rhat: float | None = Field(description="Rank-normalised split R-hat across the studies.")
+    ess_bulk: float | None
+    ess_tail: float | None
+    study_means: list[float]
+
+
+class AgreementOut(BaseModel):
+    """Do the pooled studies sample the same posterior? Each study's (subsampled) final
+    population is one chain of an ArviZ posterior (docs/calibration.md, "Repeated runs")."""
+
+    studies: int
+    draws_per_study: int
+    rhat_limit: float
+    converged: bool = Field(description="Every R-hat at most rhat_limit.")
+    disagreeing: list[str]
+    few_effective: list[str]
+    verdict: str
+    parameters: dict[str, ParameterAgreementOut]
+    log_evidence_sd: float | None
+
+
 class PooledOut(BaseModel):
     study_ids: list[int]
     n_per_study: int
@@ -470,6 +492,9 @@ class PooledOut(BaseModel):
     parameters: list[ParameterSummary]
     correlation: list[list[float | None]]
     studies: list[PooledStudy]
+    agreement: AgreementOut | None = Field(
+        description="R-hat, ESS and a convergence verdict across the studies (two or more)."
+    )
     samples: list[list[float]] | None = None
 
 

@@ -129,6 +129,23 @@ def test_pooled_posterior(env) -> None:
     assert phi["mean"] == pytest.approx(X[:, 0].mean())
     assert min(halves) <= phi["mean"] <= max(halves)
 
+    # the agreement: each study's 20 pooled samples one chain of ArviZ's R-hat and ESS
+    import arviz as az
+
+    agree = pooled["agreement"]
+    assert agree["studies"] == 2 and agree["draws_per_study"] == 20
+    assert set(agree["parameters"]) == {"phi", "n"}
+    for j, name in enumerate(pooled["names"]):
+        chains = X[:, j].reshape(2, 20)
+        got = agree["parameters"][name]
+        assert got["rhat"] == pytest.approx(float(az.rhat(chains)), rel=1e-9)
+        assert got["ess_bulk"] == pytest.approx(float(az.ess(chains, method="bulk")), rel=1e-9)
+        assert got["study_means"] == pytest.approx(list(chains.mean(axis=1)))
+    assert agree["converged"] == all(p["rhat"] <= 1.01 for p in agree["parameters"].values())
+    assert agree["verdict"].startswith("converged" if agree["converged"] else "NOT converged")
+    alone = client.post("/pooled", json={"study_ids": [a]}).json()
+    assert alone["agreement"] is None
+
     same = client.get("/pooled", params={"study_ids": f"{a},{b}"}).json()
     assert same["parameters"] == pooled["parameters"]
     again = client.get("/pooled", params=[("study_ids", a), ("study_ids", b)]).json()

@@ -2,16 +2,21 @@
 
 Each study's final stage is an equally weighted posterior sample; pooling takes the same number
 of samples from each (``scm_core.inference.posterior.pool_samples``), so every study weighs the
-same whatever its size.
+same whatever its size. With two or more studies (e.g. one case run with several seeds, the
+paper's three repetitions) ``agreement`` gives per parameter ArviZ's rank-normalised split
+R-hat and bulk/tail ESS across them (each study's subsample one chain) and a verdict
+(:mod:`scm_core.calibration.convergence`).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Depends, HTTPException, Query
 
+from scm_core.calibration.convergence import RHAT_LIMIT, diagnose_runs
 from scm_core.inference.posterior import pool_samples
 from scm_core.jsondoc import finite_or_none
 from services.limits import INT64_MAX
@@ -19,7 +24,14 @@ from services.store import NotFoundError, Store
 
 from ..deps import StoreDep, require_read
 from ..params import parse_id_list
-from ..schemas import COUNT_MAX, PooledOut, PooledRequest, PooledStudy
+from ..schemas import (
+    COUNT_MAX,
+    AgreementOut,
+    ParameterAgreementOut,
+    PooledOut,
+    PooledRequest,
+    PooledStudy,
+)
 from ..views import parameter_names, parameter_summaries, parameter_units, resolve_stage
 from . import errors
 
@@ -88,6 +100,7 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
         for s, x in zip(studies, finals, strict=True)
     ]
     return PooledOut(
+        agreement=_agreement(X.reshape(len(finals), n_per, -1), names, studies),
         study_ids=ids,
         n_per_study=n_per,
         n_samples=int(X.shape[0]),
@@ -99,6 +112,35 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
     )
 
 
+def _agreement(chains: np.ndarray, names: list[str], studies: list) -> AgreementOut | None:
+    """R-hat and ESS of the pooled studies' populations (K, n, d), each one chain."""
+    if chains.shape[0] < 2:
+        return None
+    z = [math.nan if s.log_evidence is None else s.log_evidence for s in studies]
+    se = [math.sqrt(s.log_evidence_var) if s.log_evidence_var else 0.0 for s in studies]
+    v = diagnose_runs(names, list(chains), z, se)
+    sd, _ = v.log_evidence_spread
+    return AgreementOut(
+        studies=v.runs,
+        draws_per_study=v.draws_per_run,
+        rhat_limit=RHAT_LIMIT,
+        converged=v.converged,
+        disagreeing=list(v.disagreeing),
+        few_effective=list(v.few_effective),
+        verdict=v.line(),
+        parameters={
+            p.name: ParameterAgreementOut(
+                rhat=finite_or_none(p.rhat),
+                ess_bulk=finite_or_none(p.ess_bulk),
+                ess_tail=finite_or_none(p.ess_tail),
+                study_means=list(p.run_means),
+            )
+            for p in v.parameters
+        },
+        log_evidence_sd=finite_or_none(sd),
+    )
+
+
 @router.post(
     "",
     response_model=PooledOut,
@@ -107,8 +149,9 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
 )
 def pooled_post(body: PooledRequest, store: StoreDep) -> PooledOut:
     """Summary (mean, sd, quantiles, correlations) of the pooled final samples of completed
-    studies with the same parameters, and each study's mean and sd. Reads only: needs a token
-    only when reads do."""
+    studies with the same parameters, each study's mean and sd, and (two or more studies)
+    their agreement: R-hat, ESS and a convergence verdict. Reads only: needs a token only when
+    reads do."""
     return pooled_summary(store, body)
 
 
