@@ -12,6 +12,7 @@ beside ``chrono_soil.cpp`` and ``chrono_soil.py``.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import click
@@ -19,13 +20,14 @@ import numpy as np
 
 from .common import CLIError
 from .results import load_results, read_population, write_json
+from .runs import RUNS_FILE, diagnose_folders, run_folders
 
 FORMATS = ("netcdf", "chrono")
 
 
-def results_inference_data(results: Path):
-    """The InferenceData of a ``calibrate`` results folder (one run: one chain)."""
-    from services.exports.inference_data import RunPopulation, StageRow, inference_data
+def _run(results: Path):
+    """(case, summary, RunPopulation) of one ``calibrate`` results folder."""
+    from services.exports.inference_data import RunPopulation, StageRow
 
     case, _, summary = load_results(results)
     names = list(case.parameter_names)
@@ -35,7 +37,22 @@ def results_inference_data(results: Path):
         StageRow.of(s.get("exponent"), s.get("acceptance_rate"), s.get("log_evidence"))
         for s in summary.get("stages") or []
     ]
-    run = RunPopulation(samples, ll, lp, prior, stages)
+    return case, summary, RunPopulation(samples, ll, lp, prior, stages)
+
+
+def results_inference_data(results: Path):
+    """The InferenceData of a ``calibrate`` results folder (one run: one chain), or of a run
+    group's folder (``calibrate --runs K``: one chain per run, the verdict in the attributes)."""
+    from services.exports.inference_data import inference_data
+
+    group = results / RUNS_FILE
+    if group.is_file():
+        folders = run_folders(results, int(json.loads(group.read_text(encoding="utf-8"))["runs"]))
+        _, verdict = diagnose_folders(folders)
+    else:
+        folders, verdict = [results], None
+    loaded = [_run(f) for f in folders]
+    case, summary, _ = loaded[0]
     observed = {
         d["name"]: {k: d.get(k) or {} for k in ("means", "standard_errors")}
         for d in summary.get("datasets") or []
@@ -48,7 +65,25 @@ def results_inference_data(results: Path):
         "log_evidence_se": summary.get("log_evidence_se"),
         "seed": (summary.get("settings") or {}).get("seed"),
     }
-    return inference_data(names, [run], units=summary.get("units"), observed=observed, attrs=attrs)
+    if verdict is not None:
+        attrs.update(
+            seed=[s.get("case", {}).get("seed") for _, s, _ in loaded],
+            log_evidence=list(verdict.log_evidence),
+            log_evidence_se=list(verdict.log_evidence_se),
+            rhat={p.name: p.rhat for p in verdict.parameters},
+            converged=verdict.converged,
+            verdict=verdict.line(),
+        )
+    try:
+        return inference_data(
+            list(case.parameter_names),
+            [run for _, _, run in loaded],
+            units=summary.get("units"),
+            observed=observed,
+            attrs=attrs,
+        )
+    except ValueError as exc:
+        raise CLIError(f"{results}: {exc}") from None
 
 
 def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -> None:
@@ -121,7 +156,8 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
 @click.option("--lossy", is_flag=True,
               help="chrono: export what Chrono can take and list what was dropped.")  # fmt: skip
 def export(results: Path, fmt: str, out: Path | None, draws: int, seed: int, lossy: bool) -> None:
-    """Export the calibration in RESULTS (a `scm-calib calibrate` folder) for other tools."""
+    """Export the calibration in RESULTS (a `scm-calib calibrate` folder; for netcdf also a
+    `--runs` group's folder, one chain per run) for other tools."""
     if fmt == "chrono":
         write_chrono(results, out or results / "chrono_soil.json", draws, seed, lossy)
         return

@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 CASE = """
@@ -584,6 +585,26 @@ def test_runs_give_a_verdict_and_a_pooled_posterior(work: Path, reference: Path)
     assert again.returncode == (0 if doc["converged"] else 1), again.stderr
     redone = json.loads((work / "diag" / "runs.json").read_text())
     assert redone["parameters"] == doc["parameters"] and redone["verdict"] == doc["verdict"]
+    # the group as ArviZ InferenceData: one chain per run, exactly the runs' posteriors
+    export = run_cli("export", "grp", "--out", "grp.nc", cwd=work)
+    assert export.returncode == 0, export.stderr
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        import arviz as az
+
+        idata = az.from_netcdf(str(work / "grp.nc"))
+        rhat = az.rhat(idata)
+    assert idata.posterior.sizes["chain"] == 2
+    for k in (0, 1):
+        rows = [r.split(",") for r in runs[k][1:]]
+        for name in ("phi", "n"):
+            col = runs[k][0].split(",").index(name)
+            expected = np.array([float(r[col]) for r in rows])
+            assert np.array_equal(idata.posterior[name].values[k], expected)
+            assert float(rhat[name]) == pytest.approx(doc["parameters"][name]["rhat"], rel=1e-12)
+    assert idata.posterior.attrs["verdict"] == doc["verdict"]
     # a re-run finds every run finished and gives the same verdict
     rerun = run_cli("calibrate", "tiny.toml", "--runs", "2", "--out", "grp", "--no-plots", cwd=work)
     assert rerun.returncode == 0, rerun.stderr
