@@ -212,7 +212,9 @@ class SCMCalibClient:
         """Submit a study: ``preset`` ("1", "2a", "2b") or ``case`` (a case document dict, a
         :class:`~scm_core.calibration.CaseDefinition`, or the path of a TOML case file), the
         stored ``dataset_ids``, and overrides: seed, n_samples, moves, n_steps, max_stages,
-        likelihood, name, batch_size. An update of a completed study: no case, ``update_of``
+        likelihood, name, batch_size, runs (K repeated runs with the seeds seed ... seed + K - 1:
+        the answer is the first, its ``runs`` the group's ids; :meth:`pooled` on them gives
+        their R-hat and a verdict). An update of a completed study: no case, ``update_of``
         its id and ``dataset_ids`` the new datasets."""
         body: dict[str, Any] = {"dataset_ids": [int(d) for d in dataset_ids]}
         if preset is not None:

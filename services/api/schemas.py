@@ -19,6 +19,8 @@ from services.studies.request_model import RequestModel
 #: ids: what a BIGINT column holds; counts and sizes: what an INTEGER column holds
 ID_MAX = INT64_MAX
 COUNT_MAX = INT32_MAX
+#: most studies of one run group (POST /studies with runs)
+RUNS_MAX = 64
 
 
 class _In(RequestModel):
@@ -185,6 +187,14 @@ class StudyCreate(_In):
         le=COUNT_MAX,
         description="Chains per work batch (at most; shorter at a stage's end).",
     )
+    runs: int = Field(
+        1,
+        ge=1,
+        le=RUNS_MAX,
+        description="Repeated runs: this many studies with the seeds seed, seed + 1, ... (a "
+        "run group; the answer is the first, with the group's ids in 'runs'); GET /pooled "
+        "on them gives R-hat across the runs and a convergence verdict.",
+    )
 
 
 class CancelRequest(_In):
@@ -241,9 +251,19 @@ class StudyBrief(BaseModel):
     version: int = Field(
         description="Raised by every change of the study's state (also its ETag's source)."
     )
+    run_group: int | None = Field(
+        None,
+        description="Repeated runs submitted together (POST /studies with runs): the id of "
+        "the group's first study; null for a study on its own.",
+    )
 
 
 class StudyOut(StudyBrief):
+    runs: list[int] = Field(
+        default_factory=list,
+        description="The studies of its run group, in order (empty on its own); their "
+        "agreement: GET /pooled?study_ids=... once they are completed.",
+    )
     log_evidence_var: float | None
     case: dict[str, Any]
     priors: dict[str, Any]

@@ -15,6 +15,7 @@ from fastapi import HTTPException
 from numpy.typing import NDArray
 
 from scm_core.calibration import RESPONSES
+from scm_core.calibration.convergence import RHAT_LIMIT, diagnose_runs
 from scm_core.inference.posterior import credible_interval, summarize
 from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.jsondoc import finite_or_none
@@ -23,7 +24,9 @@ from services.store.records import Page
 from services.studies.kinds import kind_of, study_terms
 
 from .schemas import (
+    AgreementOut,
     FactorOut,
+    ParameterAgreementOut,
     ParameterSummary,
     ProgressOut,
     SensitivityOut,
@@ -112,6 +115,7 @@ def study_brief(study: StudyRecord) -> StudyBrief:
         started_at=study.started_at,
         finished_at=study.finished_at,
         version=study.version,
+        run_group=study.run_group,
     )
 
 
@@ -119,6 +123,7 @@ def study_out(store: Store, study: StudyRecord) -> StudyOut:
     terms = study_terms(study)
     return StudyOut(
         **study_brief(study).model_dump(),
+        runs=[] if study.run_group is None else store.studies.run_group(study.run_group),
         log_evidence_var=finite_or_none(study.log_evidence_var),
         case=study.case,
         priors=terms.priors,
@@ -314,3 +319,35 @@ def parameter_summaries(
         )
     corr = [[finite_or_none(v) for v in row] for row in np.asarray(post.correlation)]
     return params, corr, post
+
+
+def agreement_of(
+    chains: NDArray[np.float64], names: list[str], studies: Sequence[StudyRecord]
+) -> AgreementOut | None:
+    """R-hat, ESS and the verdict of studies' (equally sized) final populations ``chains``
+    (K, n, d), each one chain (:mod:`scm_core.calibration.convergence`); None for one study."""
+    if chains.shape[0] < 2:
+        return None
+    z = [math.nan if s.log_evidence is None else s.log_evidence for s in studies]
+    se = [math.sqrt(s.log_evidence_var) if s.log_evidence_var else 0.0 for s in studies]
+    v = diagnose_runs(names, list(chains), z, se)
+    sd, _ = v.log_evidence_spread
+    return AgreementOut(
+        studies=v.runs,
+        draws_per_study=v.draws_per_run,
+        rhat_limit=RHAT_LIMIT,
+        converged=v.converged,
+        disagreeing=list(v.disagreeing),
+        few_effective=list(v.few_effective),
+        verdict=v.line(),
+        parameters={
+            p.name: ParameterAgreementOut(
+                rhat=finite_or_none(p.rhat),
+                ess_bulk=finite_or_none(p.ess_bulk),
+                ess_tail=finite_or_none(p.ess_tail),
+                study_means=list(p.run_means),
+            )
+            for p in v.parameters
+        },
+        log_evidence_sd=finite_or_none(sd),
+    )

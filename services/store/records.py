@@ -124,6 +124,8 @@ class StudyRecord:
     payload: dict[str, Any] | None = None
     #: raised by every change of the study's state (an ETag of it says "unchanged")
     version: int = 0
+    #: repeated runs submitted together: the id of the group's first study (None: alone)
+    run_group: int | None = None
 
 
 @dataclass(frozen=True)

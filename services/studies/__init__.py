@@ -9,11 +9,17 @@ Layers: ``scm_core`` <- ``services.store`` <- ``services.studies`` (kinds, lifec
 
 from .batching import DEFAULT_WORKERS, work_batches
 from .errors import StudyRequestError
-from .intake import base_case, with_overrides
+from .intake import base_case, run_cases, with_overrides
 from .kinds.calibration import calibration_spec
 from .kinds.checks import check_runs
 from .kinds.screening import sensitivity_spec
-from .lifecycle import Dispatcher, create_and_start, dispatch_stage, start_study
+from .lifecycle import (
+    Dispatcher,
+    create_and_start,
+    create_runs_and_start,
+    dispatch_stage,
+    start_study,
+)
 
 __all__ = [
     "DEFAULT_WORKERS",
@@ -23,7 +29,9 @@ __all__ = [
     "calibration_spec",
     "check_runs",
     "create_and_start",
+    "create_runs_and_start",
     "dispatch_stage",
+    "run_cases",
     "sensitivity_spec",
     "start_study",
     "with_overrides",

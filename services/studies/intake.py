@@ -15,7 +15,7 @@ from services.limits import INT64_MAX
 
 from .errors import StudyRequestError
 
-__all__ = ["base_case", "with_overrides"]
+__all__ = ["base_case", "run_cases", "with_overrides"]
 
 
 def base_case(preset: str | None, document: Mapping[str, Any] | None) -> CaseDefinition:
@@ -49,3 +49,15 @@ def with_overrides(
     if case.seed > INT64_MAX:
         raise StudyRequestError(f"seed: must be < 2**63 (got {case.seed})")
     return case
+
+
+def run_cases(case: CaseDefinition, runs: int) -> list[CaseDefinition]:
+    """The cases of ``runs`` repeated runs: the seeds seed, seed + 1, ..., named "(run k/K)"."""
+    if runs == 1:
+        return [case]
+    if case.seed + runs - 1 > INT64_MAX:
+        raise StudyRequestError(f"runs: the seeds from {case.seed} on pass 2**63 - 1")
+    return [
+        case.with_changes(seed=case.seed + k, name=f"{case.name} (run {k + 1}/{runs})"[:200])
+        for k in range(runs)
+    ]

@@ -10,7 +10,13 @@ from services.store import BatchKey, Store, StudySpec
 
 from .batching import work_batches
 
-__all__ = ["Dispatcher", "create_and_start", "dispatch_stage", "start_study"]
+__all__ = [
+    "Dispatcher",
+    "create_and_start",
+    "create_runs_and_start",
+    "dispatch_stage",
+    "start_study",
+]
 
 log = logging.getLogger(__name__)
 
@@ -24,12 +30,24 @@ class Dispatcher(Protocol):
 def create_and_start(store: Store, spec: StudySpec, dispatcher: Dispatcher | None) -> int:
     """Store a validated study and start it; returns its id. A failed dispatch is logged and
     not an error: the batches stay pending and the reaper (or the local loop) sends them."""
-    record = store.studies.create(spec)
-    try:
-        start_study(store, record.id, dispatcher)
-    except Exception:
-        log.exception("dispatching study %s failed; its work will be re-dispatched", record.id)
-    return record.id
+    return create_runs_and_start(store, [spec], dispatcher)[0]
+
+
+def create_runs_and_start(
+    store: Store, specs: Sequence[StudySpec], dispatcher: Dispatcher | None
+) -> list[int]:
+    """Store validated studies, mark two or more as one group of repeated runs
+    (``run_group``), then start them; returns their ids (a failed dispatch as in
+    :func:`create_and_start`)."""
+    ids = [store.studies.create(spec).id for spec in specs]
+    if len(ids) > 1:
+        store.studies.group_runs(ids)
+    for study_id in ids:
+        try:
+            start_study(store, study_id, dispatcher)
+        except Exception:
+            log.exception("dispatching study %s failed; its work will be re-dispatched", study_id)
+    return ids
 
 
 def start_study(store: Store, study_id: int, dispatcher: Dispatcher | None) -> None:

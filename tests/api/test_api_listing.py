@@ -166,3 +166,52 @@ def test_pooled_posterior(env) -> None:
     assert summary["is_posterior"] and summary["status"] == "completed"
     assert summary["log_evidence"] is not None and summary["log_evidence_sd"] is not None
     assert summary["map"] is not None and summary["map_log_posterior"] is not None
+
+
+def test_runs_make_a_group_whose_agreement_pooled_gives(env) -> None:
+    """runs 3: three studies with the seeds 5, 6, 7 (names say which run), one run group; the
+    answer is the first with the group's ids; once completed, /pooled on the group gives the
+    agreement. An update or runs outside 1..64 are refused naming 'runs', storing nothing."""
+    client, url = env
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    body = {"case": tiny_case(seed=5), "dataset_ids": [ds], "runs": 3, "name": "rep"}
+    r = client.post("/studies", json=body, headers=AUTH)
+    assert r.status_code == 201, r.text
+    first = r.json()
+    ids = first["runs"]
+    assert len(ids) == 3 and ids[0] == first["id"] and first["run_group"] == first["id"]
+    assert r.headers["Location"] == f"/studies/{first['id']}"
+    studies = [client.get(f"/studies/{i}").json() for i in ids]
+    assert [s["seed"] for s in studies] == [5, 6, 7]
+    assert [s["name"] for s in studies] == [f"rep (run {k}/3)" for k in (1, 2, 3)]
+    assert all(s["runs"] == ids and s["run_group"] == ids[0] for s in studies)
+    listed = client.get("/studies").json()["items"]
+    assert {s["id"]: s["run_group"] for s in listed} == dict.fromkeys(ids, ids[0])
+    for sid in ids:
+        assert run_inline(url, sid) == "completed"
+    agree = client.get("/pooled", params={"study_ids": ",".join(map(str, ids))}).json()
+    assert agree["agreement"]["studies"] == 3 and set(agree["agreement"]["parameters"]) == {
+        "phi",
+        "n",
+    }
+
+    # the dashboard: each run's page names its group, the comparison of the group the verdict
+    live = client.get(f"/ui/f/studies/{ids[1]}/live").text
+    assert "run 2 of 3" in live and f"/ui/compare?id={ids[0]}&amp;id={ids[1]}" in live
+    page = client.get("/ui/f/compare", params={"ids": ",".join(map(str, ids))}).text
+    assert "Do the runs agree?" in page
+    verdict = agree["agreement"]["verdict"]
+    assert verdict.split(";")[0].replace(">", "&gt;").replace("<", "&lt;") in page
+
+    alone = client.post("/studies", json={**body, "runs": 1, "seed": 9}, headers=AUTH).json()
+    assert alone["runs"] == [] and alone["run_group"] is None
+    total = client.get("/studies").json()["total"]
+    for bad in (
+        {**body, "runs": 0},
+        {**body, "runs": 65},
+        {"update_of": ids[0], "dataset_ids": [ds], "runs": 2},
+        {**body, "seed": 2**63 - 2},
+    ):
+        r = client.post("/studies", json=bad, headers=AUTH)
+        assert r.status_code == 422 and "runs" in detail(r), (bad, r.text)
+    assert client.get("/studies").json()["total"] == total

@@ -48,7 +48,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0009"
+    assert head_revision() == "0010"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -88,9 +88,9 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0009") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0010") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0009"
+    assert info.value.current == "ffff" and info.value.head == "0010"
 
     engine = make_engine(empty_url)
     try:
@@ -133,7 +133,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0009"
+        assert current_revision(url) == "0010"
     finally:
         get_settings.cache_clear()
 
@@ -415,3 +415,25 @@ def test_0009_adds_heartbeats_and_batch_run_counts_and_takes_them_back(empty_url
         assert "model_runs" not in columns and "heartbeats" not in _tables(empty_url)
     finally:
         engine.dispose()
+
+
+def _study_columns_and_indexes(url: str) -> tuple[set[str], set[str]]:
+    engine = make_engine(url)
+    try:
+        inspector = sa.inspect(engine)
+        return (
+            {c["name"] for c in inspector.get_columns("studies")},
+            {i["name"] for i in inspector.get_indexes("studies")},
+        )
+    finally:
+        engine.dispose()
+
+
+def test_0010_adds_run_groups_and_takes_them_back(empty_url: str) -> None:
+    upgrade(empty_url, "0009")
+    assert "run_group" not in _study_columns_and_indexes(empty_url)[0]
+    upgrade(empty_url)
+    columns, indexes = _study_columns_and_indexes(empty_url)
+    assert "run_group" in columns and "ix_studies_run_group" in indexes
+    downgrade(empty_url, "0009")
+    assert "run_group" not in _study_columns_and_indexes(empty_url)[0]

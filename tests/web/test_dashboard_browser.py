@@ -314,6 +314,12 @@ def test_compare_page_shows_evidences_and_a_bayes_factor(server, browser) -> Non
         assert set(shown) == {server["a"], server["b"]}
         assert "1" in factors  # the best-supported study against itself
         assert all(float(f) >= 1.0 for f in factors)
+        # two cases with different parameters: no verdict of agreement (that is for runs of
+        # one case; /pooled refuses them too)
+        pooled = httpx.get(
+            f"{server['base']}/pooled", params={"study_ids": f"{server['a']},{server['b']}"}
+        )
+        assert pooled.status_code == 422 and w.page.locator("p.verdict").count() == 0
         w.clean()
     finally:
         w.close()

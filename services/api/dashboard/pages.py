@@ -23,6 +23,7 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from scm_core.calibration import PRESETS
+from scm_core.inference.posterior import pool_samples
 from scm_core.jsondoc import finite_or_none
 from services.limits import INT64_MAX
 from services.plots.figures import FORMATS
@@ -35,6 +36,7 @@ from ..etags import etag_of, not_modified, set_etag
 from ..params import DatasetId, StudyId, parse_id_list, parse_statuses
 from ..routes.datasets import dataset_out
 from ..views import (
+    agreement_of,
     parameter_names,
     parameter_summaries,
     parameter_units,
@@ -232,6 +234,7 @@ def dashboard_router() -> APIRouter:
             stages=stages,
             kind_title=KIND_TITLES.get(study.kind, study.kind),
             parent=(study.payload or {}).get("update_of"),
+            runs=[] if study.run_group is None else store.studies.run_group(study.run_group),
         )
 
     @reads.get("/ui/f/studies/{study_id}/results")
@@ -412,6 +415,7 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         )
     per: dict[int, dict[str, Any]] = {}
     shared: list[str] | None = None
+    finals = []
     for s in studies:
         done = [st.stage_index for st in store.stages.list(s.id) if st.status == "done"]
         a = store.samples.arrays(s.id, done[-1])
@@ -419,12 +423,21 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         params, _, _ = parameter_summaries(a.samples, names, parameter_units(s))
         per[s.id] = {p.name: p for p in params}
         shared = names if shared is None else [n for n in shared if n in names]
+        finals.append(a.samples)
+    agreement = None
+    first = parameter_names(studies[0])
+    if all(parameter_names(s) == first for s in studies) and min(len(x) for x in finals) >= 4:
+        # the runs' agreement (R-hat across them), on equal subsamples as /pooled takes them
+        n = min(len(x) for x in finals)
+        chains = pool_samples(finals, n, 0).reshape(len(finals), n, -1)
+        agreement = agreement_of(chains, first, studies)
     table = [
         {"name": n, "cells": [per[s.id][n] for s in studies], "unit": per[studies[0].id][n].unit}
         for n in shared or []
     ]
     same_data = len({tuple(sorted(s.dataset_ids)) for s in studies}) == 1
     return {
+        "agreement": agreement,
         "rows": rows,
         "best": best,
         "table": table,

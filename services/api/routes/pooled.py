@@ -10,13 +10,11 @@ R-hat and bulk/tail ESS across them (each study's subsample one chain) and a ver
 
 from __future__ import annotations
 
-import math
 from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Depends, HTTPException, Query
 
-from scm_core.calibration.convergence import RHAT_LIMIT, diagnose_runs
 from scm_core.inference.posterior import pool_samples
 from scm_core.jsondoc import finite_or_none
 from services.limits import INT64_MAX
@@ -24,15 +22,14 @@ from services.store import NotFoundError, Store
 
 from ..deps import StoreDep, require_read
 from ..params import parse_id_list
-from ..schemas import (
-    COUNT_MAX,
-    AgreementOut,
-    ParameterAgreementOut,
-    PooledOut,
-    PooledRequest,
-    PooledStudy,
+from ..schemas import COUNT_MAX, PooledOut, PooledRequest, PooledStudy
+from ..views import (
+    agreement_of,
+    parameter_names,
+    parameter_summaries,
+    parameter_units,
+    resolve_stage,
 )
-from ..views import parameter_names, parameter_summaries, parameter_units, resolve_stage
 from . import errors
 
 router = APIRouter(prefix="/pooled", tags=["pooled"], dependencies=[Depends(require_read)])
@@ -100,7 +97,7 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
         for s, x in zip(studies, finals, strict=True)
     ]
     return PooledOut(
-        agreement=_agreement(X.reshape(len(finals), n_per, -1), names, studies),
+        agreement=agreement_of(X.reshape(len(finals), n_per, -1), names, studies),
         study_ids=ids,
         n_per_study=n_per,
         n_samples=int(X.shape[0]),
@@ -109,35 +106,6 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
         correlation=corr,
         studies=per_study,
         samples=np.asarray(X).tolist() if req.include_samples else None,
-    )
-
-
-def _agreement(chains: np.ndarray, names: list[str], studies: list) -> AgreementOut | None:
-    """R-hat and ESS of the pooled studies' populations (K, n, d), each one chain."""
-    if chains.shape[0] < 2:
-        return None
-    z = [math.nan if s.log_evidence is None else s.log_evidence for s in studies]
-    se = [math.sqrt(s.log_evidence_var) if s.log_evidence_var else 0.0 for s in studies]
-    v = diagnose_runs(names, list(chains), z, se)
-    sd, _ = v.log_evidence_spread
-    return AgreementOut(
-        studies=v.runs,
-        draws_per_study=v.draws_per_run,
-        rhat_limit=RHAT_LIMIT,
-        converged=v.converged,
-        disagreeing=list(v.disagreeing),
-        few_effective=list(v.few_effective),
-        verdict=v.line(),
-        parameters={
-            p.name: ParameterAgreementOut(
-                rhat=finite_or_none(p.rhat),
-                ess_bulk=finite_or_none(p.ess_bulk),
-                ess_tail=finite_or_none(p.ess_tail),
-                study_means=list(p.run_means),
-            )
-            for p in v.parameters
-        },
-        log_evidence_sd=finite_or_none(sd),
     )
 
 

@@ -28,7 +28,8 @@ from services.studies import (
     StudyRequestError,
     base_case,
     calibration_spec,
-    create_and_start,
+    create_runs_and_start,
+    run_cases,
     with_overrides,
 )
 from services.studies.kinds import KINDS
@@ -126,17 +127,21 @@ def create_study(
 ) -> StudyOut:
     """Create a study from a preset of the paper or a full case document on stored datasets,
     with optional overrides (``seed``, ``n_samples``, ``moves``, ``n_steps``, ``max_stages``,
-    ``likelihood``, ``name``, ``batch_size``), and start it. Any problem answers 422 naming
-    the field, and nothing is stored. With ``update_of``: a posterior update of that completed
-    calibration with the new ``dataset_ids`` (``seed``, ``name`` and ``batch_size`` may be
-    given; the case is the earlier study's)."""
+    ``likelihood``, ``name``, ``batch_size``), and start it; with ``runs`` K, K such studies
+    with the seeds seed, seed + 1, ... as one run group (the answer is the first). Any problem
+    answers 422 naming the field, and nothing is stored. With ``update_of``: a posterior
+    update of that completed calibration with the new ``dataset_ids`` (``seed``, ``name`` and
+    ``batch_size`` may be given; the case is the earlier study's)."""
     if body.update_of is not None:
-        spec = update_request(store, settings, body)
+        if body.runs > 1:
+            raise StudyRequestError("runs: an update (update_of) is one study; give runs 1")
+        specs = [update_request(store, settings, body)]
     else:
-        spec = calibration_spec(
-            store, settings, build_case(body), body.dataset_ids, body.batch_size
-        )
-    study_id = create_and_start(store, spec, dispatcher)
+        specs = [
+            calibration_spec(store, settings, case, body.dataset_ids, body.batch_size)
+            for case in run_cases(build_case(body), body.runs)
+        ]
+    study_id = create_runs_and_start(store, specs, dispatcher)[0]
     response.headers["Location"] = f"/studies/{study_id}"
     return study_out(store, store.studies.get(study_id))
 

@@ -65,6 +65,7 @@ def _record(st: Study, dataset_ids: tuple[int, ...]) -> StudyRecord:
         result=None if st.result is None else dict(st.result),
         payload=None if st.payload is None else dict(st.payload),
         version=int(st.version or 0),
+        run_group=None if st.run_group is None else int(st.run_group),
     )
 
 
@@ -187,6 +188,23 @@ class StudyRepository:
     def get(self, study_id: int) -> StudyRecord:
         with self.db.read() as s:
             return load_study(s, study_id)
+
+    def group_runs(self, study_ids: Sequence[int]) -> None:
+        """Mark ``study_ids`` (two or more) as one group of repeated runs: their ``run_group``
+        becomes the first id. One transaction; raises NotFoundError if one is missing."""
+        ids = [int(i) for i in study_ids]
+        if len(ids) < 2 or len(set(ids)) != len(ids):
+            raise ValueError(f"a run group needs two or more distinct studies, got {ids}")
+        with self.db.write() as s:
+            found = s.execute(sa.update(Study).where(Study.id.in_(ids)).values(run_group=ids[0]))
+            if found.rowcount != len(ids):
+                raise NotFoundError(f"studies not found among {ids}")
+
+    def run_group(self, group: int) -> list[int]:
+        """The ids of the studies of run group ``group``, in order."""
+        with self.db.read() as s:
+            rows = s.scalars(sa.select(Study.id).where(Study.run_group == group).order_by(Study.id))
+            return [int(i) for i in rows]
 
     def version(self, study_id: int) -> int:
         """The study's version (raised by every change of its state); one indexed read."""
