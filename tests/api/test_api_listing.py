@@ -215,3 +215,29 @@ def test_runs_make_a_group_whose_agreement_pooled_gives(env) -> None:
         r = client.post("/studies", json=bad, headers=AUTH)
         assert r.status_code == 422 and "runs" in detail(r), (bad, r.text)
     assert client.get("/studies").json()["total"] == total
+
+
+def test_figures_of_a_stopped_study_say_it_is_not_a_posterior(env) -> None:
+    """max_stages 1: the run ends below exponent 1; every stage figure's title says what its
+    samples are instead (issue 44 item 5); a completed study's last stage does not."""
+    client, url = env
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    r = client.post(
+        "/studies", json={"case": tiny_case(seed=3), "dataset_ids": [ds], "max_stages": 1},
+        headers=AUTH,
+    )  # fmt: skip
+    stopped = r.json()["id"]
+    full = client.post(
+        "/studies", json={"case": tiny_case(seed=4), "dataset_ids": [ds]}, headers=AUTH
+    ).json()["id"]
+    run_inline(url, stopped)
+    assert run_inline(url, full) == "completed"
+    exponent = client.get(f"/studies/{stopped}/stages").json()[-1]["exponent"]
+    assert exponent < 1.0
+    for name in ("prior_posterior", "pairs", "fit"):
+        svg = client.get(f"/ui/figures/studies/{stopped}/{name}.svg").text
+        assert f"stage 1 (exponent {exponent:.3g}: not a posterior)" in svg, name
+        prior = client.get(f"/ui/figures/studies/{stopped}/{name}.svg", params={"stage": 0}).text
+        assert "stage 0 (the prior sample: not a posterior)" in prior, name
+        done = client.get(f"/ui/figures/studies/{full}/{name}.svg").text
+        assert "not a posterior" not in done, name

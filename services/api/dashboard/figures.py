@@ -157,7 +157,21 @@ def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: 
     )
 
 
-def _prior_posterior(store: Store, study: StudyRecord, stage: int, **_: Any) -> Figure:
+def _stage_title(study: StudyRecord, stages: Sequence[StageRecord], stage: int) -> str:
+    """ ", stage N" and, below exponent 1, what the samples are instead of a posterior."""
+    p = next((s.exponent for s in stages if s.stage_index == stage), None)
+    if stage == 0:
+        if study.kind == "update":
+            return ", stage 0 (the earlier posterior: not yet updated)"
+        return ", stage 0 (the prior sample: not a posterior)"
+    if p is not None and p < 1.0:
+        return f", stage {stage} (exponent {p:.3g}: not a posterior)"
+    return f", stage {stage}"
+
+
+def _prior_posterior(
+    store: Store, study: StudyRecord, stage: int, stages: Sequence[StageRecord], **_: Any
+) -> Figure:
     case = CaseDefinition.from_dict(study.case)
     prior = case.prior()
     data = _stage_data(store, study, stage)
@@ -171,7 +185,7 @@ def _prior_posterior(store: Store, study: StudyRecord, stage: int, **_: Any) -> 
         units=dict(prior.units or {}),
         map_sample=_map(data),
         reference=case.reference,
-        title=f"{study.name}: {earlier} and stage {stage} (Figure 5)",
+        title=f"{study.name}: {earlier} and{_stage_title(study, stages, stage)} (Figure 5)",
         log_params=_log_params(case),
         labels=(earlier, "updated posterior" if study.kind == "update" else "posterior"),
     )
@@ -182,6 +196,7 @@ def _pairs(
     study: StudyRecord,
     stage: int,
     cache: FigureCache,
+    stages: Sequence[StageRecord],
     pair: tuple[str, str] | None = None,
     **_: Any,
 ) -> Figure:
@@ -206,7 +221,7 @@ def _pairs(
         units=dict(case.prior().units or {}),
         reference=case.reference,
         k_star_line=k_star_line,
-        title=f"{study.name}: bivariate posterior density, stage {stage} (Figures 6-8)",
+        title=f"{study.name}: bivariate density{_stage_title(study, stages, stage)} (Figures 6-8)",
         log_params=_log_params(case),
     )
     if fig is None:
@@ -214,13 +229,21 @@ def _pairs(
     return fig
 
 
-def _fit(store: Store, study: StudyRecord, stage: int, cache: FigureCache, **_: Any) -> Figure:
+def _fit(
+    store: Store,
+    study: StudyRecord,
+    stage: int,
+    cache: FigureCache,
+    stages: Sequence[StageRecord],
+    **_: Any,
+) -> Figure:
     case = CaseDefinition.from_dict(study.case)
     datasets, sims, offsets = map_simulations(store, study, stage, cache)
     return fit_figure(
         datasets,
         sims,
-        title=f"{study.name}: measured vs simulated at the MAP, stage {stage} (Figure 3)",
+        title=f"{study.name}: measured vs simulated at the MAP{_stage_title(study, stages, stage)} "
+        "(Figure 3)",
         responses=case.responses,
         offsets=offsets,
     )
