@@ -8,33 +8,36 @@ import tempfile
 import threading
 import warnings
 from collections import OrderedDict
+from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
 from fastapi import HTTPException
 
 from scm_core.jsondoc import finite_or_none
 from services.store import Store
 from services.studies.kinds.update import UPDATABLE
 
-from .views import parameter_names, parameter_units, resolve_stage
+from .views import agreement_of, parameter_names, parameter_units, resolve_stage
 
 
 class NetcdfCache:
-    """The last ``size`` files made, by (study id, study version): a study's file changes only
-    with the study (every stage and event raises its version), and making one costs ~0.2 s."""
+    """The last ``size`` files made, by (study ids, their versions): a study's file changes
+    only with the study (every stage and event raises its version), and making one costs
+    ~0.2 s."""
 
     def __init__(self, size: int = 8) -> None:
-        self._items: OrderedDict[tuple[int, int], bytes] = OrderedDict()
+        self._items: OrderedDict[tuple, bytes] = OrderedDict()
         self._lock = threading.Lock()
         self._size = size
 
-    def get(self, store: Store, study_id: int, version: int) -> bytes:
-        key = (study_id, version)
+    def get(self, store: Store, study_ids: Sequence[int], versions: Sequence[int]) -> bytes:
+        key = (tuple(study_ids), tuple(versions))
         with self._lock:
             if key in self._items:
                 self._items.move_to_end(key)
                 return self._items[key]
-        data = study_netcdf(store, study_id)
+        data = studies_netcdf(store, study_ids)
         with self._lock:
             self._items[key] = data
             while len(self._items) > self._size:
@@ -42,10 +45,9 @@ class NetcdfCache:
         return data
 
 
-def study_netcdf(store: Store, study_id: int) -> bytes:
-    """The NetCDF bytes of study ``study_id``'s last finished stage (with its stage 0 as the
-    prior); 409 for a study that is not a calibration or has no finished stage after stage 0."""
-    from services.exports.inference_data import RunPopulation, StageRow, inference_data
+def _run(store: Store, study_id: int):
+    """(study, its RunPopulation, its last finished stage); 409 as :func:`studies_netcdf`."""
+    from services.exports.inference_data import RunPopulation, StageRow
 
     study = store.studies.get(study_id)
     if study.kind not in UPDATABLE:
@@ -53,7 +55,6 @@ def study_netcdf(store: Store, study_id: int) -> bytes:
     last = resolve_stage(store, study_id, -1)
     if last.stage_index == 0:
         raise HTTPException(409, f"study {study_id}: no tempering stage has finished yet")
-    names = parameter_names(study)
     final = store.samples.arrays(study_id, last.stage_index)
     prior = store.samples.arrays(study_id, 0)
     stages = [
@@ -62,23 +63,56 @@ def study_netcdf(store: Store, study_id: int) -> bytes:
         if s.status == "done"
     ]
     run = RunPopulation(final.samples, final.log_likelihood, final.log_prior, prior.samples, stages)
+    return study, run, last
+
+
+def studies_netcdf(store: Store, study_ids: Sequence[int]) -> bytes:
+    """The NetCDF bytes of studies (one, or the runs of a run group: one chain each): each
+    one's last finished stage (with its stage 0 as the prior); 409 for a study that is not a
+    calibration or has no finished stage after stage 0, or runs of different sizes. Several
+    runs carry their agreement (R-hat, verdict) in the attributes."""
+    from services.exports.inference_data import inference_data
+
+    loaded = [_run(store, sid) for sid in study_ids]
+    study, _, last = loaded[0]
+    names = parameter_names(study)
+    if any(parameter_names(s) != names for s, _, _ in loaded):
+        raise HTTPException(409, f"studies {list(study_ids)} calibrate different parameters")
     observed = {}
     for dataset_id in study.dataset_ids:
         d = store.datasets.get(dataset_id)
         observed[d.name] = {"means": d.means, "standard_errors": d.standard_errors}
     exponent = finite_or_none(last.exponent)
-    attrs = {
-        "study_id": study_id,
+    attrs: dict = {
+        "study_id": study.id,
         "case": study.case,
         "status": study.status,
         "is_posterior": exponent is not None and exponent >= 1.0 - 1e-12,
         "log_evidence": finite_or_none(last.log_evidence),
         "seed": study.seed,
     }
+    runs = [run for _, run, _ in loaded]
     with warnings.catch_warnings():  # ArviZ announces its refactor on import
         warnings.simplefilter("ignore", FutureWarning)
+        if len(loaded) > 1:
+            sizes = {r.samples.shape[0] for r in runs}
+            if len(sizes) > 1:
+                raise HTTPException(409, f"the runs differ in size {sorted(sizes)}")
+            chains = np.stack([r.samples for r in runs])
+            agreement = agreement_of(chains, names, [s for s, _, _ in loaded])
+            attrs.update(
+                study_id=[s.id for s, _, _ in loaded],
+                seed=[s.seed for s, _, _ in loaded],
+                status=[s.status for s, _, _ in loaded],
+                is_posterior=all(
+                    (finite_or_none(st.exponent) or 0.0) >= 1.0 - 1e-12 for _, _, st in loaded
+                ),
+                log_evidence=[finite_or_none(st.log_evidence) for _, _, st in loaded],
+                verdict=None if agreement is None else agreement.verdict,
+                converged=None if agreement is None else agreement.converged,
+            )
         idata = inference_data(
-            names, [run], units=parameter_units(study), observed=observed, attrs=attrs
+            names, runs, units=parameter_units(study), observed=observed, attrs=attrs
         )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "inference_data.nc"

@@ -195,6 +195,33 @@ def test_runs_make_a_group_whose_agreement_pooled_gives(env) -> None:
         "n",
     }
 
+    # the group as one InferenceData: a chain per run, the verdict in its attributes
+    import tempfile
+    import warnings
+    from pathlib import Path
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        import arviz as az
+
+        with tempfile.TemporaryDirectory() as tmp:
+            for group, chains in ((True, 3), (False, 1)):
+                r = client.get(f"/studies/{ids[1]}/inference-data", params={"group": group})
+                assert r.status_code == 200, r.text
+                path = Path(tmp) / f"g{group}.nc"
+                path.write_bytes(r.content)
+                idata = az.from_netcdf(str(path))
+                assert idata.posterior.sizes["chain"] == chains
+            # idata is the one-chain file of study ids[1]; the group file's attrs:
+            grouped = az.from_netcdf(str(Path(tmp) / "gTrue.nc"))
+            for k, study in enumerate(agree["studies"]):
+                got = float(grouped.posterior["phi"].values[k].mean())
+                assert got == pytest.approx(study["mean"]["phi"], rel=1e-12)
+            assert grouped.posterior.attrs["verdict"] == agree["agreement"]["verdict"]
+            assert float(idata.posterior["phi"].values[0].mean()) == pytest.approx(
+                agree["studies"][1]["mean"]["phi"], rel=1e-12
+            )
+
     # the dashboard: each run's page names its group, the comparison of the group the verdict
     live = client.get(f"/ui/f/studies/{ids[1]}/live").text
     assert "run 2 of 3" in live and f"/ui/compare?id={ids[0]}&amp;id={ids[1]}" in live

@@ -340,17 +340,29 @@ def get_samples_csv(study_id: StudyId, stage: StageIndex, store: StoreDep) -> St
         **errors(401, 404, 409),
     },
 )
-def get_inference_data(study_id: StudyId, request: Request, store: StoreDep) -> Response:
-    """The last finished stage as ``posterior`` (one chain), stage 0 as ``prior``,
+def get_inference_data(
+    study_id: StudyId,
+    request: Request,
+    store: StoreDep,
+    group: Annotated[
+        bool, Query(description="Every run of the study's run group, one chain each.")
+    ] = False,
+) -> Response:
+    """The last finished stage as ``posterior`` (one chain; with ``group`` and a study of a
+    run group, one chain per run, their agreement in the attributes), stage 0 as ``prior``,
     ``sample_stats``, ``observed_data`` (the datasets' steady means and standard errors, SI)
     and ``tempering`` (per stage), as ``scm-calib export --to netcdf`` writes it;
     ``arviz.from_netcdf`` reads it. 409 for a study of another kind or without a finished
-    tempering stage. ETag: the study's version (304 for an unchanged study)."""
-    version = store.studies.version(study_id)
-    tag = etag_of("inference-data", study_id, version)
+    tempering stage. ETag: the studies' versions (304 when none changed)."""
+    study = store.studies.get(study_id)
+    ids = [study_id]
+    if group and study.run_group is not None:
+        ids = store.studies.run_group(study.run_group)
+    versions = [store.studies.version(i) for i in ids]
+    tag = etag_of("inference-data", ids, versions)
     if (unchanged := not_modified(request, tag)) is not None:
         return unchanged
-    data = request.app.state.netcdf_cache.get(store, study_id, version)
+    data = request.app.state.netcdf_cache.get(store, ids, versions)
     out = Response(
         data,
         media_type="application/x-netcdf",
