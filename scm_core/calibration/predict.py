@@ -71,12 +71,15 @@ class Band:
 class ResponsePrediction:
     """One response under one condition: ``simulated`` band of the steady means, ``predictive``
     band with the prediction-error noise (None if the study has no sigma for the response),
-    the ``measured`` mean if the condition has one, and whether it lies inside each band."""
+    the ``measured`` mean if the condition has one, and whether it lies inside each band.
+    ``draws``: the value of each posterior draw the bands summarise (with the noise where the
+    study has a sigma; NaN for a failed run): ArviZ's ``posterior_predictive``."""
 
     response: str
     simulated: Band
     predictive: Band | None
     measured: float | None = None
+    draws: tuple[float, ...] = ()
 
     @property
     def inside_predictive(self) -> bool | None:
@@ -88,14 +91,18 @@ class ResponsePrediction:
     def inside_simulated(self) -> bool | None:
         return None if self.measured is None else self.simulated.contains(self.measured)
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
+    def to_dict(self, draws: bool = False) -> dict[str, Any]:
+        """The bands (and with ``draws`` every draw's value, None for a failed run)."""
+        doc = {
             "simulated": self.simulated.to_dict(),
             "predictive": None if self.predictive is None else self.predictive.to_dict(),
             "measured": _num(self.measured),
             "inside_predictive": self.inside_predictive,
             "inside_simulated": self.inside_simulated,
         }
+        if draws:
+            doc["draws"] = [_num(x) for x in self.draws]
+        return doc
 
 
 @dataclass(frozen=True)
@@ -110,7 +117,8 @@ class ConditionPrediction:
     responses: dict[str, ResponsePrediction] = field(default_factory=dict)
     role: str = "predicted"  # "calibration" (the study used it), "predicted", "sweep"
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, draws: bool = False) -> dict[str, Any]:
+        """As JSON; ``draws``: with every draw's value per response (see ResponsePrediction)."""
         return {
             "name": self.name,
             "role": self.role,
@@ -118,7 +126,7 @@ class ConditionPrediction:
             "slip_symmetric": _num(self.slip_symmetric),
             "n_draws": self.n_draws,
             "n_failed": self.n_failed,
-            "responses": {r: p.to_dict() for r, p in self.responses.items()},
+            "responses": {r: p.to_dict(draws) for r, p in self.responses.items()},
         }
 
 
@@ -237,10 +245,14 @@ def summarize_predictions(
         for i, r in enumerate(RESPONSES):
             sim = means[:, k, i]
             pred = None
+            values = sim
             if sigma[r] is not None:
-                pred = Band.of(sim + sigma[r] * noise[:, k, i])
+                values = sim + sigma[r] * noise[:, k, i]
+                pred = Band.of(values)
             measured = t.means[i] if math.isfinite(t.means[i]) else None
-            responses[r] = ResponsePrediction(r, Band.of(sim), pred, measured)
+            responses[r] = ResponsePrediction(
+                r, Band.of(sim), pred, measured, tuple(float(v) for v in values)
+            )
         out.append(
             ConditionPrediction(
                 name=t.name,

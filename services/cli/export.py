@@ -40,6 +40,24 @@ def _run(results: Path):
     return case, summary, RunPopulation(samples, ll, lp, prior, stages)
 
 
+def _predicted(results: Path, summary: dict) -> dict[str, dict[str, list]] | None:
+    """Each predicted draw per dataset and response from ``RESULTS/predictions`` (written by
+    ``scm-calib predict`` for this study), or None."""
+    path = results / "predictions" / "predictions.json"
+    if not path.is_file():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise CLIError(f"{path}: unreadable predictions ({exc})") from None
+    if (doc.get("study") or {}).get("case_hash") != summary.get("case_hash"):
+        return None  # predictions of another study in this folder
+    return {
+        d["name"]: {r: v["draws"] for r, v in d["responses"].items() if "draws" in v}
+        for d in doc.get("datasets") or []
+    }
+
+
 def results_inference_data(results: Path):
     """The InferenceData of a ``calibrate`` results folder (one run: one chain), or of a run
     group's folder (``calibrate --runs K``: one chain per run, the verdict in the attributes)."""
@@ -81,6 +99,7 @@ def results_inference_data(results: Path):
             units=summary.get("units"),
             observed=observed,
             attrs=attrs,
+            predictive=None if verdict is not None else _predicted(results, summary),
         )
     except ValueError as exc:
         raise CLIError(f"{results}: {exc}") from None

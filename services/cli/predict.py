@@ -198,7 +198,7 @@ def predict_cmd(
         "draws": draws,
         "seed": seed,
         "level": 0.95,
-        "datasets": [p.to_dict() for p in preds],
+        "datasets": [p.to_dict(draws=True) for p in preds],
         "conditions": [p.to_dict() for p in untested],
         "sweep": [p.to_dict() for p in swept],
     }

@@ -13,6 +13,10 @@ several):
   tempering ``exponent``, the ``acceptance_rate`` and the ``log_evidence`` so far.
 * ``observed_data``: the datasets' steady means of F [N], T [N m] and z [m] (dim ``dataset``;
   NaN where a dataset lacks the response), and their standard errors (``F_se``, ...).
+* ``posterior_predictive`` (when ``scm-calib predict`` was run on the study's datasets): F, T
+  and z of each predicted posterior draw under each dataset's conditions, with the prediction
+  noise (dims chain, draw, dataset; NaN for a failed run or a dataset not predicted), so that
+  ``az.plot_ppc`` sets them against ``observed_data``.
 
 Attributes: the case (JSON), the run status, whether it is a posterior (the tempering reached
 exponent 1), the log evidence and the versions of scm-calib, numpy and ArviZ.
@@ -85,6 +89,29 @@ def _stacked(arrays: Sequence[NDArray[np.float64]], what: str) -> NDArray[np.flo
     return np.stack([np.asarray(a, dtype=float) for a in arrays])
 
 
+def _predictive(
+    predictive: Mapping[str, Mapping[str, Sequence[float | None]]] | None, datasets: list[str]
+) -> dict[str, NDArray[np.float64]]:
+    """{response: (1, draws, dataset)} from predicted draws per dataset name (NaN where a
+    dataset or a draw is missing); {} without predictions for these datasets."""
+    if not predictive or not datasets or not set(predictive) & set(datasets):
+        return {}
+    sizes = {len(v) for d in predictive.values() for v in d.values()}
+    if len(sizes) != 1:
+        raise ValueError(f"posterior_predictive: datasets with {sorted(sizes)} draws")
+    n = sizes.pop()
+    out = {}
+    for r in RESPONSES:
+        values = np.full((1, n, len(datasets)), np.nan)
+        for k, name in enumerate(datasets):
+            column = (predictive.get(name) or {}).get(r)
+            if column is not None:
+                values[0, :, k] = [np.nan if v is None else float(v) for v in column]
+        if np.isfinite(values).any():
+            out[r] = values
+    return out
+
+
 def inference_data(
     names: Sequence[str],
     runs: Sequence[RunPopulation],
@@ -92,10 +119,13 @@ def inference_data(
     units: Mapping[str, str | None] | None = None,
     observed: Mapping[str, Mapping[str, Mapping[str, float | None]]] | None = None,
     attrs: Mapping[str, Any] | None = None,
+    predictive: Mapping[str, Mapping[str, Sequence[float | None]]] | None = None,
 ):
     """The ``arviz.InferenceData`` of ``runs`` (see the module docstring). ``observed``:
     dataset name -> {"means": {F, T, z}, "standard_errors": {F, T, z}} (SI units; missing or
-    None values as NaN). Raises ValueError for runs of different sizes."""
+    None values as NaN). ``predictive``: dataset name -> {response: each draw's value} (one
+    chain; needs ``observed`` for its datasets). Raises ValueError for runs of different
+    sizes."""
     import arviz as az
     import xarray as xr
 
@@ -129,7 +159,11 @@ def inference_data(
                     [np.nan if v is None else float(v) for v in values]
                 )
                 dims[r + suffix] = ["dataset"]
+    posterior_predictive = _predictive(predictive, list(observed or {}))
+    if posterior_predictive:
+        dims.update({r: ["dataset"] for r in posterior_predictive})
     idata = az.from_dict(
+        posterior_predictive=posterior_predictive or None,
         posterior={n: post[:, :, j] for j, n in enumerate(names)},
         prior={n: prior[:, :, j] for j, n in enumerate(names)},
         sample_stats=sample_stats,
@@ -151,6 +185,8 @@ def inference_data(
         for r in RESPONSES:
             idata.observed_data[r].attrs["units"] = RESPONSE_UNITS[r]
             idata.observed_data[r + "_se"].attrs["units"] = RESPONSE_UNITS[r]
+    for r in posterior_predictive or {}:
+        idata.posterior_predictive[r].attrs["units"] = RESPONSE_UNITS[r]
     versions = {p: _version(p) for p in ("scm-calib", "numpy", "arviz")}
     extra = {
         "created_by": "scm-calib",

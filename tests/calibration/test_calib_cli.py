@@ -173,6 +173,26 @@ def test_predict_bands_sweep_and_reproducible(work: Path, reference: Path) -> No
     assert (work / "ref" / "predictions" / "predictions.png").stat().st_size > 0
     again = run_cli(*args, "--sweep", "slip=-0.5:0.6:3", "--json", "--no-plots", cwd=work)
     assert json.loads(again.stdout) == doc  # same seed, same numbers
+    # the draws behind the bands go to ArviZ's posterior_predictive, beside observed_data
+    for r in ("F", "T", "z"):
+        draws = np.array(p["responses"][r]["draws"], dtype=float)
+        assert draws.shape == (12,)
+        assert np.median(draws) == pytest.approx(p["responses"][r]["predictive"]["median"])
+    export = run_cli("export", "ref", "--out", "ref_ppc.nc", cwd=work)
+    assert export.returncode == 0, export.stderr
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        import arviz as az
+
+        idata = az.from_netcdf(str(work / "ref_ppc.nc"))
+        az.plot_ppc(idata, var_names=["F"])
+    ppc = idata.posterior_predictive
+    assert ppc.sizes == {"chain": 1, "draw": 12, "dataset": 1}
+    assert list(ppc["F"].dataset.values) == list(idata.observed_data["F"].dataset.values)
+    for r in ("F", "T", "z"):
+        assert np.array_equal(ppc[r].values[0, :, 0], np.array(p["responses"][r]["draws"]))
 
 
 def test_predict_at_conditions_nobody_measured(work: Path, reference: Path) -> None:
