@@ -268,3 +268,24 @@ def test_figures_of_a_stopped_study_say_it_is_not_a_posterior(env) -> None:
         assert "stage 0 (the prior sample: not a posterior)" in prior, name
         done = client.get(f"/ui/figures/studies/{full}/{name}.svg").text
         assert "not a posterior" not in done, name
+
+
+def test_figure_urls_name_their_content_and_are_kept(env) -> None:
+    """The results fragment links the schedule of the study's current version and each stage
+    figure by its stage: those URLs are cached for good; another version's for a minute."""
+    client, url = env
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    sid = client.post(
+        "/studies", json={"case": tiny_case(seed=6), "dataset_ids": [ds]}, headers=AUTH
+    ).json()["id"]
+    assert run_inline(url, sid) == "completed"
+    version = client.get(f"/studies/{sid}").json()["version"]
+    page = client.get(f"/ui/f/studies/{sid}/results").text
+    assert f"/ui/figures/studies/{sid}/schedule.svg?v={version}" in page
+    kept = "private, max-age=31536000, immutable"
+    r = client.get(f"/ui/figures/studies/{sid}/schedule.svg", params={"v": version})
+    assert r.status_code == 200 and r.headers["cache-control"] == kept
+    old = client.get(f"/ui/figures/studies/{sid}/schedule.svg", params={"v": version - 1})
+    assert old.headers["cache-control"] == "private, max-age=60"
+    staged = client.get(f"/ui/figures/studies/{sid}/prior_posterior.svg", params={"stage": 1})
+    assert staged.headers["cache-control"] == kept

@@ -102,12 +102,18 @@ def mount_static(app: Any) -> None:
     app.mount("/ui/static", StaticFiles(directory=str(folder)), name="dashboard-static")
 
 
-def _figure_response(data: bytes, fmt: str, filename: str) -> Response:
+#: figures whose URL names their content (a finished stage, a study version): kept for a year
+FIXED_FIGURE_CACHE = "private, max-age=31536000, immutable"
+
+
+def _figure_response(data: bytes, fmt: str, filename: str, fixed: bool = False) -> Response:
+    """A figure; ``fixed``: its URL names what it shows (a finished stage, a study version),
+    so the browser may keep it for good; otherwise for a minute."""
     return Response(
         data,
         media_type=FORMATS[fmt],
         headers={
-            "Cache-Control": "private, max-age=60",
+            "Cache-Control": FIXED_FIGURE_CACHE if fixed else "private, max-age=60",
             "Content-Disposition": f'inline; filename="{filename}"',
         },
     )
@@ -334,16 +340,22 @@ def dashboard_router() -> APIRouter:
         stage: Annotated[int | None, Query(ge=0, le=10_000)] = None,
         a: Annotated[str | None, Query(max_length=40)] = None,
         b: Annotated[str | None, Query(max_length=40)] = None,
+        v: Annotated[
+            int | None,
+            Query(ge=0, le=INT64_MAX, description="The study version the figure is of."),
+        ] = None,
     ) -> Response:
         fmt = _fmt(fmt)
         study = store.studies.get(study_id)
+        # a finished stage's figure never changes; one of another version is not served
+        fixed = stage is not None or (v is not None and v == study.version)
         pair = (a, b) if a and b else None
         try:
             data = study_figure(store, study, name, fmt, cache, stage=stage, pair=pair)
         except FigureError as exc:
             raise HTTPException(404, str(exc)) from None
         suffix = f"_stage{stage}" if stage is not None else ""
-        return _figure_response(data, fmt, f"study{study_id}_{name}{suffix}.{fmt}")
+        return _figure_response(data, fmt, f"study{study_id}_{name}{suffix}.{fmt}", fixed)
 
     @reads.get("/ui/figures/datasets/{dataset_id}/signals.{fmt}")
     def dataset_figure_route(dataset_id: DatasetId, fmt: str, store: StoreDep) -> Response:
