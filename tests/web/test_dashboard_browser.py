@@ -35,7 +35,7 @@ ARGS = [
     "--disable-sync",
     "--no-first-run",
 ]
-SIZES = {"1280x800": (1280, 800), "1920x1080": (1920, 1080)}
+SIZES = {"1280x800": (1280, 800), "1920x1080": (1920, 1080), "400x800": (400, 800)}
 TIMEOUT = 300.0
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 #: makes the page believe its tab is hidden (true) or visible (false)
@@ -236,6 +236,9 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
                     assert (img.get_attribute("alt") or "").strip(), name
                 for table in w.page.locator("table").all():
                     assert table.locator("th").count() > 0, name
+                # a phone's width: no sideways scroll of the page (wide tables scroll in place)
+                width = w.page.evaluate("document.documentElement.scrollWidth")
+                assert width <= size[0], (name, size_name, width)
                 w.shoot(f"{name}_{size_name}")
                 w.clean()
             finally:
