@@ -289,3 +289,11 @@ def test_figure_urls_name_their_content_and_are_kept(env) -> None:
     assert old.headers["cache-control"] == "private, max-age=60"
     staged = client.get(f"/ui/figures/studies/{sid}/prior_posterior.svg", params={"stage": 1})
     assert staged.headers["cache-control"] == kept
+
+
+def test_an_empty_datasets_page_says_how_to_fill_it(env) -> None:
+    client, _ = env
+    page = client.get("/ui/f/datasets").text
+    assert "0 datasets" in page and "No dataset yet" in page
+    client.post("/datasets", json=summary_doc(), headers=AUTH)
+    assert "No dataset yet" not in client.get("/ui/f/datasets").text

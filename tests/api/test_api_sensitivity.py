@@ -130,6 +130,10 @@ def test_listing_and_calibration_endpoints(finished) -> None:
     assert r.status_code == 422 and "not a calibration" in r.json()["detail"]
     r = client.post(f"/studies/{study_id}/cancel", headers=AUTH)
     assert r.status_code == 409  # it has ended
+    # its dashboard page: design points and a table of its runs, no tempering columns
+    live = client.get(f"/ui/f/studies/{study_id}/live").text
+    assert "design points (model runs)" in live and "samples per stage" not in live
+    assert "exponent p" not in live and "<h2>Runs</h2>" in live
 
 
 def test_python_client(finished) -> None:
