@@ -161,6 +161,16 @@ def _is_number(x: Any) -> bool:
     )
 
 
+def condition_unit(name: str) -> str | None:
+    """The SI unit of test condition ``name`` (``"-"`` for a ratio, None for a count, a label
+    or an unknown name), from the field's description."""
+    field = TestConditions.model_fields.get(name)
+    if field is None or not field.description:
+        return None
+    unit = field.description.split(",")[0].strip()
+    return unit if unit in ("N", "m", "m/s", "rad/s", "-") else None
+
+
 def make_conditions(values: dict[str, Any], where: str = "metadata") -> TestConditions:
     """Validate ``values`` into :class:`TestConditions`, raising a one-line LogFormatError."""
     try:

@@ -295,5 +295,8 @@ def test_an_empty_datasets_page_says_how_to_fill_it(env) -> None:
     client, _ = env
     page = client.get("/ui/f/datasets").text
     assert "0 datasets" in page and "No dataset yet" in page
-    client.post("/datasets", json=summary_doc(), headers=AUTH)
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()
     assert "No dataset yet" not in client.get("/ui/f/datasets").text
+    # its page gives each condition with its unit
+    page = client.get(f"/ui/f/datasets/{ds['id']}").text
+    assert '<th scope="row">W [N]</th>' in page and "slip [-]" in page

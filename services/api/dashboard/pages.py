@@ -25,6 +25,7 @@ from fastapi.templating import Jinja2Templates
 from scm_core.calibration import PRESETS
 from scm_core.inference.posterior import pool_samples
 from scm_core.jsondoc import finite_or_none
+from scm_core.signals.conditions import condition_unit
 from services.limits import INT64_MAX
 from services.plots.figures import FORMATS
 from services.plots.posterior import default_pairs
@@ -320,7 +321,8 @@ def dashboard_router() -> APIRouter:
     @reads.get("/ui/f/datasets/{dataset_id}")
     def dataset_fragment(request: Request, dataset_id: DatasetId, store: StoreDep) -> Response:
         d = dataset_out(store.datasets.get(dataset_id))
-        return fragment(request, "_dataset.html", None, d=d)
+        units = {k: condition_unit(k) for k in d.conditions}
+        return fragment(request, "_dataset.html", None, d=d, units=units)
 
     @reads.get("/ui/f/presets")
     def new_study_fragment(request: Request, store: StoreDep) -> Response:
