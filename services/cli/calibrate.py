@@ -257,7 +257,6 @@ def _run_study(
 ) -> str:
     """Run (or resume) one study into the results folder ``out``; returns its status."""
     workers, quiet = options.workers, options.quiet
-    update_of = parent.results if parent else None
     prior = case.prior()
     settings = case.tmcmc_settings()
     n = case.sampler.n_samples
@@ -279,7 +278,9 @@ def _run_study(
     if stages and not quiet:
         console.print(f"resuming {case.name} from stage {stages[-1].stage} ({ckpt.dir})")
     elif not quiet:
-        what = f"update of {update_of} with" if parent else f"{len(case.parameters)} parameters,"
+        what = (
+            f"update of {parent.results} with" if parent else f"{len(case.parameters)} parameters,"
+        )
         console.print(
             f"{case.name}: {what} {len(datasets) - n_old} dataset(s), "
             f"{n} samples per stage, moves {settings.moves}, "

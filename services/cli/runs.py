@@ -22,7 +22,7 @@ from scm_core.calibration.convergence import RunsVerdict, diagnose_runs
 from scm_core.calibration.report import not_a_posterior
 
 from .common import CLIError
-from .results import load_results, read_population, write_json
+from .results import load_results, write_json
 
 RUNS_FILE = "runs.json"
 POOLED_FILE = "posterior_pooled.csv"
@@ -45,7 +45,7 @@ def diagnose_folders(folders: Sequence[Path]) -> tuple[CaseDefinition, RunsVerdi
         raise CLIError("diagnose needs the results folders of at least two runs")
     cases, samples, z, se, seeds = [], [], [], [], {}
     for folder in folders:
-        case, _, summary = load_results(folder)
+        case, pop, summary = load_results(folder)
         status = str(summary.get("status"))
         if status != "completed":
             why = not_a_posterior(status, summary.get("final_exponent"))
@@ -58,7 +58,6 @@ def diagnose_folders(folders: Sequence[Path]) -> tuple[CaseDefinition, RunsVerdi
         if case.seed in seeds:
             raise CLIError(f"{folder}: the same seed {case.seed} as {seeds[case.seed]}")
         seeds[case.seed] = folder
-        pop, _, _ = read_population(folder / "posterior.csv", list(case.parameter_names))
         cases.append(case)
         samples.append(pop)
         z.append(float(summary["log_evidence"]))

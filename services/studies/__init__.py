@@ -9,7 +9,7 @@ Layers: ``scm_core`` <- ``services.store`` <- ``services.studies`` (kinds, lifec
 
 from .batching import DEFAULT_WORKERS, work_batches
 from .errors import StudyRequestError
-from .intake import base_case, run_cases, with_overrides
+from .intake import base_case, run_specs, with_overrides
 from .kinds.calibration import calibration_spec
 from .kinds.checks import check_runs
 from .kinds.screening import sensitivity_spec
@@ -31,7 +31,7 @@ __all__ = [
     "create_and_start",
     "create_runs_and_start",
     "dispatch_stage",
-    "run_cases",
+    "run_specs",
     "sensitivity_spec",
     "start_study",
     "with_overrides",

@@ -8,14 +8,16 @@ The kinds (:mod:`.kinds`) check the rest of a request (datasets, limits, configu
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 from scm_core.calibration import CaseDefinition, CaseError, preset_case
 from services.limits import INT64_MAX
+from services.store import StudySpec
 
 from .errors import StudyRequestError
 
-__all__ = ["base_case", "run_cases", "with_overrides"]
+__all__ = ["base_case", "run_specs", "with_overrides"]
 
 
 def base_case(preset: str | None, document: Mapping[str, Any] | None) -> CaseDefinition:
@@ -51,13 +53,16 @@ def with_overrides(
     return case
 
 
-def run_cases(case: CaseDefinition, runs: int) -> list[CaseDefinition]:
-    """The cases of ``runs`` repeated runs: the seeds seed, seed + 1, ..., named "(run k/K)"."""
+def run_specs(case: CaseDefinition, spec: StudySpec, runs: int) -> list[StudySpec]:
+    """The studies of ``runs`` repeated runs of the checked ``spec`` of ``case``: the seeds
+    seed, seed + 1, ..., named "(run k/K)" (the checks do not depend on seed or name, so they
+    are not repeated)."""
     if runs == 1:
-        return [case]
+        return [spec]
     if case.seed + runs - 1 > INT64_MAX:
         raise StudyRequestError(f"runs: the seeds from {case.seed} on pass 2**63 - 1")
-    return [
-        case.with_changes(seed=case.seed + k, name=f"{case.name} (run {k + 1}/{runs})"[:200])
-        for k in range(runs)
-    ]
+    out = []
+    for k in range(runs):
+        run = case.with_changes(seed=case.seed + k, name=f"{case.name} (run {k + 1}/{runs})"[:200])
+        out.append(replace(spec, name=run.name, case=run.to_dict(), seed=run.seed))
+    return out

@@ -29,7 +29,7 @@ from services.studies import (
     base_case,
     calibration_spec,
     create_runs_and_start,
-    run_cases,
+    run_specs,
     with_overrides,
 )
 from services.studies.kinds import KINDS
@@ -137,10 +137,9 @@ def create_study(
             raise StudyRequestError("runs: an update (update_of) is one study; give runs 1")
         specs = [update_request(store, settings, body)]
     else:
-        specs = [
-            calibration_spec(store, settings, case, body.dataset_ids, body.batch_size)
-            for case in run_cases(build_case(body), body.runs)
-        ]
+        case = build_case(body)
+        spec = calibration_spec(store, settings, case, body.dataset_ids, body.batch_size)
+        specs = run_specs(case, spec, body.runs)
     study_id = create_runs_and_start(store, specs, dispatcher)[0]
     response.headers["Location"] = f"/studies/{study_id}"
     return study_out(store, store.studies.get(study_id))
