@@ -340,6 +340,7 @@ def flow_and_deposit(
     cflag: np.ndarray,
     dsp: np.ndarray,
     work: np.ndarray,
+    iwork: np.ndarray,
     queue: np.ndarray,
     inq: np.ndarray,
     tail: int,
@@ -347,10 +348,11 @@ def flow_and_deposit(
     """Flow fields: the displaced and dragged soil deposited outside the footprint (see the
     module docstring).
 
-    ``work`` (>= 8 rows, >= max(ncw, ny) columns) is scratch space; its row 0 is left holding the
-    wheel's swept circle per window column (for :func:`erode`). The nodes that received soil are
-    queued in ``queue`` / ``inq`` after the ``tail`` queued before. Returns (compacted volume
-    [m^3], spilled volume [m^3], queue length).
+    ``work`` (>= 8 rows, >= max(ncw, ny) columns) and ``iwork`` (int64, >= 5 rows, as many
+    columns) are scratch space (allocated once per run, not per step); ``work``'s row 0 is left
+    holding the wheel's swept circle per window column (for :func:`erode`). The nodes that
+    received soil are queued in ``queue`` / ``inq`` after the ``tail`` queued before. Returns
+    (compacted volume [m^3], spilled volume [m^3], queue length).
     """
     nx, ny = h0.shape
     dA = dx * dy
@@ -376,11 +378,16 @@ def flow_and_deposit(
     acc_b = work[4]  # per row: backward
     acc_p = work[5]  # per column: to +y
     acc_m = work[6]  # per column: to -y
-    rmin = np.full(ny, 1 << 30)  # per row: first and last occupied column
-    rmax = np.full(ny, -1)
-    gmax = np.full(ny, -1)  # per row: front-most node loaded on its ground (not loose only)
-    cmin = np.full(ncw, 1 << 30)
-    cmax = np.full(ncw, -1)
+    rmin = iwork[0, :ny]  # per row: first and last occupied column
+    rmax = iwork[1, :ny]
+    gmax = iwork[2, :ny]  # per row: front-most node loaded on its ground (not loose only)
+    cmin = iwork[3, :ncw]
+    cmax = iwork[4, :ncw]
+    rmin[:] = 1 << 30
+    rmax[:] = -1
+    gmax[:] = -1
+    cmin[:] = 1 << 30
+    cmax[:] = -1
     r2 = r_out * r_out
     xsum = 0.0
     nload = 0
@@ -670,17 +677,26 @@ def _slide(
 
 
 @njit(cache=True)
-def erode(grid, dx: float, dy: float, tan_repose: float, tail: int) -> int:
+def erosion_scratch():
+    """Scratch arrays of :func:`erode` (allocated once per run): rolling parcels' nodes and
+    amounts, and per-neighbour gaps, binding neighbours and excess heights."""
+    return (
+        np.empty((ROLLING_PARCELS, 2), np.int64),
+        np.empty(ROLLING_PARCELS),
+        np.empty(4),
+        np.empty(4, np.int64),
+        np.empty(4),
+    )
+
+
+@njit(cache=True)
+def erode(grid, dx: float, dy: float, tan_repose: float, tail: int, scratch) -> int:
     """Erosion to the angle of repose among free nodes, from the ``tail`` nodes queued in
     ``grid`` (the work list; ``grid`` as for :func:`_deposit`), below the wheel's swept circle;
-    see :func:`_slide`. Returns the node visits."""
+    see :func:`_slide`. ``scratch``: :func:`erosion_scratch`. Returns the node visits."""
     c0, ncw, _jw0, _nyw, _clamp, h0, sp, hl, cflag, queue, inq = grid
     nx, ny = h0.shape
-    stack = np.empty((ROLLING_PARCELS, 2), np.int64)
-    amounts = np.empty(ROLLING_PARCELS)
-    gaps = np.empty(4)
-    binds = np.empty(4, np.int64)
-    excess = np.empty(4)
+    stack, amounts, gaps, binds, excess = scratch
     lim_x = dx * tan_repose
     lim_y = dy * tan_repose
     head = 0

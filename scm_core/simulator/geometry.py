@@ -87,6 +87,7 @@ def wheel_envelope(
     e_out: np.ndarray,
     fx_out: np.ndarray,
     fz_out: np.ndarray,
+    vis: np.ndarray,
 ) -> None:
     """Fill the z-buffer of columns at relative positions ``xi`` (m from the axle).
 
@@ -94,6 +95,7 @@ def wheel_envelope(
     (fx_out, fz_out): unit direction of the normal soil force on the wheel. ``theta`` is the wheel's
     rotation angle [rad]; grouser k sits at psi = 2 pi k / N - theta. Columns that a grouser crosses
     are averaged over N_SUB sub-points, so a grouser thinner than dx still displaces its volume.
+    ``vis`` (2, >= n_grousers) is scratch space for the visible grousers' sin and cos.
     """
     ncol = xi.shape[0]
     for k in range(ncol):
@@ -107,8 +109,8 @@ def wheel_envelope(
     r_in = R - grouser_height
     half_t = 0.5 * grouser_thickness
     pitch = 2.0 * math.pi / n_grousers
-    vis_s = np.empty(n_grousers)
-    vis_c = np.empty(n_grousers)
+    vis_s = vis[0]
+    vis_c = vis[1]
     n_vis = np.int64(0)  # a value: a literal 0 compiles _lowest_point twice
     for g in range(n_grousers):
         psi = (g * pitch - theta + math.pi) % (2.0 * math.pi) - math.pi

@@ -34,7 +34,7 @@ from .contact import (
     evaluate_contact,
 )
 from .cycles import cycles
-from .deformation import commit_contact, erode, flow_and_deposit
+from .deformation import commit_contact, erode, erosion_scratch, flow_and_deposit
 from .geometry import tip_circle, wheel_envelope
 from .layout import (
     P_B,
@@ -194,8 +194,9 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
     z = min(max(zpred, z_free), max(ztop, z_free))
     z_tol = min(Z_TOL, G_TOL * W / c_in)  # the height change whose inertia is G_TOL W
     converged = False
+    g_known = np.nan  # G at z on the current footprint, when the last evaluation was there
     for outer in range(MAX_OUTER):
-        z, converged = _newton(
+        z, converged, g, at_z, unfrozen = _newton(
             z,
             zpred,
             z_free,
@@ -213,18 +214,23 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
             diag,
             FREEZE_AFTER if outer == 0 else 0,
             z_tol,
+            g_known,
         )
         if not converged or outer == MAX_OUTER - 1:
             # the footprint keeps changing (e.g. k_c << 0): end on the balanced frozen solve
-            _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(True), diag)
+            # (already evaluated when the solve's last evaluation was at z)
+            if not at_z:
+                _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(True), diag)
             break
-        g = (
-            c_in * (z - zpred)
-            + W
-            - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(False), diag)
-        )
+        if not (at_z and unfrozen):  # else the last evaluation was this footprint check
+            g = (
+                c_in * (z - zpred)
+                + W
+                - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(False), diag)
+            )
         if abs(g) < OUTER_TOL * W:
             break
+        g_known = g  # the next solve starts here, frozen on this footprint: the same G
     return z, converged
 
 
@@ -247,10 +253,14 @@ def _newton(
     diag,
     freeze_after,
     z_tol,
+    g_start,
 ):
     """Safeguarded Newton for G(z) = 0 from ``z``; frozen footprint after ``freeze_after``
     evaluations; converged when |G| < G_TOL W or the bracket or step is below ``z_tol`` [m].
-    Returns (z, converged)."""
+    ``g_start``: G at ``z`` when the contact state in ``work`` is already evaluated there on
+    the footprint this solve uses (NaN: evaluate it). Returns (z, converged, G, at_z,
+    unfrozen): G of the last evaluation, whether that evaluation was at the returned z (the
+    contact state is then the solution's), and whether it was unfrozen."""
     lo = z_free
     g_lo = np.nan  # G(z_free) < 0, not evaluated: regula falsi waits until lo has a value
     hi = max(ztop, z_free)
@@ -260,15 +270,20 @@ def _newton(
     side = 0
     width_2ago = np.inf
     width_1ago = hi - lo
+    g = np.nan
+    frozen = True
     for it in range(MAX_ITER):
         frozen = it >= freeze_after
-        g = (
-            c_in * (z - zpred)
-            + W
-            - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, frozen, diag)
-        )
+        if it == 0 and np.isfinite(g_start):
+            g = g_start
+        else:
+            g = (
+                c_in * (z - zpred)
+                + W
+                - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, frozen, diag)
+            )
         if abs(g) < G_TOL * W:
-            return z, True
+            return z, True, g, True, not frozen
         if g > 0.0:
             hi = z
             g_hi = g
@@ -282,7 +297,7 @@ def _newton(
                 g_hi *= 0.5
             side = -1
         if hi - lo < z_tol:
-            return z, True
+            return z, True, g, True, not frozen
         dg = c_in - work[14][R_DFZ]
         z_new = z - g / dg if dg > 0.0 else lo - 1.0
         if not (lo < z_new < hi) or abs(g) > 0.5 * abs(g_prev):
@@ -301,9 +316,9 @@ def _newton(
         z_prev = z
         g_prev = g
         if abs(z_new - z) < z_tol:
-            return z_new, True
+            return z_new, True, g, False, not frozen
         z = z_new
-    return z, False
+    return z, False, g, False, not frozen
 
 
 @njit(cache=True)
@@ -385,6 +400,9 @@ def run_swt(prm: np.ndarray):
     cflag = np.zeros((ncw_max + 2, ny), np.int8)
     dsp = np.zeros((ncw_max + 2, ny))
     fwork = np.zeros((8, max(ncw_max, ny)))
+    iwork = np.zeros((5, max(ncw_max, ny)), np.int64)
+    escratch = erosion_scratch()
+    vis = np.empty((2, max(ng, 1)))  # wheel_envelope's visible grousers
     work = (pc, pj0, pj1, pst, xi, e, eb, gtop, fx, fz, gx, gyc, pflag, psig, res)
     queue = np.zeros((1 << int(math.ceil(math.log2(nx * ny))), 2), np.int64)  # erosion work list
     inq = np.zeros((nx, ny), np.int8)
@@ -415,7 +433,7 @@ def run_swt(prm: np.ndarray):
         ncw = c1 - c0 + 1
         for k in range(ncw):
             xi[k] = x0 + (c0 + k) * dx - xw
-        wheel_envelope(xi[:ncw], dx, R, ng, hg, tg, theta, e, fx, fz)
+        wheel_envelope(xi[:ncw], dx, R, ng, hg, tg, theta, e, fx, fz, vis)
         tip_circle(xi[:ncw], r_out, eb)  # the Bekker footprint's envelope
         z_low = zw + dt * vz - prm[P_W] * dt * dt / prm[P_MASS]  # free fall: lowest possible
         npatch, ztop = build_patches(
@@ -487,6 +505,7 @@ def run_swt(prm: np.ndarray):
                 cflag,
                 dsp,
                 fwork,
+                iwork,
                 queue,
                 inq,
                 tail,
@@ -496,7 +515,7 @@ def run_swt(prm: np.ndarray):
             tick = _lap(diag, np.int64(D_CYC_FLOW), tick)
             if (step + 1) % erode_every == 0 or step == n_steps - 1:
                 grid = (c0, ncw, n_margin, nyw, fwork[0], h0, sp, hl, cflag, queue, inq)
-                diag[D_EROSION_VISITS] += erode(grid, dx, dy, tan_repose, tail)
+                diag[D_EROSION_VISITS] += erode(grid, dx, dy, tan_repose, tail, escratch)
                 tail = np.int64(0)
             tick = _lap(diag, np.int64(D_CYC_EROSION), tick)
         else:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
-from scm_core.simulator.deformation import EROSION_TOL, erode, flow_and_deposit
+from scm_core.simulator.deformation import EROSION_TOL, erode, erosion_scratch, flow_and_deposit
 from scm_core.simulator.layout import pack
 
 
@@ -31,7 +31,7 @@ def _pour(volume: float, dx: float, dy: float, repose_deg: float, portions: int,
         queue[0] = (c, c)
         inq[c, c] = 1
         grid = (-10, 0, 0, 0, clamp, h0, sp, hl, cflag, queue, inq)
-        erode(grid, dx, dy, math.tan(math.radians(repose_deg)), 1)
+        erode(grid, dx, dy, math.tan(math.radians(repose_deg)), 1, erosion_scratch())
     return h0 - sp + hl
 
 
@@ -86,6 +86,7 @@ def test_a_step_without_contact_keeps_the_nodes_waiting_for_erosion():
     out = flow_and_deposit(
         prm, 1.0, 0.0, 0.134, zeros, np.full(ncw, np.inf), zeros, zeros, 10, ncw, 2, 8, 0.005,
         0.01, 0.5, h0, h0.copy(), h0.copy(), h0.copy(), np.zeros((ncw + 2, ny), np.int8),
-        np.zeros((ncw + 2, ny)), np.zeros((8, max(ncw, ny))), queue, inq, 3,
+        np.zeros((ncw + 2, ny)), np.zeros((8, max(ncw, ny))), np.zeros((5, max(ncw, ny)), np.int64),
+        queue, inq, 3,
     )  # fmt: skip
     assert out == (0.0, 0.0, 3)
