@@ -14,6 +14,10 @@ from scm_core.simulator import SWTResult
 
 from .figures import save
 
+#: points per drawn curve at most: about two per pixel column of a panel (5.2 in at 100-120 dpi);
+#: a 180 s lab log at 100 Hz drawn in full made one figure 254 KB of SVG (issue 45)
+MAX_POINTS = 1200
+
 _ROWS = (
     ("F", "drawbar_pull", "drawbar pull F [N]", 1.0, "offset_F"),
     ("T", "torque", "torque T [N m]", 1.0, "offset_T"),
@@ -44,6 +48,40 @@ def _filtered(t: np.ndarray, y: np.ndarray, cutoff_hz: float | None) -> np.ndarr
         return y
 
 
+def decimated(
+    t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS
+) -> tuple[np.ndarray, np.ndarray]:
+    """Min-max decimation of a curve to at most ``max_points`` points: the samples split into
+    max_points / 2 consecutive bins, each drawn by its lowest and highest sample in time order,
+    so the envelope a pixel column shows (grouser impacts, peaks) survives. Shorter curves and
+    NaN-free or not, the samples kept are samples of the curve."""
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = t.size
+    if n <= max_points:
+        return t, y
+    bins = max(max_points // 2, 1)
+    size = -(-n // bins)
+    idx = np.arange(bins * size).reshape(bins, size)
+    idx = np.minimum(idx, n - 1)  # the last bin repeats the last sample
+    vals = np.where(np.isnan(y), np.inf, y)[idx]
+    lo = idx[np.arange(bins), np.argmin(vals, axis=1)]
+    vals = np.where(np.isnan(y), -np.inf, y)[idx]
+    hi = idx[np.arange(bins), np.argmax(vals, axis=1)]
+    keep = np.unique(np.concatenate([lo, hi, [0, n - 1]]))
+    return t[keep], y[keep]
+
+
+def _window_map(
+    measured: tuple[float, float], simulated: tuple[float, float]
+) -> tuple[float, float]:
+    """(a, b) with measured time = a + b * simulated time, mapping the simulation's averaging
+    window onto the measured one (their steady windows overlay)."""
+    (lo, hi), (s0, s1) = measured, simulated
+    b = (hi - lo) / (s1 - s0) if s1 > s0 else 1.0
+    return lo - b * s0, b
+
+
 def fit_figure(
     datasets: Sequence[SWTDataset],
     sims: Sequence[SWTResult | None],
@@ -68,23 +106,22 @@ def fit_figure(
     fig = Figure(figsize=(max(5.2 * ncols, 8.0), 2.6 * len(rows) + 0.4), layout="constrained")
     axes = np.array(fig.subplots(len(rows), ncols, squeeze=False))
     for c, (ds, sim) in enumerate(zip(datasets, sims, strict=True)):
-        t_end = 0.0
+        t_start, t_end = 0.0, 0.0  # the time axis drawn [s]
         rig = None if sim is None else sim.rig
+        window = None  # the measured steady window, where the dataset has a time axis
+        if ds.series is not None and ds.series.t.size:
+            t_meas = ds.series.t
+            window = ds.window if ds.window is not None else (float(t_meas[0]), float(t_meas[-1]))
+            t_end = float(t_meas[-1])
         for r, (key, column, ylabel, scale, offset_name) in enumerate(rows):
             ax = axes[r, c]
             stat = ds.responses.get(key)
             if stat is None:
                 ax.text(0.02, 0.95, "not measured", transform=ax.transAxes, va="top", fontsize=8)
-            elif ds.series is not None:
-                t = ds.series.t
-                ax.plot(
-                    t,
-                    ds.series.filtered[column] * scale,
-                    lw=0.7,
-                    color="0.35",
-                    label="measured (filtered)",
-                )
-                lo, hi = ds.window if ds.window is not None else (float(t[0]), float(t[-1]))
+            elif ds.series is not None and window is not None:
+                t, y = decimated(ds.series.t, ds.series.filtered[column] * scale)
+                ax.plot(t, y, lw=0.7, color="0.35", label="measured (filtered)")
+                lo, hi = window
                 ax.axvspan(lo, hi, color="0.5", alpha=0.08, lw=0, label="measured window")
                 ax.hlines(
                     stat.mean * scale,
@@ -94,7 +131,6 @@ def fit_figure(
                     lw=2.2,
                     label=f"measured mean {stat.mean * scale:.4g}",
                 )
-                t_end = max(t_end, float(t[-1]))
             else:
                 ax.axhspan(
                     (stat.mean - stat.sd) * scale,
@@ -105,45 +141,55 @@ def fit_figure(
                 )
                 ax.axhline(stat.mean * scale, color="k", lw=2.0)
             if sim is not None and rig is not None:
-                ts = sim.series["t"]
-                ys = (sim.series[key] + offsets.get(key, 0.0)) * scale
-                ax.plot(ts, ys, lw=0.5, color="tab:blue", alpha=0.3)
-                ax.plot(
-                    ts,
-                    _filtered(ts, ys, ds.cutoff_hz),
-                    lw=0.9,
-                    color="tab:blue",
-                    label="simulated (filtered)",
-                )
-                ax.axvspan(
-                    getattr(rig, offset_name),
-                    rig.duration,
-                    color="tab:blue",
-                    alpha=0.07,
-                    lw=0,
-                    label="simulated window",
-                )
-                if sim.means is not None:
-                    m = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale
-                    ax.hlines(
-                        m,
-                        getattr(rig, offset_name),
-                        rig.duration,
-                        colors="tab:red",
-                        lw=2.2,
-                        label=f"simulated mean {m:.4g}",
-                    )
-                t_end = max(t_end, rig.duration)
+                first, last = _draw_simulated(ax, sim, key, scale, offset_name, offsets, ds, window)
+                t_start, t_end = min(t_start, first), max(t_end, last)
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="lower right")
         axes[0, c].set_title(f"{ds.name} ({condition_label(ds.conditions)})")
-        axes[-1, c].set_xlabel("time t [s]")
+        axes[-1, c].set_xlabel("time t [s]" if window is None else "measured time t [s]")
         if t_end > 0:
             for r in range(len(rows)):
-                axes[r, c].set_xlim(0, t_end)
+                axes[r, c].set_xlim(t_start, t_end)
     fig.suptitle(title or "Measured vs simulated at the MAP sample")
     return fig
+
+
+def _draw_simulated(
+    ax: Any,
+    sim: SWTResult,
+    key: str,
+    scale: float,
+    offset_name: str,
+    offsets: dict[str, float],
+    ds: SWTDataset,
+    window: tuple[float, float] | None,
+) -> float:
+    """The simulated signal of ``key`` on ``ax``, raw and filtered, with its averaging window
+    and steady mean. Where the dataset has a measured time axis (``window``: its steady window),
+    the simulation's time is mapped linearly so that its averaging window lies over the
+    measured one, and a top axis gives the simulated time: a 12 s simulation of a 180 s log
+    then spans the log's window instead of the first 7 % of the axis. Returns the first and
+    last times drawn, on the measured axis [s]."""
+    rig = sim.rig
+    off = getattr(rig, offset_name)
+    a, b = (0.0, 1.0) if window is None else _window_map(window, (off, rig.duration))
+    ts = sim.series["t"]
+    ys = (sim.series[key] + offsets.get(key, 0.0)) * scale
+    t_raw, y_raw = decimated(ts, ys)
+    ax.plot(a + b * t_raw, y_raw, lw=0.5, color="tab:blue", alpha=0.3)
+    t_f, y_f = decimated(ts, _filtered(ts, ys, ds.cutoff_hz))
+    ax.plot(a + b * t_f, y_f, lw=0.9, color="tab:blue", label="simulated (filtered)")
+    w0, w1 = a + b * off, a + b * rig.duration
+    ax.axvspan(w0, w1, color="tab:blue", alpha=0.07, lw=0, label="simulated window")
+    if sim.means is not None:
+        m = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale
+        ax.hlines(m, w0, w1, colors="tab:red", lw=2.2, label=f"simulated mean {m:.4g}")
+    if window is not None:
+        top = ax.secondary_xaxis("top", functions=(lambda t: (t - a) / b, lambda s: a + b * s))
+        top.set_xlabel("simulated time [s]", fontsize=7)
+        top.tick_params(labelsize=7)
+    return a + b * float(ts[0]) if ts.size else w0, w1
 
 
 def plot_fit(

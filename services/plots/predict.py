@@ -31,8 +31,8 @@ def predictions_figure(
 ) -> Figure:
     """One panel per response against the symmetric lab slip (-1 = locked): the sweep's
     median and 95 % bands (simulated means, and with the prediction-error noise), each
-    dataset's predicted median and 95 % predictive interval, and its measurement where it has
-    one (filled: used in the calibration; squares: held out)."""
+    dataset's predicted median (a tick) and 95 % predictive interval (the bar), and its
+    measurement where it has one (filled: used in the calibration; squares: held out)."""
     panels = [p for p in _PANELS if p[0] in responses]
     fig = Figure(figsize=(7.0, 2.6 * len(panels) + 0.6), layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
@@ -72,15 +72,19 @@ def predictions_figure(
                 continue
             r = c.responses[key]
             band = r.predictive or r.simulated
+            kind = "predictive interval" if r.predictive is not None else "band of the mean"
             ax.errorbar(
                 c.slip_symmetric,
                 band.median * scale,
                 yerr=[[(band.median - band.lo) * scale], [(band.hi - band.median) * scale]],
-                fmt="none",
-                ecolor="tab:blue",
+                fmt="_",
+                color="tab:blue",
+                ms=9,
                 elinewidth=1.0,
                 capsize=3,
+                label=None if "bar" in shown else f"predicted median, 95 % {kind}",
             )
+            shown.add("bar")
             if r.measured is not None:
                 marker, color, lab = _ROLE_STYLE.get(c.role, _ROLE_STYLE["predicted"])
                 ax.plot(

@@ -1,0 +1,32 @@
+"""The predictions figure: each dataset's median and interval drawn and named in the legend."""
+
+from __future__ import annotations
+
+from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
+from services.plots.predict import predictions_figure
+
+
+def _condition(name: str, slip: float, median: float, measured: float, role: str):
+    band = Band(median, median - 2.0, median + 3.0)
+    resp = ResponsePrediction("F", band, band, measured)
+    return ConditionPrediction(name, {}, slip, 10, 0, {"F": resp}, role)
+
+
+def test_each_dataset_shows_its_median_and_interval_with_a_legend() -> None:
+    datasets = [
+        _condition("a", -0.5, -16.0, -17.7, "calibration"),
+        _condition("b", 0.5, 1.2, 2.8, "predicted"),
+    ]
+    fig = predictions_figure(datasets, [], responses=("F",))
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "predicted median, 95 % predictive interval" in labels
+    assert "measured, used in the calibration" in labels and "measured, held out" in labels
+    # the median is drawn as a marker at the predicted value, the bar spans the interval
+    ticks = [ln for ln in ax.get_lines() if ln.get_marker() == "_" and ln.get_markersize() == 9]
+    assert sorted(float(ln.get_ydata()[0]) for ln in ticks) == [-16.0, 1.2]
+    segments = [c for c in ax.collections if c.get_segments()]
+    spans = sorted(
+        (float(s[:, 1].min()), float(s[:, 1].max())) for c in segments for s in c.get_segments()
+    )
+    assert (-18.0, -13.0) in spans and (-0.8, 4.2) in [(round(a, 6), round(b, 6)) for a, b in spans]
