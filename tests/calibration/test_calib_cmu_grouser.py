@@ -1,0 +1,56 @@
+"""The CMU grousered wheel's tests as the project reads them (issue 47's development data).
+
+The expected values are the data README's own statements (shared/data/cmu_grouser_wheel/README.md,
+"What the data show"), not numbers from our code: a converter or loader error shows here."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from scm_core.calibration import load_case
+from scm_core.signals import load_dataset
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def _by_slip() -> dict[float, object]:
+    out = {}
+    for p in sorted((EXAMPLES / "cmu_grouser").glob("*.csv")):
+        ds = load_dataset(p)
+        out[round(ds.conditions.slip_symmetric, 1)] = ds
+    return out
+
+
+def test_five_slips_of_a_grousered_wheel_with_three_trials_each() -> None:
+    data = _by_slip()
+    assert sorted(data) == [-1.0, -0.5, 0.0, 0.5, 0.9]
+    for ds in data.values():
+        c = ds.conditions
+        assert (c.R, c.b, c.n_grousers, c.grouser_height) == (0.058, 0.05, 12, 0.005)
+        assert ds.n_trials == 3
+        assert 19.0 <= c.W <= 27.0  # "the measured normal force of each run (19-27 N)"
+        assert c.carriage_speed == pytest.approx(0.010, rel=0.002)  # 10 mm/s
+
+
+def test_the_means_are_the_readmes() -> None:
+    """README: 2.8 N at slip 0.5, 4.8 N at 0.9; sinkage 16 mm at 0, 25 at 0.5, 42 at 0.9;
+    -17.7 N in skid (-0.5) and -38.9 N locked."""
+    data = _by_slip()
+    f = {s: ds.responses["F"].mean for s, ds in data.items()}
+    z = {s: ds.responses["z"].mean * 1000 for s, ds in data.items()}
+    assert f[0.5] == pytest.approx(2.8, abs=0.05) and f[0.9] == pytest.approx(4.8, abs=0.05)
+    assert f[-0.5] == pytest.approx(-17.7, abs=0.05) and f[-1.0] == pytest.approx(-38.9, abs=0.05)
+    assert z[0.0] == pytest.approx(16, abs=0.5) and z[0.5] == pytest.approx(25, abs=0.5)
+    assert z[0.9] == pytest.approx(42, abs=0.5)
+
+
+def test_the_grouser_case_reads_the_four_matching_slips() -> None:
+    case = load_case(EXAMPLES / "cmu_grouser.toml")
+    smooth = load_case(EXAMPLES / "cmu_smooth.toml")
+    slips = [round(load_dataset(p).conditions.slip_symmetric, 1) for p in case.data_paths()]
+    assert slips == [-0.5, 0.0, 0.5, 0.9]
+    # the same model, priors and sampler as the smooth wheel's case: only the data differ
+    assert case.parameter_names == smooth.parameter_names
+    assert case.simulator == smooth.simulator and case.sampler == smooth.sampler
