@@ -54,7 +54,7 @@ def decimated(
     """Min-max decimation of a curve to at most ``max_points`` points: the samples split into
     max_points / 2 consecutive bins, each drawn by its lowest and highest sample in time order,
     so the envelope a pixel column shows (grouser impacts, peaks) survives. Every point kept is
-    a sample of the curve (NaN samples are never a bin's extreme); curves of at most
+    a sample of the curve (a NaN only where its whole bin is NaN); curves of at most
     ``max_points`` samples are returned as they are."""
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
