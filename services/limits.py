@@ -22,6 +22,15 @@ INT32_MAX = 2**31 - 1
 _JSON_TOKENS = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]')
 
 
+def run_seeds(seed: int, runs: int) -> list[int]:
+    """The seeds of ``runs`` repeated runs of a study seeded ``seed``: seed, seed + 1, ...;
+    ValueError if the last would not fit a BIGINT column (the CLI checks the same, so a run
+    group made there can be stored)."""
+    if seed + runs - 1 > INT64_MAX:
+        raise ValueError(f"the seeds from {seed} on pass 2**63 - 1")
+    return [seed + k for k in range(runs)]
+
+
 class LimitError(ValueError):
     """A request over a service limit; the message names the field and the setting."""
 

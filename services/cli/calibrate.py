@@ -35,6 +35,7 @@ from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import SWTDataset
+from services.limits import run_seeds
 from services.studies.batching import local_batch_size, work_batches
 from services.studies.kinds.checks import prior_medians
 
@@ -394,15 +395,17 @@ def _run_group(
     """``runs`` studies of ``case`` with the seeds seed, seed + 1, ... into ``out/run_k``
     (one after another, each on ``options.workers``), then their agreement and pooled
     posterior (:mod:`services.cli.runs`)."""
-    if case.seed + runs - 1 > 2**63 - 1:
-        raise CLIError(f"--runs {runs}: the seeds from {case.seed} on pass 2**63 - 1")
+    try:
+        seeds = run_seeds(case.seed, runs)
+    except ValueError as exc:
+        raise CLIError(f"--runs {runs}: {exc}") from None
     folders = run_folders(out, runs)
     console = Console(stderr=True)
-    for k, folder in enumerate(folders):
+    for k, (seed, folder) in enumerate(zip(seeds, folders, strict=True)):
         if not options.quiet:
-            console.print(f"run {k + 1} of {runs} (seed {case.seed + k}) in {folder}")
+            console.print(f"run {k + 1} of {runs} (seed {seed}) in {folder}")
         status = _run_study(
-            case.with_changes(seed=case.seed + k), model, datasets, paths, None, 0, folder, options
+            case.with_changes(seed=seed), model, datasets, paths, None, 0, folder, options
         )
         if status != "completed":
             raise CLIError(f"{folder}: the run ended {status!r}; no verdict over the runs")

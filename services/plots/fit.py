@@ -119,7 +119,7 @@ def fit_figure(
             stat = ds.responses.get(key)
             if stat is None:
                 ax.text(0.02, 0.95, "not measured", transform=ax.transAxes, va="top", fontsize=8)
-            elif ds.series is not None and window is not None:
+            elif window is not None:  # a measured time axis
                 t, y = decimated(ds.series.t, ds.series.filtered[column] * scale)
                 ax.plot(t, y, lw=0.7, color="0.35", label="measured (filtered)")
                 lo, hi = window
@@ -165,7 +165,7 @@ def _draw_simulated(
     offsets: dict[str, float],
     ds: SWTDataset,
     window: tuple[float, float] | None,
-) -> float:
+) -> tuple[float, float]:
     """The simulated signal of ``key`` on ``ax``, raw and filtered, with its averaging window
     and steady mean. Where the dataset has a measured time axis (``window``: its steady window),
     the simulation's time is mapped linearly so that its averaging window lies over the

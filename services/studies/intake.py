@@ -12,7 +12,7 @@ from dataclasses import replace
 from typing import Any
 
 from scm_core.calibration import CaseDefinition, CaseError, preset_case
-from services.limits import INT64_MAX
+from services.limits import INT64_MAX, run_seeds
 from services.store import StudySpec
 
 from .errors import StudyRequestError
@@ -59,10 +59,12 @@ def run_specs(case: CaseDefinition, spec: StudySpec, runs: int) -> list[StudySpe
     are not repeated)."""
     if runs == 1:
         return [spec]
-    if case.seed + runs - 1 > INT64_MAX:
-        raise StudyRequestError(f"runs: the seeds from {case.seed} on pass 2**63 - 1")
+    try:
+        seeds = run_seeds(case.seed, runs)
+    except ValueError as exc:
+        raise StudyRequestError(f"runs: {exc}") from None
     out = []
-    for k in range(runs):
-        run = case.with_changes(seed=case.seed + k, name=f"{case.name} (run {k + 1}/{runs})"[:200])
+    for k, seed in enumerate(seeds):
+        run = case.with_changes(seed=seed, name=f"{case.name} (run {k + 1}/{runs})"[:200])
         out.append(replace(spec, name=run.name, case=run.to_dict(), seed=run.seed))
     return out
