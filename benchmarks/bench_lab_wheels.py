@@ -21,7 +21,8 @@ Every run averages its whole window: the CMU case's early stop of settled runs
 
 Wheels: the paper's (its wheel, soil and rig at the nine slips), the CMU smooth wheel (R 58 mm,
 b 50 mm, the datasets' loads and speeds from ``examples/cmu_smooth/``) and a CMU-like grousered
-wheel built from the same rig (12 grousers of 5 mm).
+wheel built from the same rig (12 grousers of 5 mm), with its grousers as faces in the z-buffer
+(``grouser_contact = "faces"``) and as trapped soil (``"tip_circle"``).
 """
 
 from __future__ import annotations
@@ -109,7 +110,11 @@ def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
     prior = case.prior()
     medians = prior.ppf(np.full((1, prior.dim), 0.5))[0]
     base = dict(zip(case.parameter_names, medians, strict=True))
-    wheels = {"CMU smooth": {}, "CMU 12x5 mm": GROUSERS}
+    wheels = {
+        "CMU smooth": {},
+        "CMU 12x5 mm faces": {**GROUSERS, "grouser_contact": "faces"},
+        "CMU 12x5 mm tip circle": {**GROUSERS, "grouser_contact": "tip_circle"},
+    }
     simulate_swt()  # warm-up (JIT)
 
     fixed = Table(

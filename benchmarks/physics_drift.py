@@ -41,7 +41,8 @@ def run_set() -> dict[str, dict]:
     model = StudyModel(case, terms)
     prior = case.prior()
     base = dict(zip(case.parameter_names, prior.ppf(np.full((1, prior.dim), 0.5))[0], strict=True))
-    for wheel, extra in (("smooth", {}), ("12x5", GROUSERS)):
+    faces = {**GROUSERS, "grouser_contact": "faces"}  # the set as issue 42 fixed it
+    for wheel, extra in (("smooth", {}), ("12x5", faces)):
         for t in terms:
             cfg = build_configs(
                 model.nominal, model.simulator, {**t.conditions, **extra}, {**base, **SOIL}

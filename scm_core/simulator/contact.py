@@ -31,6 +31,7 @@ from .layout import (
     P_N,
     P_OMEGA,
     P_SHEARDISP,
+    P_TANDELTA,
     P_TANPHI,
     P_TAPER,
     P_V,
@@ -236,7 +237,8 @@ def evaluate_contact(
     for i in (R_FX, R_FZ, R_T, R_DFZ):
         res[i] = 0.0
     n_exp = prm[P_N]
-    tanphi = prm[P_TANPHI]
+    tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
+    tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8))
     coh = prm[P_C]
     dsoil = prm[P_DSOIL]
     J = prm[P_J]
@@ -346,7 +348,7 @@ def evaluate_contact(
             fsh = 1.0 - math.exp(-(pst[p, 4] + vt * dt) / J)
         incl = 1.0
         if incl_exp > 0.0:
-            incl = inclination_factor(nx, nz, tx, tz, fsh * tanphi, incl_exp)
+            incl = inclination_factor(nx, nz, tx, tz, fsh * tandelta, incl_exp)
         rows = pj1[p] - pj0[p]
         sink = pst[p, 0] - (zw + e[k])
         sel = pst[p, 3] * (sink - pst[p, 1])
@@ -367,7 +369,7 @@ def evaluate_contact(
         else:
             gam = float(rows)
         sig_sum = gam * sb + rows * sd  # sum over the patch's rows of eq. (7) [Pa]
-        tau_sum = fsh * (coh * rows + tanphi * sig_sum)  # eq. (8)
+        tau_sum = fsh * (coh * rows + tandelta * sig_sum)  # eq. (8)
         dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding
         dfz = (sig_sum * nz - tau_sum * tz) * dA
         Fx += dfx
@@ -377,7 +379,7 @@ def evaluate_contact(
             Fx_fwd += dfx
             Ty_fwd += rz * dfx
         dsig = -gam * dsb + rows * dsd  # d(sig_sum)/d(zw): sinkage falls as the axle rises
-        dFz += (dsig * nz - fsh * tanphi * dsig * tz) * dA
+        dFz += (dsig * nz - fsh * tandelta * dsig * tz) * dA
     # Coulomb sliding limit of the soil under the wheel (Micklethwaite's maximum tractive
     # effort c A + W tan(phi)): thrust beyond it (grouser faces pressing columns that Bekker's
     # law alone does not bound) shears the soil instead, so the forward contributions are scaled

@@ -33,6 +33,12 @@ wheel surface sliding over the soil):
   (``RigConfig.skid_ploughing = "sliding_face"``): the layer a skidding rim drags is the soil met
   by the part of its front face where the rim slides over the soil (outside the friction cone
   of angle phi), :func:`sliding_face_height`, instead of the grouser height + shear band.
+* with the grousers' soil trapped (``RigConfig.grouser_contact = "tip_circle"``) the pockets
+  are a second conveyor of depth h_g at the rim speed of their mean radius r_p: a driven wheel's
+  pockets take the ground's top layer from v to omega r_p (continuity: it thins, the wheel digs
+  in by h_g s_p) or, with ``SoilParams.pocket_fill`` f, carry off h_g u_p (f + (1 - f) v /
+  (omega r_p)) per width and time (f = 1: full pockets), from the loaded nodes ahead of the
+  wheel's bottom, where the grousers enter, to behind the wheel.
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -60,9 +66,11 @@ from .layout import (
     P_K,
     P_OMEGA,
     P_PLOUGH,
+    P_POCKET,
+    P_POCKETFILL,
     P_SHEARDISP,
     P_SLIPFLOW,
-    P_TANPHI,
+    P_TANDELTA,
     P_V,
 )
 
@@ -278,7 +286,8 @@ def sliding_face_height(v: float, omega: float, r: float, tan_phi: float) -> flo
     At the angle theta ahead of the lowest point the rim moves over the ground with a normal
     component v sin(theta) (into the soil) and a tangential one v cos(theta) - omega r (up the
     face). It slides where that velocity lies outside the friction cone of the rim-soil
-    interface, whose angle is the soil's phi as in the shear law of eq. (8): v cos(theta) -
+    interface, whose angle is the one of the shear law of eq. (8) on the wheel (``tan_phi``:
+    tan(delta), the soil's phi unless SoilParams.interface_friction < 1): v cos(theta) -
     omega r > tan(phi) v sin(theta), i.e. below theta_s = arccos((1 - f) cos phi) - phi with
     f = 1 - omega r / v the skid (0: rolling; 1: locked, theta_s = 90 deg - phi). Above
     theta_s the soil moves with the rim (a wedge pushed ahead, the forward-flow zone of a braked
@@ -366,8 +375,13 @@ def flow_and_deposit(
     face_plough = prm[P_FACEPLOUGH] > 0.5
     # sliding face: height above the lowest point of the part of a skidding wheel's front face
     # where the rim slides over the soil (see sliding_face_height)
-    y_slide = sliding_face_height(v, omega, r_out, prm[P_TANPHI]) if face_plough else 0.0
+    y_slide = sliding_face_height(v, omega, r_out, prm[P_TANDELTA]) if face_plough else 0.0
     dig_mobilised = prm[P_DIGMOB] > 0.5
+    # soil trapped between grousers (tip-circle contact): carried at the rim speed of the
+    # pocket's mean radius, r_out - pocket / 2
+    pocket = prm[P_POCKET]
+    u_pocket = omega * (r_out - 0.5 * pocket) - v
+    fill = prm[P_POCKETFILL]
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
     clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
@@ -468,7 +482,7 @@ def flow_and_deposit(
                 acc_p[k] += 0.5 * side
                 acc_m[k] += 0.5 * side
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
-    if (depth > 0.0 and fslip > 0.0) or plough > 0.0 or y_slide > 0.0:
+    if (depth > 0.0 and fslip > 0.0) or plough > 0.0 or y_slide > 0.0 or pocket > 0.0:
         for j in range(jw0, jw0 + nyw):
             if gmax[j] < 0:
                 continue
@@ -508,6 +522,14 @@ def flow_and_deposit(
                 # under at its bottom speed omega r, the rest meets the front face as a blade,
                 # which pushes the fraction `plough` of it ahead with the dragged layer
                 flux += plough * h * max(v - omega * r_out, 0.0)
+            a_pocket = 0.0
+            if sgn < 0 and pocket > 0.0 and u_pocket > 0.0:
+                # the trapped soil moves with the rim, backwards over the ground at u_pocket
+                # whatever the shear: by continuity the pocket layer thins under the wheel
+                # (fill 0: net flux pocket u_pocket v / (v + u_pocket)), up to pockets that
+                # leave the contact full (fill 1: pocket u_pocket)
+                q = pocket * u_pocket * (fill + (1.0 - fill) * v / (v + u_pocket))
+                a_pocket = q * dt / dx
             a = flux * dt / dx
             if sgn > 0:
                 # skid: the rim drags the ground's top layer forwards from under the wheel's
@@ -524,10 +546,23 @@ def flow_and_deposit(
                 # drive: the layer thins as it passes under the wheel (taken from every loaded
                 # ground node of the row alike) and leaves behind the wheel
                 share = a / nu
+                n_front = 0  # the pockets fill where the grousers enter: ahead of the bottom
                 for k in range(rmin[j], gmax[j] + 1):
                     if LOADED_ELASTIC <= cflag[k + 1, j] <= LOADED_YIELDING:
                         _take(c0 + k, j, share, h0, hl)
-                acc_b[j] += a
+                        n_front += xi[k] >= 0.0
+                if a_pocket > 0.0:
+                    # the pockets' soil: from the loaded nodes ahead of the bottom (all of the
+                    # row's if none is), left behind the wheel with the layer
+                    front_only = n_front > 0
+                    share = a_pocket / (n_front if front_only else nu)
+                    for k in range(rmin[j], gmax[j] + 1):
+                        fl = cflag[k + 1, j]
+                        if LOADED_ELASTIC <= fl <= LOADED_YIELDING and (
+                            xi[k] >= 0.0 or not front_only
+                        ):
+                            _take(c0 + k, j, share, h0, hl)
+                acc_b[j] += a + a_pocket
     # ---- deposit outside the footprint, along the flow, below the wheel's swept circle
     grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
     spilled = 0.0

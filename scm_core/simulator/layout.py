@@ -52,7 +52,10 @@ P_DIGMOB = 36  # drive digging: 1 mobilised (dug depth d f), 0 thinning
 P_FACEPLOUGH = 37  # skid ploughing: 1 the front face's sliding zone (derived), 0 kappa
 P_EROSIONEVERY = 38  # steps between erosion passes
 P_SETTLE = 39  # early stop once the steady means are settled (fraction of W, W R, R; 0: off)
-N_PARAMS = 40
+P_POCKET = 40  # depth of the soil trapped between grousers, carried at the rim speed [m] (0: off)
+P_TANDELTA = 41  # friction of the soil on the wheel's surface, tan(delta) (eq. (8) on the wheel)
+P_POCKETFILL = 42  # how full the grouser pockets leave the contact (0: continuity, 1: full)
+N_PARAMS = 43
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -70,22 +73,30 @@ def pack(soil: SoilParams, wheel: WheelGeometry, rig: RigConfig) -> np.ndarray:
 def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> np.ndarray:
     """:func:`pack` for an already resolved rig."""
     p = np.zeros(N_PARAMS)
+    h_g = wheel.grouser_height if wheel.has_grousers else 0.0
+    trapped = rig.grouser_contact == "tip_circle" and h_g > 0.0
     p[P_N] = soil.n
     p[P_KC] = soil.k_c
     p[P_KPHI] = soil.k_phi
     p[P_C] = soil.c
     p[P_TANPHI] = soil.tan_phi
+    # the wheel's surface shears the soil at delta; the tip circle is soil on soil
+    p[P_TANDELTA] = soil.tan_phi * (1.0 if trapped else soil.interface_friction)
     p[P_DSOIL] = soil.D_soil
     p[P_J] = soil.J
     p[P_K] = soil.K
     p[P_TANREPOSE] = math.tan(math.radians(soil.repose_angle))
     p[P_COMPACTION] = soil.compaction
-    p[P_FLOWDEPTH] = (wheel.grouser_height if wheel.has_grousers else 0.0) + soil.shear_band
+    # tip circle: the grousers' soil is the pocket layer (P_POCKET), the dragged band lies below
+    p[P_FLOWDEPTH] = (0.0 if trapped else h_g) + soil.shear_band
     p[P_SLIPFLOW] = soil.slip_flow
-    p[P_R] = wheel.R
+    # tip circle: the wheel's surface is the circle through the grouser tips (no faces)
+    p[P_R] = wheel.R + h_g if trapped else wheel.R
     p[P_B] = wheel.b
-    p[P_NGROUSERS] = wheel.n_grousers if wheel.has_grousers else 0
-    p[P_HG] = wheel.grouser_height if wheel.has_grousers else 0.0
+    p[P_NGROUSERS] = 0 if trapped else (wheel.n_grousers if wheel.has_grousers else 0)
+    p[P_HG] = 0.0 if trapped else h_g
+    p[P_POCKET] = h_g if trapped else 0.0
+    p[P_POCKETFILL] = soil.pocket_fill
     p[P_TG] = wheel.grouser_thickness
     p[P_W] = rig.W
     p[P_MASS] = rig.mass

@@ -94,6 +94,26 @@ class SoilParams(_Frozen):
         "SCM",
     )
 
+    interface_friction: float = Field(
+        1.0,
+        gt=0.0,
+        le=1.0,
+        description="Friction of the soil on the wheel's surface relative to its internal "
+        "friction, tan(delta) / tan(phi) [-]: the shear of eq. (8) on a rim or grouser face "
+        "(and the friction cone of the sliding face); soil trapped between grousers "
+        "(grouser_contact 'tip_circle') shears on soil, at phi; 1 = SCM, the paper's",
+    )
+
+    pocket_fill: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="How full the pockets between grousers leave a driven wheel's contact, "
+        "between what continuity brings them (0: the ground's top layer h_g, accelerated to "
+        "the rim speed, thins; dug depth h_g s_p) and full at every pass (1: net excavation "
+        "h_g (omega r_p - v) per width and time) [-]; grouser_contact 'tip_circle' only",
+    )
+
     @property
     def tan_phi(self) -> float:
         return math.tan(math.radians(self.phi))
@@ -231,6 +251,15 @@ class RigConfig(_Frozen):
         "SCM) or 'sliding_face' (no parameter: the soil met by the part of the face where the "
         "rim slides over the soil, outside the friction cone of angle phi, sets the depth of "
         "the layer a skidding rim drags instead of grouser height + shear_band)",
+    )
+    grouser_contact: Literal["faces", "tip_circle"] = Field(
+        "faces",
+        description="How grousers meet the soil (docs/simulator.md step 1): 'faces' (the grouser "
+        "rectangles in the wheel's z-buffer, SCM; the paper's presets) or 'tip_circle' (the "
+        "soil between grousers is trapped and moves with the wheel, Wong & Reece's effective "
+        "radius r + h_g: pressure and shear act on the circle through the grouser tips, and "
+        "the trapped soil is carried backwards at the rim speed, digging a driven wheel in by "
+        "continuity); a smooth wheel is the same under both",
     )
     max_sinkage: float | None = Field(
         None,

@@ -8,7 +8,7 @@ Numerics left unset scale with the wheel and the rig as the paper's set-up does 
 v = 1 cm/s: dx 5 mm, dt 20 ms, 50 s, offsets 20, 20 and 1 s), rounded to three significant digits:
 
 * dx = r / 25 (five grid cells per 2.5 % of the radius; convergence tables in docs/simulator.md);
-* dt: the carriage advances at most dx / 10 per step, and with grousers the rim at most dx / 20
+* dt: the carriage advances at most dx / 10 per step, and with grouser faces the rim at most dx / 20
   (a grouser must not jump across cells); a smooth rim's angle does not enter the contact, and
   its flows are fluxes per unit time, so only the carriage limits it;
 * duration = 4 r / v (the carriage travels two wheel diameters); in skid 4 r (1 + |s|) / v with s
@@ -72,6 +72,7 @@ class ResolvedRig:
     shear: str
     drive_digging: str
     skid_ploughing: str
+    grouser_contact: str
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -103,7 +104,7 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         dt = rig.dt
     else:
         dt = dt_carriage
-        if wheel.has_grousers and v_rim > 0.0:
+        if wheel.has_grousers and rig.grouser_contact == "faces" and v_rim > 0.0:
             dt = min(dt, dx / (RIM_CELL_FRACTION * v_rim))
         dt = _sig3(min(dt, 0.1, duration / 10.0))
     off_F = rig.offset_F if rig.offset_F is not None else _sig3(OFFSET_FT * duration)
@@ -147,4 +148,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         shear=rig.shear,
         drive_digging=rig.drive_digging,
         skid_ploughing=rig.skid_ploughing,
+        grouser_contact=rig.grouser_contact,
     )

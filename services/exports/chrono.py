@@ -22,12 +22,15 @@ Conversions (this tool's units on the left, Chrono's on the right):
 What Chrono cannot represent is refused (:class:`ChronoExportError`) unless ``lossy``, which
 lists it as dropped: the velocity-form J, the inclination factor (``bearing_inclination`` > 0),
 a skidding wheel's ploughing (``ploughing`` > 0, ``skid_ploughing = "sliding_face"``) and the
-mobilised-depth digging of a driven wheel (``drive_digging = "mobilised"``). The rim-dragged
+mobilised-depth digging of a driven wheel (``drive_digging = "mobilised"``) and the trapped soil
+of a grousered wheel (``grouser_contact = "tip_circle"``), and a wheel surface whose friction is
+below the soil's (``interface_friction`` < 1). The rim-dragged
 layer (``shear_band``, ``slip_flow``) is this tool's flow model; Chrono's bulldozing has none.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 
@@ -90,6 +93,17 @@ def _extensions(soil: SoilParams, rig: RigConfig) -> list[str]:
         out.append('skid_ploughing = "sliding_face" (a skidding wheel\'s dragged layer)')
     if rig.drive_digging == "mobilised":
         out.append('drive_digging = "mobilised" (a driven wheel digging in)')
+    if soil.interface_friction < 1.0:
+        delta = math.degrees(math.atan(soil.interface_friction * soil.tan_phi))
+        out.append(
+            f"interface_friction = {soil.interface_friction:g} (the rim's friction angle delta "
+            f"{delta:.4g} deg; Chrono shears the soil at Mohr_friction on any wheel)"
+        )
+    if rig.grouser_contact == "tip_circle":
+        out.append(
+            'grouser_contact = "tip_circle" (soil trapped between grousers; in Chrono a '
+            "grousered wheel's mesh presses with its grouser faces)"
+        )
     return out
 
 

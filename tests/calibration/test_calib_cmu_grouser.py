@@ -54,3 +54,25 @@ def test_the_grouser_case_reads_the_four_matching_slips() -> None:
     # the same model, priors and sampler as the smooth wheel's case: only the data differ
     assert case.parameter_names == smooth.parameter_names
     assert case.simulator == smooth.simulator and case.sampler == smooth.sampler
+
+
+def test_the_joint_case_reads_both_wheels_with_one_soil() -> None:
+    """cmu_joint.toml: the smooth wheel's nine slips and the grousered wheel's five; the wheels
+    differ only by what each dataset's header says (geometry, load, speeds): no wheel key in the
+    case itself, one set of soil parameters and one sinkage datum."""
+    case = load_case(EXAMPLES / "cmu_joint.toml")
+    smooth = load_case(EXAMPLES / "cmu_smooth.toml")
+    data = [load_dataset(p) for p in case.data_paths()]
+    grousered = [d for d in data if d.conditions.n_grousers]
+    assert len(data) == 14 and len(grousered) == 5
+    assert {(d.conditions.n_grousers, d.conditions.grouser_height) for d in grousered} == {
+        (12, 0.005)
+    }
+    wheel_keys = {"R", "b", "n_grousers", "grouser_height", "grouser_thickness"}
+    assert not wheel_keys & (set(case.nominal) | set(case.simulator) | set(case.parameters))
+    # the smooth case's parameters and the grousered wheel's extensions: the rim's friction and
+    # the pockets' fill (docs/simulator.md step 1), both soil-side (no wheel dimension)
+    extra = set(case.parameter_names) - set(smooth.parameter_names)
+    assert set(smooth.parameter_names) <= set(case.parameter_names)
+    assert "interface_friction" in extra and extra <= {"interface_friction", "pocket_fill"}
+    assert case.simulator == smooth.simulator

@@ -134,6 +134,8 @@ def test_chrono_takes_each_parameter_in_its_units() -> None:
         ({"ploughing": 0.2}, "ploughing = 0.2"),
         ({"skid_ploughing": "sliding_face"}, "sliding_face"),
         ({"drive_digging": "mobilised"}, "mobilised"),
+        ({"grouser_contact": "tip_circle"}, "tip_circle"),
+        ({"interface_friction": 0.6}, "interface_friction = 0.6"),
     ],
 )
 def test_chrono_refuses_what_it_cannot_represent_unless_lossy(change, needle) -> None:

@@ -1,0 +1,112 @@
+"""Grousers as trapped soil (``grouser_contact = "tip_circle"``, docs/simulator.md step 1).
+
+The soil between grousers moves with the wheel (Wong & Reece 1967's effective radius r + h_g;
+Bekker 1969's grouser analysis), so the wheel presses and shears the soil on the circle through
+the grouser tips, and the trapped soil is carried backwards at the rim speed. Checks that do not
+come from the code: a grousered wheel is then a smooth wheel of the tip radius wherever the
+trapped soil is not carried faster than the ground (skid, the locked wheel: the measured CMU
+wheels brake and sink alike there, -38.9 and -38.8 N, 49 and 50 mm locked); when driven, the
+pocket layer of depth h_g, accelerated from the ground speed v to omega r_p (r_p its mean
+radius), thins to h_g v / (omega r_p) by continuity, so the wheel digs in by h_g s_p with
+s_p = 1 - v / (omega r_p); soil volume is conserved.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_batch, simulate_swt
+from scm_core.simulator.layout import P_POCKET, pack
+
+R, H_G, V = 0.058, 0.005, 0.01
+GROUSERED = WheelGeometry(R=R, b=0.05, n_grousers=12, grouser_height=H_G)
+TIP_RADIUS = WheelGeometry(R=R + H_G, b=0.05, n_grousers=0)
+SOIL = SoilParams(k_phi=5e6, n=1.2, phi=30.0, J=0.012, shear_band=0.01)
+
+
+def _rig(slip: float, contact: str = "tip_circle") -> RigConfig:
+    return RigConfig(
+        W=22.0,
+        slip=slip,
+        slip_convention="symmetric",
+        carriage_speed=V,
+        slip_radius=R,
+        shear="displacement",
+        drive_digging="mobilised",
+        skid_ploughing="sliding_face",
+        grouser_contact=contact,
+    )
+
+
+def test_tip_circle_packs_a_smooth_wheel_of_the_tip_radius_plus_the_pocket():
+    """The kernel sees the rim at r + h_g, no grouser faces, the band below it as the dragged
+    layer, and the pocket depth h_g; a smooth wheel is the same under both settings."""
+    a = pack(SOIL, GROUSERED, _rig(0.5))
+    b = pack(SOIL, TIP_RADIUS, _rig(0.5))
+    assert a[P_POCKET] == H_G and b[P_POCKET] == 0.0
+    differ = np.flatnonzero(a != b)
+    assert set(differ) == {P_POCKET}
+    smooth = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    np.testing.assert_array_equal(
+        pack(SOIL, smooth, _rig(0.5)), pack(SOIL, smooth, _rig(0.5, "faces"))
+    )
+
+
+def test_a_skidding_grousered_wheel_is_a_smooth_wheel_of_its_tip_radius():
+    """In skid and locked, the trapped soil is not carried faster than the ground: the same
+    run as the smooth wheel of radius r + h_g, bit for bit."""
+    slips = (-0.5, -1.0)
+    grousered = simulate_batch([SOIL] * 2, GROUSERED, [_rig(s) for s in slips])
+    smooth = simulate_batch([SOIL] * 2, TIP_RADIUS, [_rig(s) for s in slips])
+    assert grousered.ok.all() and smooth.ok.all()
+    np.testing.assert_array_equal(grousered.means, smooth.means)
+
+
+def test_a_driven_grousered_wheel_digs_in_by_the_thinned_pocket_layer():
+    """Driven, the pocket layer thins by continuity and the wheel sinks by h_g s_p more than
+    the smooth wheel of the tip radius (s_p = 1 - v/(omega r_p), r_p = r + h_g/2), to within
+    a quarter of it: the dug layer lowers the ground under the loaded nodes alike, so the
+    wheel's bearing needs the same depth below the lowered ground (first order); the drawbar
+    pull changes little (the band's shear is the same)."""
+    slips = (0.25, 0.5, 0.9)
+    grousered = simulate_batch([SOIL] * 3, GROUSERED, [_rig(s) for s in slips])
+    smooth = simulate_batch([SOIL] * 3, TIP_RADIUS, [_rig(s) for s in slips])
+    assert grousered.ok.all() and smooth.ok.all()
+    dig = grousered.means[:, 2] - smooth.means[:, 2]
+    omega = V / (R * (1.0 - np.array(slips)))  # lab slip = drive slip here
+    s_p = 1.0 - V / (omega * (R + 0.5 * H_G))
+    print("dig [mm]", 1e3 * dig, "expected", 1e3 * H_G * s_p)
+    np.testing.assert_allclose(dig, H_G * s_p, rtol=0.25)
+
+
+def test_fuller_pockets_dig_deeper_by_what_they_carry_off():
+    """With pockets that leave the contact fuller than continuity fills them (``pocket_fill``
+    f), the net excavation is h_g u_p (f + (1 - f) v / (omega r_p)) per width and time, and
+    the wheel digs in by that over v (mass balance: the rut under the wheel is what was carried
+    off per unit travel): at f = 1, h_g (omega r_p / v - 1), the pockets' spare capacity.
+    Within a quarter, as above, at slips where the full pockets do not bottom the wheel out."""
+    slips = (0.25, 0.5)
+    fills = (0.0, 0.5, 1.0)
+    soils = [SOIL.replace(pocket_fill=f) for f in fills for _ in slips]
+    rigs = [_rig(s) for _ in fills for s in slips]
+    grousered = simulate_batch(soils, GROUSERED, rigs)
+    smooth = simulate_batch([SOIL] * 2, TIP_RADIUS, [_rig(s) for s in slips])
+    assert grousered.ok.all() and smooth.ok.all()
+    dig = grousered.means[:, 2].reshape(3, 2) - smooth.means[:, 2]
+    omega = V / (R * (1.0 - np.array(slips)))
+    speed = omega * (R + 0.5 * H_G)  # omega r_p
+    expected = np.array([H_G * (speed - V) * (f + (1.0 - f) * V / speed) / V for f in fills])
+    print("dig [mm]", 1e3 * dig, "expected", 1e3 * expected)
+    assert np.all(np.diff(dig, axis=0) > 0)  # fuller pockets dig deeper
+    np.testing.assert_allclose(dig, expected, rtol=0.25)
+
+
+@pytest.mark.parametrize(("slip", "fill"), [(0.5, 0.0), (0.9, 0.0), (0.9, 0.5)])
+def test_pocket_transport_conserves_volume(slip, fill):
+    """The trapped soil moves from under the wheel to behind it: only compaction (and spill)
+    removes volume."""
+    d = simulate_swt(SOIL.replace(pocket_fill=fill), GROUSERED, _rig(slip)).diagnostics
+    balance = d["volume_final"] - d["volume_initial"] + d["compacted_volume"] + d["volume_spilled"]
+    assert abs(balance) / d["compacted_volume"] < 1e-9
+    assert d["volume_spilled"] <= 1e-3 * d["compacted_volume"]
