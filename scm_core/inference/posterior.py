@@ -167,14 +167,16 @@ def kde_2d(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Bivariate Gaussian KDE on a grid for contour plots (Figures 6-9).
 
-    ``limits`` = (x_min, x_max, y_min, y_max), default the data range padded by 10 %.
+    ``limits`` = (x_min, x_max, y_min, y_max), default the data range padded by three kernel
+    standard deviations, where one sample's kernel has fallen to exp(-4.5) = 1 % of its peak:
+    contours down to a few per cent of the density's maximum close inside the grid.
     Returns (gx (n_grid,), gy (n_grid,), density (n_grid, n_grid) indexed [iy, ix]).
     """
     xv = np.asarray(x, dtype=float).ravel()
     yv = np.asarray(y, dtype=float).ravel()
     kde = stats.gaussian_kde(np.vstack([xv, yv]), bw_method=bw_method)
     if limits is None:
-        px, py = 0.1 * np.ptp(xv), 0.1 * np.ptp(yv)
+        px, py = 3.0 * np.sqrt(np.diag(kde.covariance))
         limits = (xv.min() - px, xv.max() + px, yv.min() - py, yv.max() + py)
     gx = np.linspace(limits[0], limits[1], n_grid)
     gy = np.linspace(limits[2], limits[3], n_grid)

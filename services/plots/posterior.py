@@ -230,9 +230,9 @@ def pairs_figure(
         ax.scatter(
             bx(x[::step]),
             by(y[::step]),
-            s=3,
-            color="0.4",
-            alpha=0.25,
+            s=5,
+            color="0.3",
+            alpha=0.45,
             lw=0,
             label="samples",
             rasterized=True,

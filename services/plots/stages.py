@@ -1,13 +1,16 @@
-"""The TMCMC schedule of a study: tempering exponent and acceptance rate per stage."""
+"""A study's stages: the TMCMC schedule (tempering exponent, acceptance rate) and each
+parameter's population from the prior to the posterior (TMCMC's trace plot)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Collection, Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from numpy.typing import NDArray
 
-__all__ = ["schedule_figure"]
+__all__ = ["schedule_figure", "stage_trace_figure"]
 
 
 def schedule_figure(
@@ -52,4 +55,43 @@ def schedule_figure(
     for ax in (ax_p, ax_a):
         ax.xaxis.get_major_locator().set_params(integer=True)
     fig.suptitle(title or "TMCMC schedule")
+    return fig
+
+
+def stage_trace_figure(
+    names: Sequence[str],
+    stages: Sequence[int],
+    populations: Sequence[NDArray[np.float64]],
+    units: Mapping[str, str] | None = None,
+    log_params: Collection[str] = (),
+    title: str | None = None,
+) -> Figure:
+    """One panel per parameter against the stage index: the population's median, central 50 %
+    and 95 % intervals (TMCMC's trace: each stage is an equally weighted sample of the
+    tempered posterior p(theta) L(theta)^p_j, from the prior at stage 0 to the posterior).
+    A posterior that converged flattens out over the last stages; one still moving, or
+    pressed against a prior bound, shows it. ``populations[k]`` (n, d) is stage ``stages[k]``;
+    parameters in ``log_params`` are drawn on log axes."""
+    j = np.asarray(stages, dtype=float)
+    q = np.array([np.nanquantile(x, [0.025, 0.25, 0.5, 0.75, 0.975], axis=0) for x in populations])
+    d = len(names)
+    ncols = min(4, d)
+    nrows = math.ceil(d / ncols)
+    fig = Figure(figsize=(3.2 * ncols, 2.4 * nrows + 0.5), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
+    for k, (ax, name) in enumerate(zip(axes, names, strict=False)):
+        ax.fill_between(j, q[:, 0, k], q[:, 4, k], color="tab:blue", alpha=0.18, lw=0, label="95 %")
+        ax.fill_between(j, q[:, 1, k], q[:, 3, k], color="tab:blue", alpha=0.35, lw=0, label="50 %")
+        ax.plot(j, q[:, 2, k], "o-", color="tab:blue", ms=3, lw=1.2, label="median")
+        if name in log_params:
+            ax.set_yscale("log")
+        unit = (units or {}).get(name, "")
+        ax.set_ylabel(f"{name} [{unit}]" if unit not in ("", "-") else name)
+        ax.set_xlabel("stage j")
+        ax.xaxis.get_major_locator().set_params(integer=True)
+        ax.grid(alpha=0.3)
+    for ax in axes[d:]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7, loc="best")
+    fig.suptitle(title or "Population per stage: median, 50 % and 95 % intervals")
     return fig

@@ -81,6 +81,18 @@ def test_kde_2d_grid(gaussian_samples) -> None:
     assert gx[ix] == pytest.approx(1.0, abs=0.3) and gy[iy] == pytest.approx(-2.0, abs=0.6)
 
 
+@pytest.mark.parametrize("shape", ["gaussian", "piled against a bound"])
+def test_kde_2d_contours_close_inside_the_grid(gaussian_samples, shape) -> None:
+    """The dashboard draws contours from 5 % of the maximum up: the density on the grid's
+    edge lies below that level, so every contour closes (a TMCMC stage: 400 samples)."""
+    x, y = gaussian_samples[:400, 0], gaussian_samples[:400, 1]
+    if shape != "gaussian":
+        x = np.random.default_rng(2).uniform(0.0, 1.0, 400) ** 0.3
+    *_, dens = kde_2d(x, y, n_grid=80)
+    edge = np.concatenate([dens[0], dens[-1], dens[:, 0], dens[:, -1]])
+    assert edge.max() < 0.05 * dens.max() * 0.2
+
+
 def test_pool_samples_equal_weight_per_run() -> None:
     a = np.zeros((100, 2))
     b = np.ones((300, 2))

@@ -216,9 +216,9 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
         "dataset": f"{base}/ui/datasets/{server['datasets'][0]}",
     }
     expected_figures = {
-        "study_calibration": 4,  # schedule, prior-posterior, pair, fit
+        "study_calibration": 5,  # schedule, prior-posterior, trace, pair, fit
         "study_sensitivity": 1,
-        "study_update": 4,
+        "study_update": 5,
         "study_prediction": 1,
         "compare": 1,
         "dataset": 1,
@@ -276,7 +276,7 @@ def test_study_page_downloads_parse(server, browser) -> None:
                 kinds["png"] = kinds.get("png", 0) + 1
             else:
                 pytest.fail(f"{href}: unexpected content type {ctype}")
-        assert kinds.get("svg") == kinds.get("png") == 4 and kinds.get("json") == 1
+        assert kinds.get("svg") == kinds.get("png") == 5 and kinds.get("json") == 1
         assert kinds.get("csv", 0) >= 2  # every finished stage
         # the pair chooser redraws the bivariate density for another pair
         chooser = w.page.locator("form.pair-chooser")
@@ -436,6 +436,31 @@ def test_cancel_works_with_the_token_and_is_refused_without(server, browser) -> 
         w.close()
 
 
+def test_a_tapped_figure_opens_enlarged_and_closes(server, browser) -> None:
+    """At a phone's width a figure shrinks to the screen; tapped, it opens full-screen at least
+    as wide as its own drawing (wider than the phone: it scrolls in its dialog), and a tap
+    closes it."""
+    w = Watched(browser, SIZES["400x800"])
+    try:
+        w.goto(f"{server['base']}/ui/studies/{server['a']}")
+        w.figures_loaded()
+        img = w.page.locator("img[data-figure=prior_posterior]")
+        small = img.bounding_box()["width"]
+        natural = img.evaluate("i => i.naturalWidth")
+        assert small <= 400 < natural
+        img.click()
+        zoom = w.page.locator("dialog#figure-zoom[open] img")
+        zoom.wait_for()
+        assert zoom.evaluate("i => i.getBoundingClientRect().width") >= natural - 1
+        assert w.page.evaluate("document.documentElement.scrollWidth") <= 400
+        w.shoot("figure_enlarged_400x800")
+        zoom.click()
+        w.page.wait_for_selector("dialog#figure-zoom", state="hidden")
+        w.clean()
+    finally:
+        w.close()
+
+
 def test_update_links_its_parent_and_shows_both_posteriors(server, browser) -> None:
     w = Watched(browser)
     try:
@@ -444,6 +469,22 @@ def test_update_links_its_parent_and_shows_both_posteriors(server, browser) -> N
         assert w.page.locator(f"a[href='/ui/studies/{server['a']}']").count() == 1
         alt = w.page.locator("img[data-figure=prior_posterior]").get_attribute("alt")
         assert "earlier" in alt
+        # the three evidences: the new data's (the increment), the earlier data's, all data's,
+        # as the API reports them (the dashboard prints 6 significant digits)
+        result = httpx.get(f"{server['base']}/studies/{server['update']}").json()["result"]
+        shown = {
+            key: float(w.page.inner_text(f"#{sel}").replace(",", ""))
+            for key, sel in (
+                ("log_evidence_increment", "log-evidence"),
+                ("parent_log_evidence", "log-evidence-parent"),
+                ("log_evidence_total", "log-evidence-total"),
+            )
+        }
+        for key, value in shown.items():
+            assert value == pytest.approx(result[key], rel=1e-5, abs=1e-5), key
+        assert shown["log_evidence_total"] == pytest.approx(
+            shown["log_evidence_increment"] + shown["parent_log_evidence"], abs=1e-4
+        )
         w.clean()
     finally:
         w.close()
@@ -556,7 +597,7 @@ def test_study_page_first_load_is_light(server, browser) -> None:
     w.page.on("requestfinished", finished)
     try:
         w.goto(f"{server['base']}/ui/studies/{server['a']}")
-        assert w.figures_loaded() == 4
+        assert w.figures_loaded() == 5
         w.page.wait_for_load_state("networkidle")
         total = sum(n for _, n, _ in sizes)
         big = [(u, n, e) for u, n, e in sizes if n > 4096]

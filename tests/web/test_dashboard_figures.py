@@ -11,7 +11,7 @@ import pytest
 from services.api.dashboard.figures import FigureCache
 from services.plots.figures import render
 from services.plots.posterior import pairs_figure
-from services.plots.stages import schedule_figure
+from services.plots.stages import schedule_figure, stage_trace_figure
 
 
 def test_render_is_deterministic_and_checks_the_format() -> None:
@@ -49,3 +49,22 @@ def test_cache_keeps_the_newest_entries() -> None:
     for key in ("a", "b", "a", "c", "b"):
         cache.get_or_make(key, lambda k=key: made.append(k) or k)
     assert made == ["a", "b", "c", "b"]  # "a" reused once; "b" evicted by "c" after "a"
+
+
+def test_stage_trace_draws_each_stage_population_quantiles() -> None:
+    """A population shrinking from the prior (stage 0) to the posterior: each panel's median
+    line is the stage's sample median, its bands the 2.5-97.5 % and 25-75 % quantiles (numpy's),
+    one panel per parameter, log axes where asked."""
+    rng = np.random.default_rng(0)
+    sd = (1.0, 0.5, 0.1)
+    pops = [np.column_stack([rng.normal(2.0, s, 400), 10 ** rng.normal(6.0, s, 400)]) for s in sd]
+    fig = stage_trace_figure(["phi", "k_phi"], [0, 1, 2], pops, log_params={"k_phi"})
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 2 and axes[1].get_yscale() == "log"
+    for k, ax in enumerate(axes):
+        np.testing.assert_allclose(ax.lines[0].get_ydata(), [np.median(p[:, k]) for p in pops])
+        outer = ax.collections[0].get_paths()[0].vertices[:, 1]
+        for p in pops:
+            lo, hi = np.quantile(p[:, k], [0.025, 0.975])
+            assert np.isclose(outer, lo).any() and np.isclose(outer, hi).any()
+    assert render(fig, "svg").startswith(b"<?xml")

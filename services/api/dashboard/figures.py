@@ -34,7 +34,7 @@ from services.plots.posterior import (
 )
 from services.plots.predict import predictions_figure
 from services.plots.sensitivity import indices_figure
-from services.plots.stages import schedule_figure
+from services.plots.stages import schedule_figure, stage_trace_figure
 from services.plots.swt import measured_figure
 from services.store import StageRecord, Store, StudyRecord
 from services.studies.datasets import load_datasets, stored_log
@@ -154,6 +154,22 @@ def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: 
         [s.ess for s in stages],
         study.n_samples,
         title=f"{study.name}: TMCMC schedule ({study.status})",
+    )
+
+
+def _trace(
+    store: Store, study: StudyRecord, stage: int, stages: Sequence[StageRecord], **_: Any
+) -> Figure:
+    case = CaseDefinition.from_dict(study.case)
+    done = [s.stage_index for s in stages if s.status == "done" and s.stage_index <= stage]
+    data = [_stage_data(store, study, j) for j in done]
+    return stage_trace_figure(
+        data[-1].names,
+        done,
+        [d.samples for d in data],
+        units=dict(case.prior().units or {}),
+        log_params=_log_params(case),
+        title=f"{study.name}: population per stage, 0 to {stage} (median, 50 % and 95 %)",
     )
 
 
@@ -309,6 +325,7 @@ def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
 STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool, tuple[str, ...]]] = {
     "schedule": (_schedule, False, ("tmcmc", "update")),
     "prior_posterior": (_prior_posterior, True, ("tmcmc", "update")),
+    "trace": (_trace, True, ("tmcmc", "update")),
     "pairs": (_pairs, True, ("tmcmc", "update")),
     "fit": (_fit, True, ("tmcmc", "update")),
     "morris": (_morris, False, ("morris",)),

@@ -129,20 +129,35 @@ def _fmt(fmt: str) -> str:
 def dashboard_router() -> APIRouter:
     """Pages, fragments and figures of the dashboard (not in the OpenAPI document)."""
     templates = _templates()
-    cache = FigureCache()
+    router = APIRouter(include_in_schema=False)
+    router.include_router(_page_routes(templates))
+    router.include_router(_study_fragment_routes(templates))
+    router.include_router(_other_fragment_routes(templates))
+    router.include_router(_figure_routes(FigureCache()))
+    return router
+
+
+def _reads() -> APIRouter:
+    """A router of read endpoints: they need the token when reads do."""
+    return APIRouter(include_in_schema=False, dependencies=[Depends(require_read)])
+
+
+def _page(templates: Jinja2Templates, request: Request, name: str, **ctx: Any) -> HTMLResponse:
+    return templates.TemplateResponse(request, name, ctx)
+
+
+def _fragment(
+    templates: Jinja2Templates, request: Request, name: str, tag: str | None = None, **ctx: Any
+) -> Response:
+    out = templates.TemplateResponse(request, name, {"etag": tag, **ctx})
+    if tag is not None:
+        set_etag(out, tag)
+    return out
+
+
+def _page_routes(templates: Jinja2Templates) -> APIRouter:
+    """The pages: shells that hold no data and need no token."""
     pages = APIRouter(include_in_schema=False)
-    reads = APIRouter(include_in_schema=False, dependencies=[Depends(require_read)])
-
-    def page(request: Request, name: str, **ctx: Any) -> HTMLResponse:
-        return templates.TemplateResponse(request, name, ctx)
-
-    def fragment(request: Request, name: str, tag: str | None = None, **ctx: Any) -> Response:
-        out = templates.TemplateResponse(request, name, {"etag": tag, **ctx})
-        if tag is not None:
-            set_etag(out, tag)
-        return out
-
-    # ---- pages (shells) ------------------------------------------------------------------
 
     @pages.get("/", response_class=HTMLResponse)
     def studies_page(
@@ -151,7 +166,8 @@ def dashboard_router() -> APIRouter:
         kind: Annotated[str | None, Query(max_length=16)] = None,
         offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
     ) -> HTMLResponse:
-        return page(
+        return _page(
+            templates,
             request,
             "studies.html",
             status=status or "",
@@ -163,7 +179,7 @@ def dashboard_router() -> APIRouter:
 
     @pages.get("/ui/studies/{study_id}", response_class=HTMLResponse)
     def study_page(request: Request, study_id: StudyId) -> HTMLResponse:
-        return page(request, "study.html", study_id=study_id)
+        return _page(templates, request, "study.html", study_id=study_id)
 
     @pages.get("/ui/compare", response_class=HTMLResponse)
     def compare_page(
@@ -172,19 +188,24 @@ def dashboard_router() -> APIRouter:
         id: Annotated[list[int] | None, Query(max_length=50)] = None,
     ) -> HTMLResponse:
         chosen = ",".join(filter(None, [ids or "", *(str(i) for i in id or [])]))
-        return page(request, "compare.html", ids=chosen)
+        return _page(templates, request, "compare.html", ids=chosen)
 
     @pages.get("/ui/datasets", response_class=HTMLResponse)
     def datasets_page(
         request: Request, offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0
     ) -> HTMLResponse:
-        return page(request, "datasets.html", offset=offset)
+        return _page(templates, request, "datasets.html", offset=offset)
 
     @pages.get("/ui/datasets/{dataset_id}", response_class=HTMLResponse)
     def dataset_page(request: Request, dataset_id: DatasetId) -> HTMLResponse:
-        return page(request, "dataset.html", dataset_id=dataset_id)
+        return _page(templates, request, "dataset.html", dataset_id=dataset_id)
 
-    # ---- fragments -----------------------------------------------------------------------
+    return pages
+
+
+def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
+    """The studies list and a study's live fragments (ETag-versioned)."""
+    reads = _reads()
 
     @reads.get("/ui/f/studies")
     def studies_fragment(
@@ -204,7 +225,8 @@ def dashboard_router() -> APIRouter:
             return unchanged
         page_ = store.studies.list(statuses, kind=kind, limit=PAGE_SIZE, offset=offset)
         rows = [_row(store, s) for s in page_.items]
-        return fragment(
+        return _fragment(
+            templates,
             request,
             "_studies_table.html",
             tag,
@@ -221,8 +243,8 @@ def dashboard_router() -> APIRouter:
         tag = etag_of("ui-row", study_id, store.studies.version(study_id))
         if (unchanged := not_modified(request, tag)) is not None:
             return unchanged
-        return fragment(
-            request, "_study_row.html", tag, row=_row(store, store.studies.get(study_id))
+        return _fragment(
+            templates, request, "_study_row.html", tag, row=_row(store, store.studies.get(study_id))
         )
 
     @reads.get("/ui/f/studies/{study_id}/live")
@@ -232,7 +254,8 @@ def dashboard_router() -> APIRouter:
             return unchanged
         study = store.studies.get(study_id)
         stages = [stage_out(store, s) for s in store.stages.list(study_id)]
-        return fragment(
+        return _fragment(
+            templates,
             request,
             "_study_live.html",
             tag,
@@ -241,6 +264,7 @@ def dashboard_router() -> APIRouter:
             stages=stages,
             kind_title=KIND_TITLES.get(study.kind, study.kind),
             parent=(study.payload or {}).get("update_of"),
+            result=study.result,
             runs=[] if study.run_group is None else store.studies.run_group(study.run_group),
         )
 
@@ -273,7 +297,14 @@ def dashboard_router() -> APIRouter:
                     a.samples, names, parameter_units(study), a.log_prior, a.log_likelihood
                 )
                 ctx.update(summary=params, names=names, pairs=default_pairs(names, 1))
-        return fragment(request, "_study_results.html", tag, **ctx)
+        return _fragment(templates, request, "_study_results.html", tag, **ctx)
+
+    return reads
+
+
+def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
+    """The comparison, datasets and new-study fragments."""
+    reads = _reads()
 
     @reads.get("/ui/f/compare")
     def compare_fragment(
@@ -299,7 +330,7 @@ def dashboard_router() -> APIRouter:
         ctx: dict[str, Any] = {"completed": completed, "chosen": chosen, "rows": [], "table": []}
         if len(studies) >= 2:
             ctx.update(_comparison(store, studies))
-        return fragment(request, "_compare.html", None, **ctx)
+        return _fragment(templates, request, "_compare.html", None, **ctx)
 
     @reads.get("/ui/f/datasets")
     def datasets_fragment(
@@ -308,7 +339,8 @@ def dashboard_router() -> APIRouter:
         offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
     ) -> Response:
         page_ = store.datasets.list(limit=PAGE_SIZE, offset=offset)
-        return fragment(
+        return _fragment(
+            templates,
             request,
             "_datasets_table.html",
             None,
@@ -322,16 +354,21 @@ def dashboard_router() -> APIRouter:
     def dataset_fragment(request: Request, dataset_id: DatasetId, store: StoreDep) -> Response:
         d = dataset_out(store.datasets.get(dataset_id))
         units = {k: condition_unit(k) for k in d.conditions}
-        return fragment(request, "_dataset.html", None, d=d, units=units)
+        return _fragment(templates, request, "_dataset.html", None, d=d, units=units)
 
     @reads.get("/ui/f/presets")
     def new_study_fragment(request: Request, store: StoreDep) -> Response:
         datasets = store.datasets.list(limit=200).items
-        return fragment(
-            request, "_new_study.html", None, presets=sorted(PRESETS), datasets=datasets
+        return _fragment(
+            templates, request, "_new_study.html", None, presets=sorted(PRESETS), datasets=datasets
         )
 
-    # ---- figures -------------------------------------------------------------------------
+    return reads
+
+
+def _figure_routes(cache: FigureCache) -> APIRouter:
+    """Figures (SVG or PNG) of studies, datasets and comparisons."""
+    reads = _reads()
 
     @reads.get("/ui/figures/studies/{study_id}/{name}.{fmt}")
     def study_figure_route(
@@ -382,10 +419,7 @@ def dashboard_router() -> APIRouter:
             raise HTTPException(404, str(exc)) from None
         return _figure_response(data, fmt, f"compare_{'_'.join(map(str, _parse_ids(ids)))}.{fmt}")
 
-    router = APIRouter(include_in_schema=False)
-    router.include_router(pages)
-    router.include_router(reads)
-    return router
+    return reads
 
 
 def _row(store: Store, study: StudyRecord) -> dict[str, Any]:

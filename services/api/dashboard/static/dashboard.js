@@ -97,6 +97,21 @@
     }
   });
 
+  /* tap a figure to enlarge it: a full-screen dialog at the figure's own size or the
+     screen's, whichever is wider (it scrolls in place); a tap or Escape closes it */
+  document.addEventListener("click", (ev) => {
+    const img = ev.target.closest("figure.fig img");
+    if (!img || !img.src) return;
+    let dlg = document.getElementById("figure-zoom");
+    if (!dlg) {
+      dlg = Object.assign(document.createElement("dialog"), { id: "figure-zoom", className: "figure-zoom" });
+      dlg.addEventListener("click", () => dlg.close());
+      document.body.append(dlg);
+    }
+    dlg.replaceChildren(Object.assign(document.createElement("img"), { src: img.src, alt: img.alt }));
+    dlg.showModal();
+  });
+
   /* the pair chooser swaps the bivariate figure */
   document.addEventListener("change", (ev) => {
     const form = ev.target.closest("form.pair-chooser");
