@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from scm_core.inference.posterior import kde_2d
+from scm_core.inference.posterior import kde_1d, kde_2d
 
 from .figures import save
 
@@ -277,6 +277,77 @@ def pairs_figure(
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     fig.suptitle(title or "Bivariate posterior densities")
+    return fig
+
+
+def pair_matrix_figure(
+    names: Sequence[str],
+    samples: NDArray[np.float64],
+    chosen: Sequence[str],
+    units: Mapping[str, str] | None = None,
+    reference: Mapping[str, float] | None = None,
+    log_params: Collection[str] = (),
+    title: str | None = None,
+    max_points: int = 2000,
+) -> Figure:
+    """A pair matrix of the ``chosen`` parameters (a corner plot): on the diagonal each one's
+    marginal (histogram and kernel density), below it each pair's samples and kernel-density
+    contours (5-95 % of the maximum, closed: :func:`kde_2d`). Parameters in ``log_params`` are
+    estimated and drawn in log10 (axes labelled log10). ``reference`` marks bevameter values."""
+    index = {n: j for j, n in enumerate(names)}
+    d = len(chosen)
+    fig = Figure(figsize=(1.9 * d + 1.0, 1.9 * d + 0.6), layout="constrained")
+    axes = np.array(fig.subplots(d, d, squeeze=False))
+    step = max(1, math.ceil(samples.shape[0] / max_points))
+    cols = {n: _tx(n, samples[::step, index[n]], log_params) for n in chosen}
+
+    def name_of(n: str) -> str:
+        return f"log10 {label(n, units)}" if _log(n, log_params) else label(n, units)
+
+    ref = {
+        n: float(_tx(n, np.array([v]), log_params)[0])
+        for n, v in (reference or {}).items()
+        if n in cols
+    }
+    for i, a in enumerate(chosen):
+        for k, b in enumerate(chosen):
+            ax = axes[i, k]
+            if k > i:
+                ax.set_visible(False)
+                continue
+            x, y = cols[b], cols[a]
+            if k == i:
+                ok = x[np.isfinite(x)]
+                ax.hist(ok, bins=30, density=True, color="tab:blue", alpha=0.35)
+                if ok.size > 3 and np.ptp(ok) > 0:
+                    g, dens = kde_1d(ok)
+                    ax.plot(g, dens, color="tab:blue", lw=1.2)
+                ax.set_yticks([])
+                if b in ref:
+                    ax.axvline(ref[b], color="k", ls="--", lw=1)
+            else:
+                ax.scatter(x, y, s=3, color="0.3", alpha=0.35, lw=0, rasterized=True)
+                distinct = np.unique(np.column_stack([x, y]), axis=0).shape[0]
+                if np.ptp(x) > 0 and np.ptp(y) > 0 and distinct > 3:
+                    try:
+                        gx, gy, dens = kde_2d(x, y, n_grid=60)
+                        levels = np.linspace(0.05, 0.95, 6) * float(dens.max())
+                        ax.contour(gx, gy, dens, levels=levels, cmap="viridis", linewidths=0.9)
+                    except (np.linalg.LinAlgError, ValueError):
+                        pass
+                if a in ref and b in ref:
+                    ax.plot(ref[b], ref[a], "k+", ms=10, mew=1.5)
+            ax.tick_params(labelsize=7)
+            if i == d - 1:
+                ax.set_xlabel(name_of(b), fontsize=8)
+            else:
+                ax.set_xticklabels([])
+            if k == 0 and i > 0:
+                ax.set_ylabel(name_of(a), fontsize=8)
+            elif k > 0 and k != i:
+                ax.set_yticklabels([])
+            ax.grid(alpha=0.25)
+    fig.suptitle(title or "Pair matrix of the posterior")
     return fig
 
 

@@ -216,9 +216,9 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
         "dataset": f"{base}/ui/datasets/{server['datasets'][0]}",
     }
     expected_figures = {
-        "study_calibration": 5,  # schedule, prior-posterior, trace, pair, fit
+        "study_calibration": 6,  # schedule, prior-posterior, trace, pair, matrix, fit
         "study_sensitivity": 1,
-        "study_update": 5,
+        "study_update": 6,
         "study_prediction": 1,
         "compare": 1,
         "dataset": 1,
@@ -276,7 +276,7 @@ def test_study_page_downloads_parse(server, browser) -> None:
                 kinds["png"] = kinds.get("png", 0) + 1
             else:
                 pytest.fail(f"{href}: unexpected content type {ctype}")
-        assert kinds.get("svg") == kinds.get("png") == 5 and kinds.get("json") == 1
+        assert kinds.get("svg") == kinds.get("png") == 6 and kinds.get("json") == 1
         assert kinds.get("csv", 0) >= 2  # every finished stage
         # the pair chooser redraws the bivariate density for another pair
         chooser = w.page.locator("form.pair-chooser")
@@ -287,6 +287,34 @@ def test_study_page_downloads_parse(server, browser) -> None:
             " return i.dataset.loaded.includes('a=n&b=phi') && i.naturalWidth > 0; }"
         )
         w.clean()
+    finally:
+        w.close()
+
+
+def test_pair_matrix_redraws_for_the_checked_parameters(server, browser) -> None:
+    """Case B has three parameters: the matrix starts with the default ones (all three here),
+    unchecking one redraws it for the other two, one alone is not drawn, and an unknown name
+    in the URL is refused with the field named."""
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/studies/{server['b']}")
+        w.figures_loaded()
+        img = "document.querySelector('img[data-figure=matrix]')"
+        assert "p=n,phi,J" in w.page.evaluate(f"{img}.dataset.loaded")
+        form = w.page.locator("form.matrix-chooser")
+        form.locator("input[value=n]").uncheck()
+        w.page.wait_for_function(
+            f"() => {img}.dataset.loaded.includes('p=phi,J') && {img}.naturalWidth > 0"
+        )
+        assert "phi, J" in w.page.locator("img[data-figure=matrix]").get_attribute("alt")
+        form.locator("input[value=J]").uncheck()  # one parameter: the matrix stays as it was
+        w.page.wait_for_timeout(300)
+        assert w.page.evaluate(f"{img}.dataset.loaded").endswith("p=phi,J")
+        w.clean()
+        r = w.page.request.get(
+            f"{server['base']}/ui/figures/studies/{server['b']}/matrix.svg?stage=1&p=phi,K"
+        )
+        assert r.status == 404 and "p: K not among" in r.json()["detail"]
     finally:
         w.close()
 
@@ -597,7 +625,7 @@ def test_study_page_first_load_is_light(server, browser) -> None:
     w.page.on("requestfinished", finished)
     try:
         w.goto(f"{server['base']}/ui/studies/{server['a']}")
-        assert w.figures_loaded() == 5
+        assert w.figures_loaded() == 6
         w.page.wait_for_load_state("networkidle")
         total = sum(n for _, n, _ in sizes)
         big = [(u, n, e) for u, n, e in sizes if n > 4096]

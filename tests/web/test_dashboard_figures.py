@@ -10,7 +10,7 @@ import pytest
 
 from services.api.dashboard.figures import FigureCache
 from services.plots.figures import render
-from services.plots.posterior import pairs_figure
+from services.plots.posterior import pair_matrix_figure, pairs_figure
 from services.plots.stages import schedule_figure, stage_trace_figure
 
 
@@ -67,4 +67,26 @@ def test_stage_trace_draws_each_stage_population_quantiles() -> None:
         for p in pops:
             lo, hi = np.quantile(p[:, k], [0.025, 0.975])
             assert np.isclose(outer, lo).any() and np.isclose(outer, hi).any()
+    assert render(fig, "svg").startswith(b"<?xml")
+
+
+def test_pair_matrix_has_marginals_on_the_diagonal_and_pairs_below() -> None:
+    """Three parameters: 6 panels (3 marginals, 3 pairs), the marginal densities integrate to
+    one (scipy's kernel density), log10 where asked; the pair panels draw the samples."""
+    rng = np.random.default_rng(1)
+    x = np.column_stack(
+        [rng.normal(30, 2, 500), 10 ** rng.normal(6, 0.3, 500), rng.normal(1, 0.1, 500)]
+    )
+    fig = pair_matrix_figure(["phi", "k_phi", "n"], x, ["phi", "k_phi", "n"], log_params={"k_phi"})
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 6
+    diag = [ax for ax in axes if ax.lines and not ax.collections]
+    assert len(diag) == 3
+    for ax in diag:
+        g, dens = ax.lines[0].get_data()
+        assert np.trapezoid(dens, g) == pytest.approx(1.0, abs=0.02)
+    means = [np.average(ax.lines[0].get_xdata(), weights=ax.lines[0].get_ydata()) for ax in diag]
+    centres = sorted(float(m) for m in means)
+    assert centres == pytest.approx([1.0, 6.0, 30.0], abs=0.1)  # log10 k_phi around 6
+    assert "log10" in fig.axes[3].get_ylabel()  # second row: k_phi
     assert render(fig, "svg").startswith(b"<?xml")

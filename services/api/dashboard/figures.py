@@ -28,7 +28,9 @@ from services.plots.figures import render
 from services.plots.fit import fit_figure
 from services.plots.posterior import (
     compare_figure,
+    default_pairs,
     mean_b_eff,
+    pair_matrix_figure,
     pairs_figure,
     prior_posterior_figure,
 )
@@ -245,6 +247,48 @@ def _pairs(
     return fig
 
 
+#: at most this many parameters in a pair matrix (d * (d + 1) / 2 panels)
+MATRIX_MAX = 6
+
+
+def default_matrix(names: Sequence[str]) -> list[str]:
+    """The pair matrix's parameters unless chosen: those of the default pairs (the paper's),
+    then the other physical parameters, at most four."""
+    chosen: list[str] = []
+    physical = [n for n in names if not n.startswith(("sigma_", "z_offset"))]
+    for n in [*(n for p in default_pairs(names) for n in p), *physical]:
+        if n not in chosen:
+            chosen.append(n)
+    return chosen[:4]
+
+
+def _matrix(
+    store: Store,
+    study: StudyRecord,
+    stage: int,
+    stages: Sequence[StageRecord],
+    params: tuple[str, ...] | None = None,
+    **_: Any,
+) -> Figure:
+    case = CaseDefinition.from_dict(study.case)
+    data = _stage_data(store, study, stage)
+    chosen = list(params) if params else default_matrix(data.names)
+    unknown = [n for n in chosen if n not in data.names]
+    if unknown:
+        raise FigureError(f"p: {', '.join(unknown)} not among {', '.join(data.names)}")
+    if not 2 <= len(chosen) <= MATRIX_MAX or len(set(chosen)) != len(chosen):
+        raise FigureError(f"p: choose 2 to {MATRIX_MAX} different parameters")
+    return pair_matrix_figure(
+        data.names,
+        data.samples,
+        chosen,
+        units=dict(case.prior().units or {}),
+        reference=case.reference,
+        log_params=_log_params(case),
+        title=f"{study.name}: pair matrix{_stage_title(study, stages, stage)}",
+    )
+
+
 def _fit(
     store: Store,
     study: StudyRecord,
@@ -327,6 +371,7 @@ STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool, tuple[str, ...]]] = 
     "prior_posterior": (_prior_posterior, True, ("tmcmc", "update")),
     "trace": (_trace, True, ("tmcmc", "update")),
     "pairs": (_pairs, True, ("tmcmc", "update")),
+    "matrix": (_matrix, True, ("tmcmc", "update")),
     "fit": (_fit, True, ("tmcmc", "update")),
     "morris": (_morris, False, ("morris",)),
     "predictions": (_predictions, False, ("prediction",)),
@@ -341,6 +386,7 @@ def study_figure(
     cache: FigureCache,
     stage: int | None = None,
     pair: tuple[str, str] | None = None,
+    params: tuple[str, ...] | None = None,
 ) -> bytes:
     """Figure ``name`` of ``study`` as SVG or PNG bytes (cached). ``stage``: a finished stage
     (default the last); ``pair``: the parameters of the bivariate density. FigureError if the
@@ -359,12 +405,20 @@ def study_figure(
             stage = done[-1]
         elif stage not in done:
             raise FigureError(f"stage {stage} of study {study.id} is not finished")
-        key: tuple = (study.id, stage, name, pair, fmt)
+        key: tuple = (study.id, stage, name, pair, params, fmt)
     else:
         key = (study.id, study.version, name, fmt)
 
     def make() -> bytes:
-        fig = build(store=store, study=study, stages=stages, stage=stage, cache=cache, pair=pair)
+        fig = build(
+            store=store,
+            study=study,
+            stages=stages,
+            stage=stage,
+            cache=cache,
+            pair=pair,
+            params=params,
+        )
         return render(fig, fmt)
 
     return cache.get_or_make(key, make)

@@ -45,7 +45,15 @@ from ..views import (
     study_brief,
     study_progress,
 )
-from .figures import FigureCache, FigureError, compare, dataset_signals, study_figure
+from .figures import (
+    MATRIX_MAX,
+    FigureCache,
+    FigureError,
+    compare,
+    dataset_signals,
+    default_matrix,
+    study_figure,
+)
 
 __all__ = ["dashboard_router", "mount_static"]
 
@@ -286,6 +294,7 @@ def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
             "stages_done": done,
             "summary": None,
             "pairs": [],
+            "matrix": [],
             "names": [],
             "result": study.result,
         }
@@ -296,7 +305,13 @@ def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
                 params, _, _ = parameter_summaries(
                     a.samples, names, parameter_units(study), a.log_prior, a.log_likelihood
                 )
-                ctx.update(summary=params, names=names, pairs=default_pairs(names, 1))
+                ctx.update(
+                    summary=params,
+                    names=names,
+                    pairs=default_pairs(names, 1),
+                    matrix=default_matrix(names),
+                    matrix_max=MATRIX_MAX,
+                )
         return _fragment(templates, request, "_study_results.html", tag, **ctx)
 
     return reads
@@ -379,6 +394,10 @@ def _figure_routes(cache: FigureCache) -> APIRouter:
         stage: Annotated[int | None, Query(ge=0, le=10_000)] = None,
         a: Annotated[str | None, Query(max_length=40)] = None,
         b: Annotated[str | None, Query(max_length=40)] = None,
+        p: Annotated[
+            str | None,
+            Query(max_length=400, description="A pair matrix's parameters, comma-separated."),
+        ] = None,
         v: Annotated[
             int | None,
             Query(ge=0, le=INT64_MAX, description="The study version the figure is of."),
@@ -390,7 +409,9 @@ def _figure_routes(cache: FigureCache) -> APIRouter:
         fixed = stage is not None or (v is not None and v == study.version)
         pair = (a, b) if a and b else None
         try:
-            data = study_figure(store, study, name, fmt, cache, stage=stage, pair=pair)
+            data = study_figure(
+                store, study, name, fmt, cache, stage=stage, pair=pair, params=_names(p)
+            )
         except FigureError as exc:
             raise HTTPException(404, str(exc)) from None
         suffix = f"_stage{stage}" if stage is not None else ""
@@ -420,6 +441,12 @@ def _figure_routes(cache: FigureCache) -> APIRouter:
         return _figure_response(data, fmt, f"compare_{'_'.join(map(str, _parse_ids(ids)))}.{fmt}")
 
     return reads
+
+
+def _names(text: str | None) -> tuple[str, ...] | None:
+    """A comma-separated list of parameter names (None if empty)."""
+    names = tuple(n.strip() for n in (text or "").split(",") if n.strip())
+    return names or None
 
 
 def _row(store: Store, study: StudyRecord) -> dict[str, Any]:

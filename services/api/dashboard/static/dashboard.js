@@ -112,6 +112,21 @@
     dlg.showModal();
   });
 
+  /* the matrix chooser redraws the pair matrix with the checked parameters (2 to data-max) */
+  document.addEventListener("change", (ev) => {
+    const form = ev.target.closest("form.matrix-chooser");
+    if (!form) return;
+    const img = document.querySelector('img[data-figure="matrix"]');
+    if (!img) return;
+    const chosen = [...form.querySelectorAll("input[name=p]:checked")].map((i) => i.value);
+    if (chosen.length < 2 || chosen.length > Number(form.dataset.max)) return;
+    const swap = (s) => s.replace(/&p=[^&]*/, "&p=" + chosen.map(encodeURIComponent).join(","));
+    img.dataset.src = swap(img.dataset.src);
+    img.alt = "Pair matrix of " + chosen.join(", ");
+    img.closest("figure").querySelectorAll("a[data-download]").forEach((l) => { l.href = swap(l.getAttribute("href")); });
+    loadFigure(img);
+  });
+
   /* the pair chooser swaps the bivariate figure */
   document.addEventListener("change", (ev) => {
     const form = ev.target.closest("form.pair-chooser");
