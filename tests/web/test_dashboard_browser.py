@@ -105,6 +105,9 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
         )
         assert _wait(base, u)["status"] == "completed"
         assert _wait(base, p, "/predictions")["status"] == "completed"
+        # a second run of case A (another seed): runs of one posterior to compare
+        a2 = _submit(base, {"case": tiny_case(seed=3), "dataset_ids": [d1, d2], "name": "case A'"})
+        assert _wait(base, a2)["status"] == "completed"
         yield {
             "base": base,
             "datasets": (d1, d2),
@@ -113,6 +116,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
             "morris": m,
             "update": u,
             "prediction": p,
+            "a2": a2,
         }
 
 
@@ -315,6 +319,25 @@ def test_pair_matrix_redraws_for_the_checked_parameters(server, browser) -> None
             f"{server['base']}/ui/figures/studies/{server['b']}/matrix.svg?stage=1&p=phi,K"
         )
         assert r.status == 404 and "p: K not among" in r.json()["detail"]
+    finally:
+        w.close()
+
+
+def test_compare_page_of_two_runs_shows_their_agreement_and_rank_plots(server, browser) -> None:
+    """Two runs of case A: the R-hat table, and ArviZ's rank plots as a figure, a rank
+    histogram per run and parameter."""
+    base = server["base"]
+    w = Watched(browser)
+    try:
+        w.goto(f"{base}/ui/compare?ids={server['a']},{server['a2']}")
+        assert w.figures_loaded() == 2  # rank plots, densities and pool
+        assert w.page.locator("table.agreement tbody tr").count() == 2  # phi, n
+        r = w.page.request.get(f"{base}/ui/figures/ranks.svg?ids={server['a']},{server['a2']}")
+        assert r.status == 200 and ET.fromstring(r.body()).tag.endswith("svg")
+        r = w.page.request.get(f"{base}/ui/figures/ranks.svg?ids={server['a']},{server['b']}")
+        assert r.status == 404 and "same parameters" in r.json()["detail"]
+        w.shoot("compare_runs_1280x800")
+        w.clean()
     finally:
         w.close()
 

@@ -90,3 +90,16 @@ def test_pair_matrix_has_marginals_on_the_diagonal_and_pairs_below() -> None:
     assert centres == pytest.approx([1.0, 6.0, 30.0], abs=0.1)  # log10 k_phi around 6
     assert "log10" in fig.axes[3].get_ylabel()  # second row: k_phi
     assert render(fig, "svg").startswith(b"<?xml")
+
+
+def test_rank_figure_labels_every_run_on_every_parameter() -> None:
+    """ArviZ's rank plots, one panel per parameter, each run's histogram labelled with it."""
+    from services.plots.ranks import rank_figure
+
+    chains = np.random.default_rng(2).normal(size=(3, 200, 2))
+    fig = rank_figure(["phi", "n"], chains, ["1: a", "2: b", "3: c"])
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in axes] == ["phi", "n"]
+    for ax in axes:
+        assert [t.get_text() for t in ax.get_yticklabels()] == ["1: a", "2: b", "3: c"]
+    assert ET.fromstring(render(fig, "svg")).tag.endswith("svg")

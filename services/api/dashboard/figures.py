@@ -35,6 +35,7 @@ from services.plots.posterior import (
     prior_posterior_figure,
 )
 from services.plots.predict import predictions_figure
+from services.plots.ranks import rank_figure
 from services.plots.sensitivity import indices_figure
 from services.plots.stages import schedule_figure, stage_trace_figure
 from services.plots.swt import measured_figure
@@ -470,6 +471,40 @@ def compare(
         )
 
     return cache.get_or_make(("compare", tuple(s.id for s in studies), seed, fmt), make)
+
+
+def run_chains(store: Store, studies: Sequence[StudyRecord]) -> tuple[list[str], np.ndarray] | None:
+    """The studies' final populations as runs of one posterior: (names, chains (K, n, d)), n
+    samples of each (the smallest population; subsampled as ``/pooled`` takes them, seed 0).
+    None unless they share their parameters in order and hold at least 4 samples each."""
+    names = study_terms(studies[0]).parameter_names
+    if any(study_terms(s).parameter_names != names for s in studies[1:]):
+        return None
+    finals = []
+    for st in studies:
+        done = [s.stage_index for s in store.stages.list(st.id) if s.status == "done"]
+        if not done:
+            return None
+        finals.append(store.samples.arrays(st.id, done[-1]).samples)
+    n = min(len(x) for x in finals)
+    if n < 4:
+        return None
+    return names, pool_samples(finals, n, 0).reshape(len(finals), n, -1)
+
+
+def ranks(store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureCache) -> bytes:
+    """Rank plots of the studies' final populations, one run each (ArviZ's plot_rank)."""
+    chains = run_chains(store, studies)
+    if chains is None:
+        raise FigureError("rank plots need studies of the same parameters (runs of one case)")
+
+    def make() -> bytes:
+        names, x = chains
+        labels = [f"{s.id}: {s.name}"[:24] for s in studies]
+        title = f"Rank plots of studies {', '.join(str(s.id) for s in studies)}"
+        return render(rank_figure(names, x, labels, title=title), fmt)
+
+    return cache.get_or_make(("ranks", tuple(s.id for s in studies), fmt), make)
 
 
 def warm_up() -> None:

@@ -23,7 +23,6 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from scm_core.calibration import PRESETS
-from scm_core.inference.posterior import pool_samples
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals.conditions import condition_unit
 from services.limits import INT64_MAX
@@ -52,6 +51,8 @@ from .figures import (
     compare,
     dataset_signals,
     default_matrix,
+    ranks,
+    run_chains,
     study_figure,
 )
 
@@ -426,6 +427,21 @@ def _figure_routes(cache: FigureCache) -> APIRouter:
             raise HTTPException(404, str(exc)) from None
         return _figure_response(data, fmt, f"dataset{dataset_id}_signals.{fmt}")
 
+    @reads.get("/ui/figures/ranks.{fmt}")
+    def ranks_figure_route(
+        fmt: str, store: StoreDep, ids: Annotated[str, Query(max_length=400)]
+    ) -> Response:
+        fmt = _fmt(fmt)
+        chosen = _parse_ids(ids)
+        studies = [store.studies.get(i) for i in chosen]
+        if len(studies) < 2:
+            raise HTTPException(422, "ids: choose at least two completed studies")
+        try:
+            data = ranks(store, studies, fmt, cache)
+        except FigureError as exc:
+            raise HTTPException(404, str(exc)) from None
+        return _figure_response(data, fmt, f"ranks_{'_'.join(map(str, chosen))}.{fmt}")
+
     @reads.get("/ui/figures/compare.{fmt}")
     def compare_figure_route(
         fmt: str, store: StoreDep, ids: Annotated[str, Query(max_length=400)]
@@ -490,7 +506,6 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         )
     per: dict[int, dict[str, Any]] = {}
     shared: list[str] | None = None
-    finals = []
     for s in studies:
         done = [st.stage_index for st in store.stages.list(s.id) if st.status == "done"]
         a = store.samples.arrays(s.id, done[-1])
@@ -498,14 +513,9 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         params, _, _ = parameter_summaries(a.samples, names, parameter_units(s))
         per[s.id] = {p.name: p for p in params}
         shared = names if shared is None else [n for n in shared if n in names]
-        finals.append(a.samples)
-    agreement = None
-    first = parameter_names(studies[0])
-    if all(parameter_names(s) == first for s in studies) and min(len(x) for x in finals) >= 4:
-        # the runs' agreement (R-hat across them), on equal subsamples as /pooled takes them
-        n = min(len(x) for x in finals)
-        chains = pool_samples(finals, n, 0).reshape(len(finals), n, -1)
-        agreement = agreement_of(chains, first, studies)
+    # the runs' agreement (R-hat across them), on equal subsamples as /pooled takes them
+    chains = run_chains(store, studies)
+    agreement = None if chains is None else agreement_of(chains[1], chains[0], studies)
     table = [
         {"name": n, "cells": [per[s.id][n] for s in studies], "unit": per[studies[0].id][n].unit}
         for n in shared or []
