@@ -37,8 +37,8 @@ wheel surface sliding over the soil):
   are a second conveyor of depth h_g at the rim speed of their mean radius r_p: a driven wheel's
   pockets take the ground's top layer from v to omega r_p (continuity: it thins, the wheel digs
   in by h_g s_p) or, with ``SoilParams.pocket_fill`` f, carry off h_g u_p (f + (1 - f) v /
-  (omega r_p)) per width and time (f = 1: full pockets), from the loaded nodes ahead of the
-  wheel's bottom, where the grousers enter, to behind the wheel.
+  (omega r_p)) per width and time (f = 1: full pockets), cut from the top of the front wall
+  (each row's front-most loaded node, where the grousers enter the soil) to behind the wheel.
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -546,22 +546,14 @@ def flow_and_deposit(
                 # drive: the layer thins as it passes under the wheel (taken from every loaded
                 # ground node of the row alike) and leaves behind the wheel
                 share = a / nu
-                n_front = 0  # the pockets fill where the grousers enter: ahead of the bottom
                 for k in range(rmin[j], gmax[j] + 1):
                     if LOADED_ELASTIC <= cflag[k + 1, j] <= LOADED_YIELDING:
                         _take(c0 + k, j, share, h0, hl)
-                        n_front += xi[k] >= 0.0
                 if a_pocket > 0.0:
-                    # the pockets' soil: from the loaded nodes ahead of the bottom (all of the
-                    # row's if none is), left behind the wheel with the layer
-                    front_only = n_front > 0
-                    share = a_pocket / (n_front if front_only else nu)
-                    for k in range(rmin[j], gmax[j] + 1):
-                        fl = cflag[k + 1, j]
-                        if LOADED_ELASTIC <= fl <= LOADED_YIELDING and (
-                            xi[k] >= 0.0 or not front_only
-                        ):
-                            _take(c0 + k, j, share, h0, hl)
+                    # the pockets' soil is cut where the grousers enter it: from the top of the
+                    # front wall (the row's front-most loaded node), which the wheel then meets
+                    # excavated instead of compacting it; left behind the wheel with the layer
+                    _take(c0 + gmax[j], j, a_pocket, h0, hl)
                 acc_b[j] += a + a_pocket
     # ---- deposit outside the footprint, along the flow, below the wheel's swept circle
     grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
