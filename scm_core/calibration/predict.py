@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
 from scm_core.slip import SlipError, resolve_speeds
 
@@ -64,7 +65,7 @@ class Band:
         return bool(self.lo <= value <= self.hi)
 
     def to_dict(self) -> dict[str, float | None]:
-        return {k: _num(getattr(self, k)) for k in ("median", "lo", "hi")}
+        return {k: finite_or_none(getattr(self, k)) for k in ("median", "lo", "hi")}
 
 
 @dataclass(frozen=True)
@@ -96,12 +97,12 @@ class ResponsePrediction:
         doc = {
             "simulated": self.simulated.to_dict(),
             "predictive": None if self.predictive is None else self.predictive.to_dict(),
-            "measured": _num(self.measured),
+            "measured": finite_or_none(self.measured),
             "inside_predictive": self.inside_predictive,
             "inside_simulated": self.inside_simulated,
         }
         if draws:
-            doc["draws"] = [_num(x) for x in self.draws]
+            doc["draws"] = [finite_or_none(x) for x in self.draws]
         return doc
 
 
@@ -123,15 +124,11 @@ class ConditionPrediction:
             "name": self.name,
             "role": self.role,
             "conditions": dict(self.conditions),
-            "slip_symmetric": _num(self.slip_symmetric),
+            "slip_symmetric": finite_or_none(self.slip_symmetric),
             "n_draws": self.n_draws,
             "n_failed": self.n_failed,
             "responses": {r: p.to_dict(draws) for r, p in self.responses.items()},
         }
-
-
-def _num(x: float | None) -> float | None:
-    return None if x is None or not math.isfinite(x) else float(x)
 
 
 def choose_draws(n_available: int, n_draws: int, seed: int) -> NDArray[np.int64]:
