@@ -427,34 +427,25 @@ def _figure_routes(cache: FigureCache) -> APIRouter:
             raise HTTPException(404, str(exc)) from None
         return _figure_response(data, fmt, f"dataset{dataset_id}_signals.{fmt}")
 
-    @reads.get("/ui/figures/ranks.{fmt}")
-    def ranks_figure_route(
-        fmt: str, store: StoreDep, ids: Annotated[str, Query(max_length=400)]
+    @reads.get("/ui/figures/{name}.{fmt}")
+    def studies_figure_route(
+        name: str, fmt: str, store: StoreDep, ids: Annotated[str, Query(max_length=400)]
     ) -> Response:
+        """A figure of several studies: ``compare`` (their posteriors and pool, Figure 9) or
+        ``ranks`` (rank plots of runs of one case)."""
+        draw = {"compare": compare, "ranks": ranks}.get(name)
+        if draw is None:
+            raise HTTPException(404, "figure: one of compare, ranks")
         fmt = _fmt(fmt)
         chosen = _parse_ids(ids)
         studies = [store.studies.get(i) for i in chosen]
         if len(studies) < 2:
             raise HTTPException(422, "ids: choose at least two completed studies")
         try:
-            data = ranks(store, studies, fmt, cache)
+            data = draw(store, studies, fmt, cache)
         except FigureError as exc:
             raise HTTPException(404, str(exc)) from None
-        return _figure_response(data, fmt, f"ranks_{'_'.join(map(str, chosen))}.{fmt}")
-
-    @reads.get("/ui/figures/compare.{fmt}")
-    def compare_figure_route(
-        fmt: str, store: StoreDep, ids: Annotated[str, Query(max_length=400)]
-    ) -> Response:
-        fmt = _fmt(fmt)
-        studies = [store.studies.get(i) for i in _parse_ids(ids)]
-        if len(studies) < 2:
-            raise HTTPException(422, "ids: choose at least two completed studies")
-        try:
-            data = compare(store, studies, fmt, cache)
-        except FigureError as exc:
-            raise HTTPException(404, str(exc)) from None
-        return _figure_response(data, fmt, f"compare_{'_'.join(map(str, _parse_ids(ids)))}.{fmt}")
+        return _figure_response(data, fmt, f"{name}_{'_'.join(map(str, chosen))}.{fmt}")
 
     return reads
 
