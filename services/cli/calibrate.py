@@ -14,7 +14,7 @@ service's update kind, which gives the same samples bit for bit.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -229,11 +229,12 @@ def calibrate(
         out = Path(f"{update_of.name}_update" if update_of else f"{case_file.stem}_results")
     options = _RunOptions(workers, batch_size, no_plots, quiet)
     if runs == 1:
-        status = _run_study(case, model, datasets, paths, parent, n_old, out, options)
+        study = _Study(case, model, datasets, paths, parent, n_old)
+        status = _run_study(study, out, options)
         if status == "stalled":
             raise SystemExit(1)
         return
-    _run_group(case, model, datasets, paths, out, runs, options)
+    _run_group(_Study(case, model, datasets, paths), out, runs, options)
 
 
 @dataclass(frozen=True)
@@ -246,49 +247,84 @@ class _RunOptions:
     quiet: bool
 
 
-def _run_study(
-    case: CaseDefinition,
-    model: StudyModel,
-    datasets: list[SWTDataset],
-    paths: list[Path],
-    parent: ParentStudy | None,
-    n_old: int,
-    out: Path,
-    options: _RunOptions,
-) -> str:
+@dataclass(frozen=True)
+class _Study:
+    """What a study runs on: its case, likelihood model, datasets and their files; for an
+    update, the earlier study and how many of the datasets (the first) were its."""
+
+    case: CaseDefinition
+    model: StudyModel
+    datasets: list[SWTDataset]
+    paths: list[Path]
+    parent: ParentStudy | None = None
+    n_old: int = 0
+
+    def with_seed(self, seed: int) -> _Study:
+        return replace(self, case=self.case.with_changes(seed=seed))
+
+
+def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
     """Run (or resume) one study into the results folder ``out``; returns its status."""
-    workers, quiet = options.workers, options.quiet
-    prior = case.prior()
+    case, parent = study.case, study.parent
     settings = case.tmcmc_settings()
     n = case.sampler.n_samples
     bs = (
         options.batch_size
         or case.sampler.batch_size
-        or local_batch_size(stage_chains(n, settings), workers)
+        or local_batch_size(stage_chains(n, settings), options.workers)
     )
-
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
-    ckpt = Checkpoints(out, case, datasets, update_of=parent.identity if parent else None)
+    ckpt = Checkpoints(out, case, study.datasets, update_of=parent.identity if parent else None)
     stages, walls = ckpt.load()
     ckpt.start(fresh=not stages)
-
     console = Console(stderr=True)
-    if stages and not quiet:
-        console.print(f"resuming {case.name} from stage {stages[-1].stage} ({ckpt.dir})")
-    elif not quiet:
-        what = (
-            f"update of {parent.results} with" if parent else f"{len(case.parameters)} parameters,"
-        )
-        console.print(
-            f"{case.name}: {what} {len(datasets) - n_old} dataset(s), "
-            f"{n} samples per stage, moves {settings.moves}, "
-            f"{'in-process' if workers is None else f'{workers} worker processes'}"
-        )
+    if not options.quiet:
+        _announce(console, study, stages, ckpt, options.workers)
+    compile_simulator_once(options.quiet)
+    t0 = time.perf_counter()
+    result, wall_times = _sample(study, bs, ckpt, stages, walls, console, options)
+    extra = {
+        "batch_size": bs,
+        "workers": options.workers,
+        "session_wall_time_s": time.perf_counter() - t0,
+    }
+    return _finish(study, out, result, wall_times, extra, options)
 
-    compile_simulator_once(quiet)
+
+def _announce(
+    console: Console,
+    study: _Study,
+    stages: list[StageState],
+    ckpt: Checkpoints,
+    workers: int | None,
+) -> None:
+    case, parent = study.case, study.parent
+    if stages:
+        console.print(f"resuming {case.name} from stage {stages[-1].stage} ({ckpt.dir})")
+        return
+    what = f"update of {parent.results} with" if parent else f"{len(case.parameters)} parameters,"
+    console.print(
+        f"{case.name}: {what} {len(study.datasets) - study.n_old} dataset(s), "
+        f"{case.sampler.n_samples} samples per stage, moves {case.tmcmc_settings().moves}, "
+        f"{'in-process' if workers is None else f'{workers} worker processes'}"
+    )
+
+
+def _sample(
+    study: _Study,
+    batch_size: int,
+    ckpt: Checkpoints,
+    stages: list[StageState],
+    walls: list[float],
+    console: Console,
+    options: _RunOptions,
+) -> tuple[Any, list[float]]:
+    """The TMCMC run with its checkpoints and progress display: (result, stage wall times).
+    Ctrl-C stops it after saving the finished stages (exit 130)."""
+    case, parent, workers, quiet = study.case, study.parent, options.workers, options.quiet
     wall_times = list(walls)
     t_start = [time.perf_counter()]
     display = StageDisplay(quiet, console)
@@ -308,24 +344,23 @@ def _run_study(
         stop.check()
         display.batch(k)
 
-    likelihood = UpdateLikelihood(model, n_old) if parent else model
+    likelihood = UpdateLikelihood(study.model, study.n_old) if parent else study.model
     known = None
     if parent is not None and parent.final.responses is not None:
         known = likelihood.base_parts(parent.final.responses)  # old datasets: not run again
     # in-process, Ctrl-C is noticed before every simulator call (between Metropolis steps);
     # with workers, when a batch comes back
     func = likelihood if workers is not None else CheckedLikelihood(stop, likelihood)
-    t0 = time.perf_counter()
     try:
         with stop, display, batch_map(workers) as mapper:
             result = run_tmcmc(
                 func,
-                prior,
-                n,
+                case.prior(),
+                case.sampler.n_samples,
                 case.seed,
-                settings,
+                case.tmcmc_settings(),
                 map=mapper,
-                split=partial(work_batches, batch_size=bs, workers=workers or 1),
+                split=partial(work_batches, batch_size=batch_size, workers=workers or 1),
                 resume_from=stages or None,
                 on_stage_start=on_stage_start,
                 on_batch=on_batch,
@@ -343,18 +378,25 @@ def _run_study(
             err=True,
         )
         raise SystemExit(130) from None
+    return result, wall_times
 
-    extra = {
-        "batch_size": bs,
-        "workers": workers,
-        "session_wall_time_s": time.perf_counter() - t0,
-    }
+
+def _finish(
+    study: _Study,
+    out: Path,
+    result: Any,
+    wall_times: list[float],
+    extra: dict[str, Any],
+    options: _RunOptions,
+) -> str:
+    """Write the results folder, print the summary and any warning; returns the status."""
+    parent = study.parent
     sections = {}
     if parent is not None:
         increment = float(result.log_evidence)
         sections["update"] = {
             "update_of": str(parent.results.resolve()),
-            "n_old_datasets": n_old,
+            "n_old_datasets": study.n_old,
             "log_evidence_increment": increment,
             "parent_log_evidence": parent.log_evidence,
             "log_evidence_total": parent.log_evidence + increment,
@@ -362,16 +404,16 @@ def _run_study(
     summary = write_outputs(
         out,
         result,
-        case,
-        model,
-        datasets,
+        study.case,
+        study.model,
+        study.datasets,
         wall_times,
         extra,
         plots=not options.no_plots,
-        paths=paths,
+        paths=study.paths,
         sections=sections,
     )
-    if not quiet:
+    if not options.quiet:
         _print_summary(summary, out)
     if result.status not in ("completed", "stalled"):
         click.echo(f"warning: {not_a_posterior(result.status, result.final.exponent)}", err=True)
@@ -383,20 +425,12 @@ def _run_study(
     return result.status
 
 
-def _run_group(
-    case: CaseDefinition,
-    model: StudyModel,
-    datasets: list[SWTDataset],
-    paths: list[Path],
-    out: Path,
-    runs: int,
-    options: _RunOptions,
-) -> None:
-    """``runs`` studies of ``case`` with the seeds seed, seed + 1, ... into ``out/run_k``
+def _run_group(study: _Study, out: Path, runs: int, options: _RunOptions) -> None:
+    """``runs`` studies of ``study`` with the seeds seed, seed + 1, ... into ``out/run_k``
     (one after another, each on ``options.workers``), then their agreement and pooled
     posterior (:mod:`services.cli.runs`)."""
     try:
-        seeds = run_seeds(case.seed, runs)
+        seeds = run_seeds(study.case.seed, runs)
     except ValueError as exc:
         raise CLIError(f"--runs {runs}: {exc}") from None
     folders = run_folders(out, runs)
@@ -404,9 +438,7 @@ def _run_group(
     for k, (seed, folder) in enumerate(zip(seeds, folders, strict=True)):
         if not options.quiet:
             console.print(f"run {k + 1} of {runs} (seed {seed}) in {folder}")
-        status = _run_study(
-            case.with_changes(seed=seed), model, datasets, paths, None, 0, folder, options
-        )
+        status = _run_study(study.with_seed(seed), folder, options)
         if status != "completed":
             raise CLIError(f"{folder}: the run ended {status!r}; no verdict over the runs")
     _, verdict = diagnose_folders(folders)
