@@ -126,7 +126,7 @@ def test_pages_load_and_a_big_study_page_stays_small(big, browser) -> None:
     base, big_id, other = big
     sizes: dict[str, int] = {}
     report = []
-    figures = {"big study": 4, "big study (cached)": 4, "compare": 1, "datasets": 0}
+    figures = {"big study": 6, "big study (cached)": 6, "compare": 2, "datasets": 0}
     for name, url in (
         ("list", f"{base}/"),
         ("big study", f"{base}/ui/studies/{big_id}"),
