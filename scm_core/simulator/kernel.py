@@ -63,6 +63,7 @@ from .layout import (
     P_TG,
     P_V,
     P_W,
+    P_ZDATUM,
     STATUS_BOTTOMED_OUT,
     STATUS_NONPOSITIVE_STIFFNESS,
     STATUS_OK,
@@ -343,7 +344,7 @@ def run_swt(prm: np.ndarray):
     """Simulate one SWT. Returns (series (n_out, N_SERIES), n_out, status, surface, diag).
 
     Series columns: time [s], drawbar pull F [N], driving torque T [N m], sinkage z [m] (axle drop
-    from first contact with the undisturbed surface), normal force [N], b_eff [m]; each sample is
+    from first contact with the undisturbed surface, less P_ZDATUM), normal force [N], b_eff [m]; each sample is
     the mean over the steps since the previous one. A run that stops
     early (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded
     soil surface h0 - sp + hl [m] (ground plus loose deposits).
@@ -528,7 +529,7 @@ def run_swt(prm: np.ndarray):
         # anti-aliasing filter: grouser impacts between samples are not lost)
         acc[S_F] += res[R_FX]
         acc[S_TORQUE] += res[R_T]
-        acc[S_Z] += r_out - zw
+        acc[S_Z] += r_out - zw - prm[P_ZDATUM]
         acc[S_FN] += res[R_FZ]
         acc[S_BEFF] += res[R_BEFF]
         if (step + 1) % out_every == 0 and n_out < n_out_max:

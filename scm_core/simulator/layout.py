@@ -55,7 +55,8 @@ P_SETTLE = 39  # early stop once the steady means are settled (fraction of W, W 
 P_POCKET = 40  # depth of the soil trapped between grousers, carried at the rim speed [m] (0: off)
 P_TANDELTA = 41  # friction of the soil on the wheel's surface, tan(delta) (eq. (8) on the wheel)
 P_POCKETFILL = 42  # how full the grouser pockets leave the contact (0: continuity, 1: full)
-N_PARAMS = 43
+P_ZDATUM = 43  # depth of the sinkage datum below the outermost surface's first contact [m]
+N_PARAMS = 44
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -121,4 +122,5 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_FACEPLOUGH] = 1.0 if rig.skid_ploughing == "sliding_face" else 0.0
     p[P_EROSIONEVERY] = rig.erosion_every
     p[P_SETTLE] = rig.steady_tolerance
+    p[P_ZDATUM] = h_g if rig.sinkage_datum == "rim" else 0.0
     return p

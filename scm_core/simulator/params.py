@@ -261,6 +261,15 @@ class RigConfig(_Frozen):
         "the trapped soil is carried backwards at the rim speed, digging a driven wheel in by "
         "continuity); a smooth wheel is the same under both",
     )
+    sinkage_datum: Literal["outer", "rim"] = Field(
+        "outer",
+        description="Where the reported sinkage z is zero: 'outer' (the axle height at which "
+        "the wheel's outermost surface, the grouser tips, first touches the undisturbed "
+        "surface; SCM's) or 'rim' (where the rim of radius R, measured to the grouser base, "
+        "would touch it: z less the grouser height, as a rig reports it that logs every "
+        "wheel's axle from one datum set for the rim radius); a smooth wheel is the same "
+        "under both",
+    )
     max_sinkage: float | None = Field(
         None,
         gt=0.0,

@@ -73,6 +73,7 @@ class ResolvedRig:
     drive_digging: str
     skid_ploughing: str
     grouser_contact: str
+    sinkage_datum: str
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -149,4 +150,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         drive_digging=rig.drive_digging,
         skid_ploughing=rig.skid_ploughing,
         grouser_contact=rig.grouser_contact,
+        sinkage_datum=rig.sinkage_datum,
     )

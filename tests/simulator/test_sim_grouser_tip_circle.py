@@ -110,3 +110,21 @@ def test_pocket_transport_conserves_volume(slip, fill):
     balance = d["volume_final"] - d["volume_initial"] + d["compacted_volume"] + d["volume_spilled"]
     assert abs(balance) / d["compacted_volume"] < 1e-9
     assert d["volume_spilled"] <= 1e-3 * d["compacted_volume"]
+
+
+@pytest.mark.parametrize("contact", ["tip_circle", "faces"])
+def test_a_rim_datum_reports_the_sinkage_a_grouser_height_less_and_nothing_else(contact: str):
+    """``sinkage_datum = "rim"`` moves only the zero of z, from the tips' first contact to the
+    rim's (radius R, measured to the grouser base): every sample of z is h_g less, to rounding,
+    and the forces are the same bit for bit; a smooth wheel reports the same under both."""
+    soil = [SOIL]
+    outer = simulate_swt(SOIL, GROUSERED, _rig(0.5, contact))
+    rim_rig = _rig(0.5, contact).model_copy(update={"sinkage_datum": "rim"})
+    rim = simulate_swt(SOIL, GROUSERED, rim_rig)
+    assert outer.ok and rim.ok
+    np.testing.assert_allclose(rim.series["z"], outer.series["z"] - H_G, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rim.series["F"], outer.series["F"])
+    smooth = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    a = simulate_batch(soil, smooth, [_rig(0.5, contact)])
+    b = simulate_batch(soil, smooth, [rim_rig])
+    np.testing.assert_array_equal(a.means, b.means)
