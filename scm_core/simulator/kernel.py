@@ -344,10 +344,10 @@ def run_swt(prm: np.ndarray):
     """Simulate one SWT. Returns (series (n_out, N_SERIES), n_out, status, surface, diag).
 
     Series columns: time [s], drawbar pull F [N], driving torque T [N m], sinkage z [m] (axle drop
-    from first contact with the undisturbed surface, less P_ZDATUM), normal force [N], b_eff [m]; each sample is
-    the mean over the steps since the previous one. A run that stops
-    early (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded
-    soil surface h0 - sp + hl [m] (ground plus loose deposits).
+    from first contact with the undisturbed surface, less P_ZDATUM), normal force [N], b_eff [m];
+    each sample is the mean over the steps since the previous one. A run that stops early
+    (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded soil
+    surface h0 - sp + hl [m] (ground plus loose deposits).
     """
     nx, ny, nyw, n_margin, dy, x0 = grid_shape(prm)
     dx = prm[P_DX]
