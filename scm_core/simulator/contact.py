@@ -31,6 +31,7 @@ from .layout import (
     P_N,
     P_OMEGA,
     P_SHEARDISP,
+    P_SHEARSCALE,
     P_TANDELTA,
     P_TANPHI,
     P_TAPER,
@@ -244,7 +245,10 @@ def evaluate_contact(
     J = prm[P_J]
     dt = prm[P_DT]
     v = prm[P_V]
-    omega = prm[P_OMEGA]
+    # the surface that shears the soil turns at omega and lies kin times farther out than the
+    # contact circle (rim bearing: the grouser tips), so it moves as omega * kin at the circle
+    kin = prm[P_SHEARSCALE]
+    omega = prm[P_OMEGA] * kin
     disp_form = prm[P_SHEARDISP] > 0.5
     incl_exp = prm[P_INCL]
     # ---- pass 1: which patches touch, footprint extent
@@ -374,10 +378,10 @@ def evaluate_contact(
         dfz = (sig_sum * nz - tau_sum * tz) * dA
         Fx += dfx
         Fz += dfz
-        Ty += rz * dfx - rx * dfz  # eq. (10), moment about the axle (y component)
+        Ty += kin * (rz * dfx - rx * dfz)  # eq. (10), moment about the axle (y component)
         if dfx > 0.0:
             Fx_fwd += dfx
-            Ty_fwd += rz * dfx
+            Ty_fwd += kin * rz * dfx
         dsig = -gam * dsb + rows * dsd  # d(sig_sum)/d(zw): sinkage falls as the axle rises
         dFz += (dsig * nz - fsh * tandelta * dsig * tz) * dA
     # Coulomb sliding limit of the soil under the wheel (Micklethwaite's maximum tractive

@@ -69,6 +69,7 @@ from .layout import (
     P_POCKET,
     P_POCKETFILL,
     P_SHEARDISP,
+    P_SHEARSCALE,
     P_SLIPFLOW,
     P_TANDELTA,
     P_V,
@@ -125,7 +126,7 @@ def commit_contact(
     dt = prm[P_DT]
     disp_form = prm[P_SHEARDISP] > 0.5
     v = prm[P_V]
-    omega = prm[P_OMEGA]
+    omega = prm[P_OMEGA] * prm[P_SHEARSCALE]  # the shearing surface's (contact.evaluate_contact)
     flow = 0.0
     for p in range(npatch):
         k = pc[p]
@@ -367,6 +368,8 @@ def flow_and_deposit(
     dA = dx * dy
     v = prm[P_V]
     omega = prm[P_OMEGA]
+    r_shear = prm[P_SHEARSCALE] * r_out  # the surface shearing the soil (rim bearing: the tips)
+    omega_s = omega * prm[P_SHEARSCALE]  # its angular speed at the contact circle
     dt = prm[P_DT]
     keep = 1.0 - prm[P_COMPACTION]
     depth = prm[P_FLOWDEPTH]
@@ -375,12 +378,12 @@ def flow_and_deposit(
     face_plough = prm[P_FACEPLOUGH] > 0.5
     # sliding face: height above the lowest point of the part of a skidding wheel's front face
     # where the rim slides over the soil (see sliding_face_height)
-    y_slide = sliding_face_height(v, omega, r_out, prm[P_TANDELTA]) if face_plough else 0.0
+    y_slide = sliding_face_height(v, omega_s, r_out, prm[P_TANDELTA]) if face_plough else 0.0
     dig_mobilised = prm[P_DIGMOB] > 0.5
-    # soil trapped between grousers (tip-circle contact): carried at the rim speed of the
-    # pocket's mean radius, r_out - pocket / 2
+    # soil trapped between grousers: carried at the rim speed of the pocket's mean radius,
+    # half a pocket inside the tips
     pocket = prm[P_POCKET]
-    u_pocket = omega * (r_out - 0.5 * pocket) - v
+    u_pocket = omega * (r_shear - 0.5 * pocket) - v
     fill = prm[P_POCKETFILL]
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
@@ -412,8 +415,8 @@ def flow_and_deposit(
         acc_p[k] = 0.0
         acc_m[k] = 0.0
         # contact kinematics of the column (see contact.evaluate_contact)
-        vpx = v + omega * e[k]
-        vpz = vz - omega * xi[k]
+        vpx = v + omega_s * e[k]
+        vpz = vz - omega_s * xi[k]
         vn = vpx * fx[k] + vpz * fz[k]
         vtx = vpx - vn * fx[k]
         vtz = vpz - vn * fz[k]
@@ -521,7 +524,7 @@ def flow_and_deposit(
                 # ploughing: in the wheel's frame the path ahead comes at v; the rim rolls it
                 # under at its bottom speed omega r, the rest meets the front face as a blade,
                 # which pushes the fraction `plough` of it ahead with the dragged layer
-                flux += plough * h * max(v - omega * r_out, 0.0)
+                flux += plough * h * max(v - omega * r_shear, 0.0)
             a_pocket = 0.0
             if sgn < 0 and pocket > 0.0 and u_pocket > 0.0:
                 # the trapped soil moves with the rim, backwards over the ground at u_pocket

@@ -55,8 +55,9 @@ P_SETTLE = 39  # early stop once the steady means are settled (fraction of W, W 
 P_POCKET = 40  # depth of the soil trapped between grousers, carried at the rim speed [m] (0: off)
 P_TANDELTA = 41  # friction of the soil on the wheel's surface, tan(delta) (eq. (8) on the wheel)
 P_POCKETFILL = 42  # how full the grouser pockets leave the contact (0: continuity, 1: full)
-P_ZDATUM = 43  # depth of the sinkage datum below the outermost surface's first contact [m]
-N_PARAMS = 44
+P_ZDATUM = 43  # depth of the sinkage datum below the contact envelope's first contact [m]
+P_SHEARSCALE = 44  # radius of the surface shearing the soil / the contact envelope's (1: same)
+N_PARAMS = 45
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -75,7 +76,11 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     """:func:`pack` for an already resolved rig."""
     p = np.zeros(N_PARAMS)
     h_g = wheel.grouser_height if wheel.has_grousers else 0.0
-    trapped = rig.grouser_contact == "tip_circle" and h_g > 0.0
+    trapped = rig.grouser_contact != "faces" and h_g > 0.0
+    # rim bearing: the thin grousers penetrate and the rim bears; the trapped soil shears at
+    # the tips. tip circle: the trapped soil bears and shears at the tips
+    rim_bearing = trapped and rig.grouser_contact == "rim_bearing"
+    envelope = wheel.R if rim_bearing or not trapped else wheel.R + h_g  # contact circle [m]
     p[P_N] = soil.n
     p[P_KC] = soil.k_c
     p[P_KPHI] = soil.k_phi
@@ -91,8 +96,8 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     # tip circle: the grousers' soil is the pocket layer (P_POCKET), the dragged band lies below
     p[P_FLOWDEPTH] = (0.0 if trapped else h_g) + soil.shear_band
     p[P_SLIPFLOW] = soil.slip_flow
-    # tip circle: the wheel's surface is the circle through the grouser tips (no faces)
-    p[P_R] = wheel.R + h_g if trapped else wheel.R
+    # trapped soil: the wheel's contact is a circle (no faces), the tips' or the rim's
+    p[P_R] = envelope
     p[P_B] = wheel.b
     p[P_NGROUSERS] = 0 if trapped else (wheel.n_grousers if wheel.has_grousers else 0)
     p[P_HG] = 0.0 if trapped else h_g
@@ -122,5 +127,7 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_FACEPLOUGH] = 1.0 if rig.skid_ploughing == "sliding_face" else 0.0
     p[P_EROSIONEVERY] = rig.erosion_every
     p[P_SETTLE] = rig.steady_tolerance
-    p[P_ZDATUM] = h_g if rig.sinkage_datum == "rim" else 0.0
+    outer = envelope + p[P_HG]  # the kernel's zero of z: first contact of this radius
+    p[P_ZDATUM] = outer - (wheel.R if rig.sinkage_datum == "rim" else wheel.R + h_g)
+    p[P_SHEARSCALE] = (wheel.R + h_g) / wheel.R if rim_bearing else 1.0
     return p

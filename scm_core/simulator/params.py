@@ -101,7 +101,7 @@ class SoilParams(_Frozen):
         description="Friction of the soil on the wheel's surface relative to its internal "
         "friction, tan(delta) / tan(phi) [-]: the shear of eq. (8) on a rim or grouser face "
         "(and the friction cone of the sliding face); soil trapped between grousers "
-        "(grouser_contact 'tip_circle') shears on soil, at phi; 1 = SCM, the paper's",
+        "(grouser_contact 'tip_circle', 'rim_bearing') shears on soil, at phi; 1 = SCM",
     )
 
     pocket_fill: float = Field(
@@ -111,7 +111,8 @@ class SoilParams(_Frozen):
         description="How full the pockets between grousers leave a driven wheel's contact, "
         "between what continuity brings them (0: the ground's top layer h_g, accelerated to "
         "the rim speed, thins; dug depth h_g s_p) and full at every pass (1: net excavation "
-        "h_g (omega r_p - v) per width and time) [-]; grouser_contact 'tip_circle' only",
+        "h_g (omega r_p - v) per width and time) [-]; trapped soil only (grouser_contact "
+        "'tip_circle' or 'rim_bearing')",
     )
 
     @property
@@ -252,14 +253,18 @@ class RigConfig(_Frozen):
         "rim slides over the soil, outside the friction cone of angle phi, sets the depth of "
         "the layer a skidding rim drags instead of grouser height + shear_band)",
     )
-    grouser_contact: Literal["faces", "tip_circle"] = Field(
+    grouser_contact: Literal["faces", "tip_circle", "rim_bearing"] = Field(
         "faces",
         description="How grousers meet the soil (docs/simulator.md step 1): 'faces' (the grouser "
-        "rectangles in the wheel's z-buffer, SCM; the paper's presets) or 'tip_circle' (the "
+        "rectangles in the wheel's z-buffer, SCM; the paper's presets), 'tip_circle' (the "
         "soil between grousers is trapped and moves with the wheel, Wong & Reece's effective "
         "radius r + h_g: pressure and shear act on the circle through the grouser tips, and "
         "the trapped soil is carried backwards at the rim speed, digging a driven wheel in by "
-        "continuity); a smooth wheel is the same under both",
+        "continuity) or 'rim_bearing' (the thin grousers penetrate and the rim bears, its "
+        "pressure carried through the trapped soil to the circle through the tips, where it "
+        "shears: the rim's contact with the tips' slip velocity and moment arm, the pockets "
+        "as in 'tip_circle'; Ding et al. 2011's shearing radius r + h_g); a smooth wheel is "
+        "the same under all three",
     )
     sinkage_datum: Literal["outer", "rim"] = Field(
         "outer",

@@ -99,10 +99,10 @@ def _extensions(soil: SoilParams, rig: RigConfig) -> list[str]:
             f"interface_friction = {soil.interface_friction:g} (the rim's friction angle delta "
             f"{delta:.4g} deg; Chrono shears the soil at Mohr_friction on any wheel)"
         )
-    if rig.grouser_contact == "tip_circle":
+    if rig.grouser_contact != "faces":
         out.append(
-            'grouser_contact = "tip_circle" (soil trapped between grousers; in Chrono a '
-            "grousered wheel's mesh presses with its grouser faces)"
+            f'grouser_contact = "{rig.grouser_contact}" (soil trapped between grousers; in '
+            "Chrono a grousered wheel's mesh presses with its grouser faces)"
         )
     return out
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_batch, simulate_swt
-from scm_core.simulator.layout import P_POCKET, pack
+from scm_core.simulator.layout import P_MAXSINK, P_POCKET, P_SHEARSCALE, P_ZDATUM, pack
 
 R, H_G, V = 0.058, 0.005, 0.01
 GROUSERED = WheelGeometry(R=R, b=0.05, n_grousers=12, grouser_height=H_G)
@@ -112,7 +112,7 @@ def test_pocket_transport_conserves_volume(slip, fill):
     assert d["volume_spilled"] <= 1e-3 * d["compacted_volume"]
 
 
-@pytest.mark.parametrize("contact", ["tip_circle", "faces"])
+@pytest.mark.parametrize("contact", ["tip_circle", "rim_bearing", "faces"])
 def test_a_rim_datum_reports_the_sinkage_a_grouser_height_less_and_nothing_else(contact: str):
     """``sinkage_datum = "rim"`` moves only the zero of z, from the tips' first contact to the
     rim's (radius R, measured to the grouser base): every sample of z is h_g less, to rounding,
@@ -128,3 +128,48 @@ def test_a_rim_datum_reports_the_sinkage_a_grouser_height_less_and_nothing_else(
     a = simulate_batch(soil, smooth, [_rig(0.5, contact)])
     b = simulate_batch(soil, smooth, [rim_rig])
     np.testing.assert_array_equal(a.means, b.means)
+
+
+def test_rim_bearing_packs_a_smooth_wheel_of_the_rim_radius_that_shears_at_the_tips():
+    """Rim bearing: the kernel sees the smooth rim of radius R, the pocket of depth h_g, and
+    a shearing surface (R + h_g) / R times farther out than its contact circle; besides, z is
+    reported from the tips (the default datum) and bottoms out at the outer radius."""
+    a = pack(SOIL, GROUSERED, _rig(0.5, "rim_bearing"))
+    rim = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    b = pack(SOIL, rim, _rig(0.5, "rim_bearing"))
+    assert a[P_POCKET] == H_G and a[P_SHEARSCALE] == (R + H_G) / R
+    assert set(np.flatnonzero(a != b)) == {P_POCKET, P_SHEARSCALE, P_ZDATUM, P_MAXSINK}
+
+
+def test_a_skidding_rim_bearing_wheel_is_the_smooth_rim_turning_at_its_tips_speed():
+    """In skid the pockets carry nothing (slower than the ground), so the rim-bearing wheel at
+    omega is the smooth wheel of radius R at omega (R + h_g) / R (the tips' speed at the rim):
+    the same drawbar pull and sinkage, and the torque (R + h_g) / R times larger (the shear
+    acts at the tips). Locked, it pulls and sinks as the smooth rim bit for bit."""
+    kin = (R + H_G) / R
+    rim = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    omega = 0.5 * V / (R + 0.5 * H_G) * 0.9  # pockets slower than the ground
+    common = dict(
+        W=22.0,
+        carriage_speed=V,
+        duration=12.0,
+        dt=0.02,
+        shear="displacement",
+        drive_digging="mobilised",
+        skid_ploughing="sliding_face",
+        slip_convention="symmetric",
+    )
+    grousered = simulate_swt(
+        SOIL, GROUSERED, RigConfig(omega=omega, grouser_contact="rim_bearing", **common)
+    )
+    smooth = simulate_swt(SOIL, rim, RigConfig(omega=omega * kin, **common))
+    assert grousered.ok and smooth.ok
+    np.testing.assert_allclose(grousered.series["F"], smooth.series["F"], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(grousered.series["z"], smooth.series["z"] + H_G, atol=1e-12)
+    np.testing.assert_allclose(grousered.series["T"], kin * smooth.series["T"], rtol=1e-9)
+    locked = [_rig(-1.0, "rim_bearing")]
+    a = simulate_batch([SOIL], GROUSERED, locked)
+    b = simulate_batch([SOIL], rim, locked)
+    np.testing.assert_array_equal(a.means[:, 0], b.means[:, 0])
+    np.testing.assert_allclose(a.means[:, 1], kin * b.means[:, 1], rtol=1e-12)
+    np.testing.assert_allclose(a.means[:, 2], b.means[:, 2] + H_G, atol=1e-12)
