@@ -38,7 +38,13 @@ from rich.console import Console
 from rich.table import Table
 from scipy.stats import ks_2samp
 
-from scm_core.calibration import StudyModel, UpdateLikelihood, load_case, run_tmcmc
+from scm_core.calibration import (
+    PopulationStart,
+    StudyModel,
+    UpdateLikelihood,
+    load_case,
+    run_tmcmc,
+)
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import load_dataset
 from services.cli.pool import batch_map
@@ -59,9 +65,11 @@ def _run(func, case, seed, mapper, batch_size, start=None):
         case.tmcmc_settings(),
         map=mapper,
         batch_size=batch_size,
-        stage0_samples=None if start is None else start.samples,
-        stage0_tuning=None if start is None else (start.beta, start.acceptance_rate),
-        stage0_known_parts=None if start is None else func.base_parts(start.responses),
+        start=None
+        if start is None
+        else PopulationStart(
+            start.samples, (start.beta, start.acceptance_rate), func.base_parts(start.responses)
+        ),
     )
     return result, time.perf_counter() - t0
 

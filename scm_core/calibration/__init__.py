@@ -3,7 +3,7 @@ datasets, a progress-reporting TMCMC driver, Morris screening of the soil parame
 lab logs and study summaries. Pure: no file I/O (the command line reads and writes files).
 """
 
-from scm_core.inference.tmcmc import StageStart, run_tmcmc
+from scm_core.inference.tmcmc import PopulationStart, Resume, StageHooks, StageStart, run_tmcmc
 
 from .case import (
     CALIBRATABLE,
@@ -49,10 +49,13 @@ __all__ = [
     "DatasetTerms",
     "MorrisModel",
     "NoiseModel",
+    "PopulationStart",
     "PriorSpec",
+    "Resume",
     "SamplerSettings",
     "SensitivityDesign",
     "SensitivityResult",
+    "StageHooks",
     "StageStart",
     "StudyModel",
     "SyntheticError",

@@ -39,7 +39,14 @@ from scm_core.inference.priors import (
     distribution_from_dict,
     table2_prior,
 )
-from scm_core.inference.tmcmc import TMCMCResult, rowwise, run_tmcmc
+from scm_core.inference.tmcmc import (
+    PopulationStart,
+    Resume,
+    StageHooks,
+    TMCMCResult,
+    rowwise,
+    run_tmcmc,
+)
 from scm_core.inference.tmcmc_stage import (
     ChainBatchResult,
     StagePlan,
@@ -66,7 +73,10 @@ __all__ = [
     "LogUniform",
     "MorrisDesign",
     "MorrisResult",
+    "PopulationStart",
     "PosteriorSummary",
+    "Resume",
+    "StageHooks",
     "StagePlan",
     "StageState",
     "TMCMCResult",

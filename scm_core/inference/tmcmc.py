@@ -34,7 +34,15 @@ from scm_core.inference.tmcmc_stage import (
     stage_status,
 )
 
-__all__ = ["StageStart", "TMCMCResult", "rowwise", "run_tmcmc"]
+__all__ = [
+    "PopulationStart",
+    "Resume",
+    "StageHooks",
+    "StageStart",
+    "TMCMCResult",
+    "rowwise",
+    "run_tmcmc",
+]
 
 MapFn = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
 
@@ -49,6 +57,38 @@ class StageStart:
     exponent: float
     planned: int
     n_batches: int
+
+
+@dataclass(frozen=True)
+class StageHooks:
+    """Callbacks of a run: ``on_stage_start(StageStart)`` before a stage runs, ``on_batch(k)``
+    after each batch with its number of evaluations, ``on_stage(state)`` after every finished
+    stage, stage 0 included (not again for the stages a run resumes from)."""
+
+    on_stage_start: Callable[[StageStart], Any] | None = None
+    on_batch: Callable[[int], Any] | None = None
+    on_stage: Callable[[StageState], Any] | None = None
+
+
+@dataclass(frozen=True)
+class Resume:
+    """Continue a run from its saved stages (stage 0 onwards; same seed, n_samples, settings)."""
+
+    stages: Sequence[StageState]
+
+
+@dataclass(frozen=True, eq=False)
+class PopulationStart:
+    """Stage 0 from an earlier posterior's population (n_samples, d) instead of prior draws: a
+    posterior update, whose likelihood gives log b = log L(earlier data) (see
+    :mod:`.tmcmc_stage`). ``tuning`` (beta, acceptance rate of that population's last stage)
+    starts stage 1 with the proposal scale and step count adapted to it (see
+    :func:`initial_state`); ``known_parts`` {part k: responses (n_samples, r_k)}: parts of a
+    parted likelihood already simulated at those points (the old datasets), not run again."""
+
+    samples: NDArray[np.float64]
+    tuning: tuple[float, float] | None = None
+    known_parts: Mapping[int, NDArray[np.float64]] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,16 +216,16 @@ class rowwise:  # noqa: N801 - used like a function
 
 def _check_resume(stages: Sequence[StageState], prior: JointPrior, n: int, seed: int) -> None:
     if not stages:
-        raise ValueError("'resume_from' must contain at least stage 0")
+        raise ValueError("a resumed run needs at least stage 0")
     for i, s in enumerate(stages):
         if s.stage != i:
-            raise ValueError(f"'resume_from' stage {i} has index {s.stage}")
+            raise ValueError(f"resumed stage {i} has index {s.stage}")
     last = stages[-1]
     if last.seed != int(seed):
-        raise ValueError(f"'resume_from' was run with seed {last.seed}, not {seed}")
+        raise ValueError(f"the resumed stages were run with seed {last.seed}, not {seed}")
     if last.n_samples != n or last.dim != prior.dim:
         raise ValueError(
-            f"'resume_from' has {last.n_samples} samples of dimension {last.dim}, "
+            f"the resumed stages have {last.n_samples} samples of dimension {last.dim}, "
             f"expected {n} of dimension {prior.dim}"
         )
 
@@ -200,6 +240,52 @@ def _evaluate_rows(
     return evaluate_points(X, log_likelihood_batch, known or None, copies)
 
 
+def _stage_zero(
+    log_likelihood_batch: LogLikelihoodBatch,
+    prior: JointPrior,
+    n_samples: int,
+    seed: int,
+    settings: TMCMCSettings,
+    start: PopulationStart | None,
+    map: MapFn,
+    batches_of: Callable[[int], Sequence[range]],
+    hooks: StageHooks,
+) -> StageState:
+    """Stage 0: prior draws or ``start``'s population, each distinct point run once (an
+    earlier population keeps a state once per rejected move); parts already simulated at those
+    points (``start.known_parts``) are not run again (see :func:`evaluate_points`)."""
+    if start is None:
+        X = initial_samples(prior, n_samples, seed)
+    else:
+        X = np.array(start.samples, dtype=float)
+        if X.shape != (n_samples, prior.dim):
+            raise ValueError(
+                f"the start population has shape {X.shape}, expected ({n_samples}, {prior.dim})"
+            )
+    batches = batches_of(n_samples)
+    if hooks.on_stage_start is not None:
+        hooks.on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))
+    known = dict(start.known_parts or {}) if start is not None else {}
+    source = first_occurrences(X)
+    copies = source != np.arange(n_samples)
+    func = partial(_evaluate_rows, log_likelihood_batch=log_likelihood_batch)
+    rows = [
+        (
+            X[r.start : r.stop],
+            {k: v[r.start : r.stop] for k, v in known.items()},
+            copies[r.start : r.stop],
+        )
+        for r in batches
+    ]
+    evals = []
+    for r, ev in zip(batches, map(func, rows), strict=True):
+        evals.append(ev)
+        if hooks.on_batch is not None:
+            hooks.on_batch(len(r))
+    tuning = start.tuning if start is not None else None
+    return initial_state(prior, X, evals, seed, settings, tuning, source)
+
+
 def run_tmcmc(
     log_likelihood_batch: LogLikelihoodBatch,
     prior: JointPrior,
@@ -210,13 +296,8 @@ def run_tmcmc(
     map: MapFn = map,
     batch_size: int | None = None,
     split: Callable[[int], Sequence[range]] | None = None,
-    resume_from: Sequence[StageState] | None = None,
-    stage0_samples: NDArray[np.float64] | None = None,
-    stage0_tuning: tuple[float, float] | None = None,
-    stage0_known_parts: Mapping[int, NDArray[np.float64]] | None = None,
-    on_stage_start: Callable[[StageStart], Any] | None = None,
-    on_batch: Callable[[int], Any] | None = None,
-    on_stage: Callable[[StageState], Any] | None = None,
+    start: Resume | PopulationStart | None = None,
+    hooks: StageHooks | None = None,
 ) -> TMCMCResult:
     """Sample the posterior prior(theta) L(theta) / Z with TMCMC and estimate log Z.
 
@@ -229,77 +310,49 @@ def run_tmcmc(
     and run through ``map(func, batches)``; results are bit-identical for any ``map`` and
     split.
 
-    Hooks: ``on_stage_start(StageStart)`` before a stage runs, ``on_batch(k)`` after each batch
-    with its number of evaluations, ``on_stage(state)`` after every finished stage, stage 0
-    included. Passing the saved stages back as ``resume_from`` (same seed, n_samples and
-    settings; ``on_stage`` is not called again for them) continues the run bit-identically; an
-    exception raised in a hook (or a KeyboardInterrupt) stops it. ``stage0_samples``
-    (n_samples, d): stage 0's points instead of prior draws; a posterior update passes the
-    earlier posterior's population with a likelihood that gives log b = log L(earlier data)
-    (see :mod:`.tmcmc_stage`), and the log evidence is then the incremental one;
-    ``stage0_tuning`` (beta, acceptance rate of that population's last stage) starts stage 1
-    with the proposal scale and step count adapted to it (see :func:`initial_state`);
-    ``stage0_known_parts`` {part k: responses (n_samples, r_k)}: parts of a parted likelihood
-    already simulated at those points (an update: the old datasets, from the earlier
-    population's responses), not run again (see :func:`evaluate_points`). A point repeated in
-    stage 0 (an earlier population keeps a state once per rejected move) runs once.
+    ``start``: None draws stage 0 from the prior; :class:`Resume` continues saved stages
+    bit-identically (same seed, n_samples and settings); :class:`PopulationStart` starts from
+    an earlier posterior's population (a posterior update: the log evidence is then the
+    incremental one). ``hooks``: :class:`StageHooks` called as the run goes; an exception raised
+    in one (or a KeyboardInterrupt) stops it.
     """
     settings = settings or TMCMCSettings()
+    hooks = hooks or StageHooks()
     seed = int(seed)
     if seed < 0:
         raise ValueError(f"'seed' must be a non-negative integer, got {seed!r}")
 
-    if resume_from:
-        stages = list(resume_from)
+    def batches_of(n: int) -> Sequence[range]:
+        return split(n) if split else chain_batches(n, batch_size)
+
+    if isinstance(start, Resume):
+        stages = list(start.stages)
         _check_resume(stages, prior, n_samples, seed)
     else:
-        if stage0_samples is None:
-            X = initial_samples(prior, n_samples, seed)
-        else:
-            X = np.array(stage0_samples, dtype=float)
-            if X.shape != (n_samples, prior.dim):
-                raise ValueError(
-                    f"stage0_samples has shape {X.shape}, expected ({n_samples}, {prior.dim})"
-                )
-        batches = split(n_samples) if split else chain_batches(n_samples, batch_size)
-        if on_stage_start is not None:
-            on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))
-        known = dict(stage0_known_parts or {})
-        source = first_occurrences(X)
-        copies = source != np.arange(n_samples)
-        func = partial(_evaluate_rows, log_likelihood_batch=log_likelihood_batch)
-        rows = [
-            (
-                X[r.start : r.stop],
-                {k: v[r.start : r.stop] for k, v in known.items()},
-                copies[r.start : r.stop],
-            )
-            for r in batches
-        ]
-        evals = []
-        for r, ev in zip(batches, map(func, rows), strict=True):
-            evals.append(ev)
-            if on_batch is not None:
-                on_batch(len(r))
-        stages = [initial_state(prior, X, evals, seed, settings, stage0_tuning, source)]
-        if on_stage is not None:
-            on_stage(stages[0])
+        stage0 = _stage_zero(
+            log_likelihood_batch, prior, n_samples, seed, settings, start, map, batches_of, hooks
+        )
+        stages = [stage0]
+        if hooks.on_stage is not None:
+            hooks.on_stage(stage0)
 
     while (status := stage_status(stages[-1], settings)) is None:
         plan = plan_stage(stages[-1], prior, settings)
-        batches = split(plan.n_chains) if split else chain_batches(plan.n_chains, batch_size)
-        if on_stage_start is not None:
+        batches = batches_of(plan.n_chains)
+        if hooks.on_stage_start is not None:
             planned = int(np.sum(plan.chain_length))
-            on_stage_start(StageStart(plan.stage, float(plan.exponent), planned, len(batches)))
+            hooks.on_stage_start(
+                StageStart(plan.stage, float(plan.exponent), planned, len(batches))
+            )
         func = partial(run_chains, plan, log_likelihood_batch=log_likelihood_batch)
         results = []
         for res in map(func, batches):  # consumed lazily: on_batch fires batch by batch
             results.append(res)
-            if on_batch is not None:
-                on_batch(int(np.sum(res.proposed)))
+            if hooks.on_batch is not None:
+                hooks.on_batch(int(np.sum(res.proposed)))
         stages.append(reduce_stage(plan, results))
-        if on_stage is not None:
-            on_stage(stages[-1])
+        if hooks.on_stage is not None:
+            hooks.on_stage(stages[-1])
 
     final = stages[-1]
     return TMCMCResult(

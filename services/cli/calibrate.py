@@ -26,6 +26,9 @@ from rich.table import Table
 from scm_core.calibration import (
     CaseDefinition,
     CaseError,
+    PopulationStart,
+    Resume,
+    StageHooks,
     StageStart,
     StudyModel,
     UpdateLikelihood,
@@ -345,9 +348,12 @@ def _sample(
         display.batch(k)
 
     likelihood = UpdateLikelihood(study.model, study.n_old) if parent else study.model
-    known = None
-    if parent is not None and parent.final.responses is not None:
-        known = likelihood.base_parts(parent.final.responses)  # old datasets: not run again
+    start = None
+    if parent is not None:
+        known = None
+        if parent.final.responses is not None:
+            known = likelihood.base_parts(parent.final.responses)  # old datasets: not run again
+        start = PopulationStart(parent.final.samples, parent.tuning, known)
     # in-process, Ctrl-C is noticed before every simulator call (between Metropolis steps);
     # with workers, when a batch comes back
     func = likelihood if workers is not None else CheckedLikelihood(stop, likelihood)
@@ -361,13 +367,8 @@ def _sample(
                 case.tmcmc_settings(),
                 map=mapper,
                 split=partial(work_batches, batch_size=batch_size, workers=workers or 1),
-                resume_from=stages or None,
-                on_stage_start=on_stage_start,
-                on_batch=on_batch,
-                on_stage=on_stage,
-                stage0_samples=parent.final.samples if parent else None,
-                stage0_tuning=parent.tuning if parent else None,
-                stage0_known_parts=known,
+                start=Resume(stages) if stages else start,
+                hooks=StageHooks(on_stage_start, on_batch, on_stage),
             )
     except BaseException as exc:
         if not is_interrupt(exc):

@@ -405,12 +405,18 @@ def test_update_is_the_in_memory_update_bit_for_bit(
 ) -> None:
     """``--update-of ref --data log50.csv``: stage 0 is ref's final population, the slip 0.2
     likelihood is the base density, the seed is ref's + 1; the samples are those of
-    ``run_tmcmc(UpdateLikelihood(...), stage0_samples=...)`` bit for bit, the evidence reported
-    is the increment with the total alongside, stage 1 starts with ref's final beta and
+    ``run_tmcmc(UpdateLikelihood(...), start=PopulationStart(...))`` bit for bit, the evidence
+    reported is the increment with the total alongside, stage 1 starts with ref's final beta and
     acceptance rate, and a re-run resumes to the same files."""
     import numpy as np
 
-    from scm_core.calibration import StudyModel, UpdateLikelihood, load_case, run_tmcmc
+    from scm_core.calibration import (
+        PopulationStart,
+        StudyModel,
+        UpdateLikelihood,
+        load_case,
+        run_tmcmc,
+    )
     from scm_core.inference import StageState
     from scm_core.signals import load_dataset
 
@@ -441,8 +447,9 @@ def test_update_is_the_in_memory_update_bit_for_bit(
         case.sampler.n_samples,
         5,
         case.tmcmc_settings(),
-        stage0_samples=parent_final.samples,
-        stage0_tuning=(parent_final.beta, parent_final.acceptance_rate),
+        start=PopulationStart(
+            parent_final.samples, (parent_final.beta, parent_final.acceptance_rate)
+        ),
     )
     stages = sorted((out / "checkpoints").glob("stage_*.json"))
     final = StageState.from_dict(json.loads(stages[-1].read_text())["state"])

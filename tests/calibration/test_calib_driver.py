@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, run_tmcmc
+from scm_core.calibration import (
+    CaseDefinition,
+    DatasetTerms,
+    Resume,
+    StageHooks,
+    StudyModel,
+    run_tmcmc,
+)
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform
 
 PRIOR = JointPrior({"a": Uniform(-3.0, 3.0), "b": TruncatedNormal(0.5, 1.0, -2.0, 4.0)})
@@ -42,8 +49,7 @@ def test_hooks_and_batches_do_not_change_results(moves: str, batch_size: int | N
         5,
         settings,
         batch_size=batch_size,
-        on_stage_start=starts.append,
-        on_batch=batches.append,
+        hooks=StageHooks(on_stage_start=starts.append, on_batch=batches.append),
     )
     assert same(res, ref) and res.status == "completed"
     assert [s.stage for s in starts] == list(range(len(res.stages)))
@@ -64,12 +70,12 @@ def test_interrupted_run_resumes_bit_identically() -> None:
             raise StopError
 
     with pytest.raises(StopError):
-        run_tmcmc(gauss, PRIOR, 200, 9, settings, on_stage=on_stage)
+        run_tmcmc(gauss, PRIOR, 200, 9, settings, hooks=StageHooks(on_stage=on_stage))
     assert [s.stage for s in saved] == [0, 1, 2]
-    resumed = run_tmcmc(gauss, PRIOR, 200, 9, settings, batch_size=11, resume_from=saved)
+    resumed = run_tmcmc(gauss, PRIOR, 200, 9, settings, batch_size=11, start=Resume(saved))
     assert same(resumed, full)
     with pytest.raises(ValueError, match="seed"):
-        run_tmcmc(gauss, PRIOR, 200, 10, settings, resume_from=saved)
+        run_tmcmc(gauss, PRIOR, 200, 10, settings, start=Resume(saved))
 
 
 def test_stopped_by_max_stages_then_continued_with_the_model() -> None:
@@ -111,7 +117,7 @@ def test_stopped_by_max_stages_then_continued_with_the_model() -> None:
         case.seed,
         settings,
         batch_size=9,
-        resume_from=part.stages,
+        start=Resume(part.stages),
     )
     assert same(rest, full)
     assert rest.final.responses is not None and rest.final.responses.shape == (40, 3)

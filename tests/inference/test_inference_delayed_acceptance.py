@@ -30,7 +30,14 @@ from parted_targets import (
 )
 from scipy import stats
 
-from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
+from scm_core.inference import (
+    JointPrior,
+    PopulationStart,
+    TMCMCSettings,
+    TruncatedNormal,
+    Uniform,
+    run_tmcmc,
+)
 from scm_core.inference.tmcmc_moves import form_defaults
 
 
@@ -138,7 +145,7 @@ def test_update_with_surrogate_and_early_rejection_exact_answer(da: TMCMCSetting
     0.2 nat, as test_update_with_base_parts_same_bits_and_exact_answer)."""
     prior, old_f, f, A, y, s = update_problem()
     old = run_tmcmc(old_f, prior, 4000, seed=3)
-    res = run_tmcmc(f, prior, 4000, seed=4, settings=da, stage0_samples=old.samples)
+    res = run_tmcmc(f, prior, 4000, seed=4, settings=da, start=PopulationStart(old.samples))
     mean, sd, log_z = exact_linear(A, y, s)
     assert _screened(res) > 0 and _jumped(res, da)
     assert np.all(np.abs(res.samples.mean(axis=0) - mean) < 0.1 * sd)

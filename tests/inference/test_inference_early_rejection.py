@@ -27,7 +27,14 @@ from parted_targets import (
 )
 from scipy import stats
 
-from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform, run_tmcmc
+from scm_core.inference import (
+    JointPrior,
+    PopulationStart,
+    TMCMCSettings,
+    TruncatedNormal,
+    Uniform,
+    run_tmcmc,
+)
 from scm_core.inference.early_rejection import evaluate_staged, is_parted
 from scm_core.inference.tmcmc_stage import evaluate_points, first_occurrences, initial_state
 
@@ -152,7 +159,7 @@ def test_update_with_base_parts_same_bits_and_exact_answer() -> None:
     observations are base parts (weight 1), the new ones tempered."""
     prior, old_f, f, A, y, s = update_problem()
     old = run_tmcmc(old_f, prior, 4000, seed=3)
-    off, on = _pair(f, prior, seed=4, n_samples=4000, stage0_samples=old.samples)
+    off, on = _pair(f, prior, seed=4, n_samples=4000, start=PopulationStart(old.samples))
     assert_same_bits(off, on)
     assert _totals(on)[2] > 0
     mean, sd, log_z = exact_linear(A, y, s)
@@ -170,8 +177,8 @@ def test_update_stage0_reuses_the_old_parts_same_bits() -> None:
     prior, old_f, f, _, _, _ = update_problem()
     old = run_tmcmc(old_f, prior, 1000, seed=3)
     known = {k: old.final.responses[:, 2 * k : 2 * k + 2] for k in range(2)}
-    full = run_tmcmc(f, prior, 1000, seed=4, stage0_samples=old.samples)
-    reused = run_tmcmc(f, prior, 1000, seed=4, stage0_samples=old.samples, stage0_known_parts=known)
+    full = run_tmcmc(f, prior, 1000, seed=4, start=PopulationStart(old.samples))
+    reused = run_tmcmc(f, prior, 1000, seed=4, start=PopulationStart(old.samples, None, known))
     for a, b in zip(full.stages, reused.stages, strict=True):
         assert np.array_equal(a.samples, b.samples)
         assert np.array_equal(a.log_likelihood, b.log_likelihood)
@@ -210,8 +217,7 @@ def test_update_stage0_runs_a_repeated_point_once_same_bits() -> None:
                 seed=4,
                 settings=settings,
                 batch_size=batch_size,
-                stage0_samples=X,
-                stage0_known_parts=known,
+                start=PopulationStart(X, None, known),
             )
         )
     s0 = runs[0].stages[0]

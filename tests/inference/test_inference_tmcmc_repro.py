@@ -12,6 +12,8 @@ import pytest
 
 from scm_core.inference import (
     JointPrior,
+    Resume,
+    StageHooks,
     StageState,
     TruncatedNormal,
     Uniform,
@@ -153,14 +155,16 @@ def test_leader_scheme_is_batch_invariant() -> None:
 def test_resume_from_saved_stages_is_bit_identical(tmp_path, moves: str) -> None:
     saved: list[dict] = []
     kw = dict(n_samples=1000, seed=21, settings=TMCMCSettings(moves=moves))
-    full = run_tmcmc(loglik, PRIOR, on_stage=lambda s: saved.append(s.to_dict()), **kw)
+    full = run_tmcmc(
+        loglik, PRIOR, hooks=StageHooks(on_stage=lambda s: saved.append(s.to_dict())), **kw
+    )
     assert len(saved) == len(full.stages) >= 4
 
     # JSON round trip (strict JSON: non-finite floats are encoded as strings)
     text = json.dumps(saved[:3], allow_nan=False)
     stages = [StageState.from_dict(d) for d in json.loads(text)]
     assert all(a.equals(b) for a, b in zip(stages, full.stages[:3], strict=False))
-    resumed = run_tmcmc(loglik, PRIOR, resume_from=stages, **kw)
+    resumed = run_tmcmc(loglik, PRIOR, start=Resume(stages), **kw)
     assert _same(resumed, full)
 
 
@@ -176,7 +180,7 @@ def test_result_dict_roundtrip(reference) -> None:
 def test_resume_rejects_other_seed() -> None:
     res = run_tmcmc(loglik, PRIOR, n_samples=200, seed=1, settings=TMCMCSettings(max_stages=1))
     with pytest.raises(ValueError, match="seed"):
-        run_tmcmc(loglik, PRIOR, n_samples=200, seed=2, resume_from=res.stages)
+        run_tmcmc(loglik, PRIOR, n_samples=200, seed=2, start=Resume(res.stages))
 
 
 def test_stage_functions_roundtrip_through_json_as_an_orchestrator_would() -> None:

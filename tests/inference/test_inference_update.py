@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from scm_core.inference import JointPrior, TruncatedNormal, run_tmcmc
+from scm_core.inference import JointPrior, PopulationStart, TruncatedNormal, run_tmcmc
 
 N = 8000
 SIGMA = 0.3
@@ -68,7 +68,7 @@ def test_update_matches_the_exact_joint_posterior_and_evidence(tuned: bool) -> N
     assert old.status == "completed"
     tuning = (old.final.beta, old.final.acceptance_rate) if tuned else None
     upd = run_tmcmc(
-        update_loglik, PRIOR, n_samples=N, seed=4, stage0_samples=old.samples, stage0_tuning=tuning
+        update_loglik, PRIOR, n_samples=N, seed=4, start=PopulationStart(old.samples, tuning)
     )
     assert upd.status == "completed"
 
@@ -100,7 +100,7 @@ def test_an_update_with_no_information_changes_nothing() -> None:
     def flat(X: np.ndarray):
         return np.full(X.shape[0], c), np.empty((X.shape[0], 0)), old_loglik(X)
 
-    upd = run_tmcmc(flat, PRIOR, n_samples=2000, seed=4, stage0_samples=old.samples)
+    upd = run_tmcmc(flat, PRIOR, n_samples=2000, seed=4, start=PopulationStart(old.samples))
     assert upd.status == "completed" and len(upd.stages) == 2  # stage 0, then exponent 1
     assert upd.log_evidence == c
     _, sd, _ = exact(A1, Y1)

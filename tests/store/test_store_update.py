@@ -13,7 +13,13 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from scm_core.calibration import CaseDefinition, StudyModel, UpdateLikelihood, run_tmcmc
+from scm_core.calibration import (
+    CaseDefinition,
+    PopulationStart,
+    StudyModel,
+    UpdateLikelihood,
+    run_tmcmc,
+)
 from scm_core.signals import load_log
 from services.config import Settings
 from services.store import Store
@@ -96,8 +102,9 @@ def test_update_is_the_in_memory_update_bit_for_bit(store: Store, dataset_ids) -
         CASE.seed + 1,
         sampler,
         batch_size=7,  # the split does not matter
-        stage0_samples=ref_parent.samples,
-        stage0_tuning=(ref_parent.final.beta, ref_parent.final.acceptance_rate),
+        start=PopulationStart(
+            ref_parent.samples, (ref_parent.final.beta, ref_parent.final.acceptance_rate)
+        ),
     )
     got = store.samples.arrays(study_id, done.current_stage)
     assert got.samples.tobytes() == ref.samples.tobytes()
