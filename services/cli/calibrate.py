@@ -47,6 +47,7 @@ from .common import (
     compile_simulator_once,
     data_option,
     data_paths,
+    option_group,
     read_case,
     read_datasets,
 )
@@ -110,6 +111,16 @@ def _update_inputs(
     return case, [*parent.dataset_paths, *new_paths], [*old, *new]
 
 
+@dataclass(frozen=True)
+class _RunOptions:
+    """How a study runs here (none of it changes its results)."""
+
+    workers: int | None
+    batch_size: int | None
+    no_plots: bool
+    quiet: bool
+
+
 @click.command()
 @click.argument("case_file", required=False, type=click.Path(dir_okay=False, path_type=Path))
 @data_option("SWT log or summary (repeatable); replaces the case's [data] files.")
@@ -125,11 +136,23 @@ def _update_inputs(
     type=click.Path(file_okay=False, path_type=Path),
     help="Output directory [default: ./<case file stem>_results, or <DIR>_update].",
 )
-@click.option(
-    "--workers",
-    type=click.IntRange(min=1),
-    default=None,
-    help="Run batches on N processes (1 numba thread each) [default: in-process, all cores].",
+@option_group(
+    "options",
+    _RunOptions,
+    click.option(
+        "--workers",
+        type=click.IntRange(min=1),
+        default=None,
+        help="Run batches on N processes (1 numba thread each) [default: in-process, all cores].",
+    ),
+    click.option(
+        "--batch-size",
+        type=click.IntRange(min=1),
+        default=None,
+        help="Chains per batch (does not change the results).",
+    ),
+    click.option("--no-plots", is_flag=True, help="Skip the figures."),
+    click.option("--quiet", is_flag=True, help="No progress display."),
 )
 @click.option(
     "--moves",
@@ -147,12 +170,6 @@ def _update_inputs(
     help="Stop after this many tempering stages (re-run with a larger value to go on).",
 )
 @click.option(
-    "--batch-size",
-    type=click.IntRange(min=1),
-    default=None,
-    help="Chains per batch (does not change the results).",
-)
-@click.option(
     "--seed",
     type=click.IntRange(min=0, max=2**63 - 1),
     default=None,
@@ -166,22 +183,17 @@ def _update_inputs(
     help="Independent runs with the seeds seed, seed + 1, ... into OUT/run_1 ...; then their "
     "R-hat, ESS, pooled posterior and a convergence verdict (OUT/runs.json).",
 )
-@click.option("--no-plots", is_flag=True, help="Skip the figures.")
-@click.option("--quiet", is_flag=True, help="No progress display.")
 def calibrate(
     case_file: Path | None,
     data: tuple[Path, ...],
     update_of: Path | None,
     out: Path | None,
-    workers: int | None,
+    options: _RunOptions,
     moves: str | None,
     samples: int | None,
     max_stages: int | None,
-    batch_size: int | None,
     seed: int | None,
     runs: int,
-    no_plots: bool,
-    quiet: bool,
 ) -> None:
     """Calibrate the case CASE_FILE (TOML) against SWT datasets with TMCMC, or update the
     posterior of an earlier study with new datasets (--update-of DIR --data NEW.csv).
@@ -230,7 +242,6 @@ def calibrate(
     _precheck(case, model)
     if out is None:
         out = Path(f"{update_of.name}_update" if update_of else f"{case_file.stem}_results")
-    options = _RunOptions(workers, batch_size, no_plots, quiet)
     if runs == 1:
         study = _Study(case, model, datasets, paths, parent, n_old)
         status = _run_study(study, out, options)
@@ -238,16 +249,6 @@ def calibrate(
             raise SystemExit(1)
         return
     _run_group(_Study(case, model, datasets, paths), out, runs, options)
-
-
-@dataclass(frozen=True)
-class _RunOptions:
-    """How a study runs here (none of it changes its results)."""
-
-    workers: int | None
-    batch_size: int | None
-    no_plots: bool
-    quiet: bool
 
 
 @dataclass(frozen=True)

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import dataclasses
+import functools
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -21,6 +24,24 @@ def data_option(help: str):
         type=click.Path(dir_okay=False, path_type=Path),
         help=help,
     )
+
+
+def option_group(name: str, cls: type, *options: Callable[[Any], Any]):
+    """Decorator: the click ``options`` (named as the fields of the dataclass ``cls``) reach
+    the command as one ``cls`` value under the keyword ``name``."""
+    fields = [f.name for f in dataclasses.fields(cls)]
+
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(command)
+        def grouped(*args: Any, **kwargs: Any) -> Any:
+            kwargs[name] = cls(**{f: kwargs.pop(f) for f in fields})
+            return command(*args, **kwargs)
+
+        for option in reversed(options):
+            grouped = option(grouped)
+        return grouped
+
+    return decorate
 
 
 class CLIError(click.ClickException):

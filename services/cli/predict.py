@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -29,10 +30,10 @@ from scm_core.calibration.predict import (
     sweep_loads,
     sweep_targets,
 )
-from scm_core.signals import LogFormatError
+from scm_core.signals import LogFormatError, SWTDataset
 from scm_core.signals.metadata import merge_metadata
 
-from .common import CLIError, compile_simulator_once, data_option, read_datasets
+from .common import CLIError, compile_simulator_once, data_option, option_group, read_datasets
 from .pool import batch_map
 from .results import load_results, write_json
 
@@ -91,10 +92,73 @@ def parse_sweep(spec: str | None) -> list[float]:
     return list(np.linspace(lo, hi, n))
 
 
+@dataclass(frozen=True)
+class _Targets:
+    """Where to predict: datasets' conditions, conditions nobody measured, a slip sweep."""
+
+    data: tuple[Path, ...]
+    at: tuple[str, ...]
+    sweep: str | None
+
+
+def _conditions(
+    case: CaseDefinition, summary: dict, targets: _Targets
+) -> tuple[list[SWTDataset], list[str], list[DatasetTerms], list[DatasetTerms]]:
+    """(datasets, their roles, the --at conditions, the sweep's) of ``targets``; the sweep
+    runs at the first dataset's conditions (else the first --at's, else the study's first
+    dataset's) with the load interpolated between the datasets' loads."""
+    slips = parse_sweep(targets.sweep)
+    at_terms = parse_at(targets.at, study_geometry(summary))
+    if not targets.data and not slips and not at_terms:
+        raise CLIError(
+            "nothing to predict: give --data DATASET (repeatable), --at KEY=VALUE,... and/or "
+            "--sweep"
+        )
+    datasets = read_datasets(case, list(targets.data)) if targets.data else []
+    used = {d.get("content_hash") for d in summary.get("datasets", [])}
+    roles = ["calibration" if d.content_hash in used else "predicted" for d in datasets]
+    if not slips:
+        return datasets, roles, at_terms, []
+    loads = None
+    if datasets:
+        terms = [
+            DatasetTerms(d.name, d.conditions.to_sim_config(), (math.nan,) * 3) for d in datasets
+        ]
+        template = terms[0]
+        loads = sweep_loads(terms)
+    elif at_terms:
+        template = at_terms[0]
+    else:
+        first = (summary.get("datasets") or [{}])[0]
+        template = DatasetTerms("study", dict(first.get("conditions") or {}), (math.nan,) * 3)
+    return datasets, roles, at_terms, sweep_targets(template, slips, loads)
+
+
 @click.command()
 @click.argument("results", type=click.Path(file_okay=False, path_type=Path))
 @click.argument("more_data", nargs=-1, type=click.Path(dir_okay=False, path_type=Path))
-@data_option("SWT log or summary whose test conditions to predict; --data A B C or repeated.")
+@option_group(
+    "targets",
+    _Targets,
+    data_option("SWT log or summary whose test conditions to predict; --data A B C or repeated."),
+    click.option(
+        "--at",
+        "at",
+        multiple=True,
+        metavar="KEY=VALUE,...",
+        help="Also predict at test conditions nobody measured, e.g. --at W=25,slip=0.3 "
+        "(keys and units as in a lab file's metadata; the wheel geometry left out is the "
+        "study's datasets'; repeatable).",
+    ),
+    click.option(
+        "--sweep",
+        default=None,
+        metavar="slip=LO:HI:N",
+        help="Also predict along a slip sweep (symmetric convention, -1 = locked) at the "
+        "first dataset's conditions, with the load interpolated between the datasets' loads "
+        "when several are given.",
+    ),
+)
 @click.option(
     "--draws",
     type=click.IntRange(1, 100_000),
@@ -102,24 +166,7 @@ def parse_sweep(spec: str | None) -> list[float]:
     show_default=True,
     help="Posterior samples to simulate.",
 )
-@click.option(
-    "--at",
-    "at",
-    multiple=True,
-    metavar="KEY=VALUE,...",
-    help="Also predict at test conditions nobody measured, e.g. --at W=25,slip=0.3 "
-    "(keys and units as in a lab file's metadata; the wheel geometry left out is the study's "
-    "datasets'; repeatable).",
-)
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
-@click.option(
-    "--sweep",
-    default=None,
-    metavar="slip=LO:HI:N",
-    help="Also predict along a slip sweep (symmetric convention, -1 = locked) at the "
-    "first dataset's conditions, with the load interpolated between the datasets' loads "
-    "when several are given.",
-)
 @click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
@@ -137,11 +184,9 @@ def parse_sweep(spec: str | None) -> list[float]:
 def predict_cmd(
     results: Path,
     more_data: tuple[Path, ...],
-    data: tuple[Path, ...],
+    targets: _Targets,
     draws: int,
-    at: tuple[str, ...],
     seed: int,
-    sweep: str | None,
     out: Path | None,
     workers: int | None,
     as_json: bool,
@@ -149,35 +194,9 @@ def predict_cmd(
 ) -> None:
     """Predict F, T, z of the study in RESULTS (a `calibrate` output folder) under the test
     conditions of other datasets, with 95 % posterior bands."""
-    data = (*data, *more_data)
     case, samples, summary = load_results(results)
-    slips = parse_sweep(sweep)
-    at_terms = parse_at(at, study_geometry(summary))
-    if not data and not slips and not at_terms:
-        raise CLIError(
-            "nothing to predict: give --data DATASET (repeatable), --at KEY=VALUE,... and/or "
-            "--sweep"
-        )
-    datasets = read_datasets(case, list(data)) if data else []
-    used = {d.get("content_hash") for d in summary.get("datasets", [])}
-    roles = ["calibration" if d.content_hash in used else "predicted" for d in datasets]
-    if slips:
-        loads = None
-        if datasets:
-            terms = [
-                DatasetTerms(d.name, d.conditions.to_sim_config(), (math.nan,) * 3)
-                for d in datasets
-            ]
-            template = terms[0]
-            loads = sweep_loads(terms)
-        elif at_terms:
-            template = at_terms[0]
-        else:
-            first = (summary.get("datasets") or [{}])[0]
-            template = DatasetTerms("study", dict(first.get("conditions") or {}), (math.nan,) * 3)
-        sweep_terms = sweep_targets(template, slips, loads)
-    else:
-        sweep_terms = []
+    targets = replace(targets, data=(*targets.data, *more_data))
+    datasets, roles, at_terms, sweep_terms = _conditions(case, summary, targets)
     compile_simulator_once(as_json)
     with batch_map(workers) as mapper:
         run = partial(predict, case, samples, draws=draws, seed=seed, map=mapper)
