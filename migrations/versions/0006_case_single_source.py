@@ -63,7 +63,7 @@ def upgrade() -> None:
 
 def _derived(kind: str, seed: int, case: dict[str, Any], payload: dict[str, Any] | None):
     """(priors, sampler, simulator) as revision 0005 stored them."""
-    from scm_core.calibration import CaseDefinition, sensitivity_design
+    from scm_core.calibration import CaseDefinition, MorrisSettings, sensitivity_design
 
     try:
         definition = CaseDefinition.from_dict(case)
@@ -73,14 +73,10 @@ def _derived(kind: str, seed: int, case: dict[str, Any], payload: dict[str, Any]
     if kind == "morris":
         design = dict((payload or {}).get("design") or {})
         bounds = {k: (float(v[0]), float(v[1])) for k, v in design.get("bounds", {}).items()}
-        built = sensitivity_design(
-            definition,
-            int(design["r"]),
-            int(design["levels"]),
-            int(seed),
-            bool(design["joint_k"]),
-            bounds,
+        morris = MorrisSettings(
+            int(design["r"]), int(design["levels"]), int(seed), bool(design["joint_k"]), bounds
         )
+        built = sensitivity_design(definition, morris)
         return built.factor_box(), design, simulator
     return definition.prior().to_dict(), definition.tmcmc_settings().to_dict(), simulator
 

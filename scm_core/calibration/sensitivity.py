@@ -49,6 +49,7 @@ __all__ = [
     "FACTOR_UNITS",
     "TABLE1_PARAMETERS",
     "MorrisModel",
+    "MorrisSettings",
     "SensitivityDesign",
     "SensitivityResult",
     "analyze_sensitivity",
@@ -301,19 +302,31 @@ class SensitivityDesign:
         }
 
 
+@dataclass(frozen=True)
+class MorrisSettings:
+    """A Morris screening's design: ``r`` trajectories on a grid of ``levels`` (even) levels,
+    seeded; k_c and k_phi screened jointly through k* (eq. 11) unless not ``joint_k``;
+    ``bounds`` {factor: (lower, upper)} over the case's priors and the defaults."""
+
+    r: int = 20
+    levels: int = 4
+    seed: int = 0
+    joint_k: bool = True
+    bounds: Mapping[str, tuple[float, float]] | None = None
+
+
 def sensitivity_design(
-    case: CaseDefinition | None = None,
-    r: int = 20,
-    levels: int = 4,
-    seed: int = 0,
-    joint_k: bool = True,
-    bounds: Mapping[str, tuple[float, float]] | None = None,
+    case: CaseDefinition | None = None, morris: MorrisSettings = MorrisSettings()
 ) -> SensitivityDesign:
-    """The factors (see :func:`screening_factors`) and r Morris trajectories on a ``levels``
-    grid (seeded). Raises ValueError naming the bad bound, ``r`` or ``levels``."""
-    names, b, log = screening_factors(case, joint_k, bounds)
-    _, design = morris_design(b, r=r, levels=levels, seed=seed, names=names, log_scale=log)
-    return SensitivityDesign(names=names, bounds=b, log_scale=log, design=design, seed=int(seed))
+    """The factors (see :func:`screening_factors`) and the Morris trajectories of ``morris``.
+    Raises ValueError naming the bad bound, ``r`` or ``levels``."""
+    names, b, log = screening_factors(case, morris.joint_k, morris.bounds)
+    _, design = morris_design(
+        b, r=morris.r, levels=morris.levels, seed=morris.seed, names=names, log_scale=log
+    )
+    return SensitivityDesign(
+        names=names, bounds=b, log_scale=log, design=design, seed=int(morris.seed)
+    )
 
 
 def analyze_sensitivity(
@@ -348,17 +361,14 @@ def analyze_sensitivity(
 def run_sensitivity(
     dataset: SWTDataset | DatasetTerms,
     case: CaseDefinition | None = None,
-    r: int = 20,
-    levels: int = 4,
-    seed: int = 0,
-    joint_k: bool = True,
-    bounds: Mapping[str, tuple[float, float]] | None = None,
+    morris: MorrisSettings = MorrisSettings(),
     map: MapFn = map,
     batch_size: int | None = None,
 ) -> SensitivityResult:
-    """Morris screening (r trajectories on a ``levels`` grid) of the soil parameters under the
-    conditions of ``dataset``, with the case's nominal values and simulator settings."""
-    design = sensitivity_design(case, r, levels, seed, joint_k, bounds)
+    """Morris screening (``morris``: trajectories, grid, seed, bounds) of the soil parameters
+    under the conditions of ``dataset``, with the case's nominal values and simulator
+    settings."""
+    design = sensitivity_design(case, morris)
     model = MorrisModel(design.names, case, dataset)
     points = design.points
     n = points.shape[0]

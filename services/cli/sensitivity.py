@@ -9,7 +9,7 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from scm_core.calibration import run_sensitivity, screening_factors
+from scm_core.calibration import MorrisSettings, run_sensitivity, screening_factors
 
 from .common import CLIError, compile_simulator_once, data_paths, read_case, read_datasets
 from .pool import batch_map
@@ -104,11 +104,7 @@ def sensitivity(
             result = run_sensitivity(
                 dataset,
                 case,
-                r=r,
-                levels=levels,
-                seed=seed,
-                joint_k=not separate_k,
-                bounds=given,
+                MorrisSettings(r, levels, seed, not separate_k, given),
                 map=mapper,
                 batch_size=batch,
             )

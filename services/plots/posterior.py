@@ -124,7 +124,6 @@ def prior_posterior_figure(
     bounds: NDArray[np.float64] | None = None,
     units: Mapping[str, str] | None = None,
     map_sample: NDArray[np.float64] | None = None,
-    truth: Mapping[str, float] | None = None,
     reference: Mapping[str, float] | None = None,
     title: str | None = None,
     log_params: Collection[str] = (),
@@ -172,8 +171,6 @@ def prior_posterior_figure(
             ax.axvline(float(back(p_lo)), color="tab:blue", lw=2, label=labels[1])
         if map_sample is not None:
             ax.axvline(map_sample[j], color="tab:red", lw=1.2, label="MAP")
-        if truth and name in truth:
-            ax.axvline(truth[name], color="tab:green", lw=1.2, ls="--", label="true")
         if reference and name in reference:
             ax.axvline(reference[name], color="k", lw=1.0, ls=":", label="bevameter")
         _density_axis(ax, name, units, log)
@@ -200,7 +197,6 @@ def pairs_figure(
     units: Mapping[str, str] | None = None,
     reference: Mapping[str, float] | None = None,
     k_star_line: tuple[float, float] | None = None,
-    truth: Mapping[str, float] | None = None,
     title: str | None = None,
     log_params: Collection[str] = (),
     max_points: int = 4000,
@@ -210,7 +206,7 @@ def pairs_figure(
 
     ``k_star_line`` = (k*, b_eff) draws the dashed line k_c / b_eff + k_phi = k* on the k_c-k_phi
     panel (the paper's bevameter k* at the simulations' mean b_eff); ``reference`` marks
-    bevameter means, ``truth`` the true values of a synthetic study. At most
+    bevameter means. At most
     ``max_points`` samples (an even thinning of the equally weighted sample) are drawn as
     dots, rasterised in vector formats, and enter the kernel density. None if no pair.
     """
@@ -266,8 +262,6 @@ def pairs_figure(
             ref.setdefault("k_phi", ref["k_star"])
         if a in ref and b in ref:
             ax.plot(ref[a], ref[b], "k+", ms=12, mew=2, label="bevameter")
-        if truth and a in truth and b in truth:
-            ax.plot(truth[a], truth[b], "x", color="tab:green", ms=10, mew=2, label="true")
         ax.set_xlabel(label(a, units))
         ax.set_ylabel(label(b, units))
         if not log_a:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from test_api_support import AUTH, TOKEN, api_client, fresh_database, upload_file
 
-from scm_core.calibration import CaseDefinition, run_sensitivity
+from scm_core.calibration import CaseDefinition, MorrisSettings, run_sensitivity
 from services.client import SCMCalibClient
 from services.store import Store
 from services.studies import work_batches
@@ -76,7 +76,7 @@ def _reference(url: str, dataset_id: int):
     finally:
         store.close()
     bounds = {k: tuple(v) for k, v in DESIGN["bounds"].items()}
-    return run_sensitivity(dataset, case, r=4, levels=4, seed=21, bounds=bounds)
+    return run_sensitivity(dataset, case, MorrisSettings(r=4, levels=4, seed=21, bounds=bounds))
 
 
 def test_statistics_are_those_of_run_sensitivity(finished) -> None:

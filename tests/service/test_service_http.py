@@ -25,7 +25,7 @@ from svc_support import (
     service_env,
 )
 
-from scm_core.calibration import load_case, run_sensitivity
+from scm_core.calibration import MorrisSettings, load_case, run_sensitivity
 from scm_core.signals import load_log
 from services.client import SCMCalibClient
 from services.config import new_token
@@ -112,7 +112,7 @@ def test_api_and_two_celery_workers(
     case = load_case(CASE_FILE)
     meta = json.loads(LOG_FILE.with_suffix(".json").read_text())
     dataset = load_log(LOG_FILE.read_bytes(), metadata=meta, offset=case.data.offset)
-    ref = run_sensitivity(dataset, case, r=3, seed=4)
+    ref = run_sensitivity(dataset, case, MorrisSettings(r=3, seed=4))
     assert result == json.loads(json.dumps(ref.to_dict()))  # bit-identical to one process
     assert len({w.split(":")[1] for w in workers}) == 2  # both Celery workers ran points
 

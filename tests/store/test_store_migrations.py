@@ -13,7 +13,7 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from click.testing import CliRunner
 
-from scm_core.calibration import CaseDefinition, load_case, sensitivity_design
+from scm_core.calibration import CaseDefinition, MorrisSettings, load_case, sensitivity_design
 from services.cli.main import cli
 from services.store import SchemaVersionError, Store, current_revision, downgrade, upgrade
 from services.store.engine import make_engine
@@ -259,7 +259,7 @@ def test_0006_derives_the_study_documents_from_the_case_and_back(empty_url: str)
     design settings into its payload: what the API shows of both studies is what 0005 had
     stored; the downgrade puts the same documents back."""
     case = load_case(EXAMPLES / "quick.toml")
-    design = sensitivity_design(case, 3, 4, 9, True, None)
+    design = sensitivity_design(case, MorrisSettings(3, 4, 9))
     settings = {
         "method": "morris",
         "r": 3,

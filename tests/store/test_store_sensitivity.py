@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scm_core.calibration import CaseDefinition, run_sensitivity
+from scm_core.calibration import CaseDefinition, MorrisSettings, run_sensitivity
 from scm_core.signals import load_log
 from services.config import Settings
 from services.store import Store
@@ -50,9 +50,8 @@ def dataset_id(store: Store) -> int:
 
 
 def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> None:
-    spec = sensitivity_spec(
-        store, Settings(), CASE, dataset_id, r=3, levels=4, seed=9, batch_size=4
-    )
+    morris = MorrisSettings(r=3, levels=4, seed=9)
+    spec = sensitivity_spec(store, Settings(), CASE, dataset_id, morris, batch_size=4)
     assert spec.kind == "morris" and spec.n_samples == 3 * 7
     # phi is calibrated in the case: its prior bounds are the factor's; the rest are defaults
     assert spec.payload["design"]["bounds"]["phi"] == [20.0, 35.0]
@@ -70,7 +69,7 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     assert done.model_runs == 21
 
     datasets = load_datasets(store, CASE, [dataset_id])
-    ref = run_sensitivity(datasets[0], CASE, r=3, levels=4, seed=9)
+    ref = run_sensitivity(datasets[0], CASE, morris)
     assert done.result == json.loads(json.dumps(ref.to_dict()))  # bit-identical statistics
     a = store.samples.arrays(study.id, 0)
     assert np.array_equal(a.samples, ref.points)
@@ -107,7 +106,7 @@ def test_bad_sensitivity_requests_name_the_field(
 ) -> None:
     args = {"dataset_id": dataset_id, **kwargs}
     with pytest.raises(StudyRequestError) as info:
-        sensitivity_spec(store, Settings(), CASE, args.pop("dataset_id"), **args)
+        sensitivity_spec(store, Settings(), CASE, args.pop("dataset_id"), MorrisSettings(**args))
     assert message in str(info.value)
     assert store.studies.list().total == 0
 
@@ -116,5 +115,6 @@ def test_unbuildable_configuration_is_refused(store: Store, dataset_id: int) -> 
     """A factor box whose centre the simulator refuses (phi = 100 deg) is refused, naming the
     factor, before anything is stored."""
     with pytest.raises(StudyRequestError, match=r"bounds.phi: invalid simulator .* less than 90"):
-        sensitivity_spec(store, Settings(), CASE, dataset_id, r=2, bounds={"phi": (80.0, 120.0)})
+        morris = MorrisSettings(r=2, bounds={"phi": (80.0, 120.0)})
+        sensitivity_spec(store, Settings(), CASE, dataset_id, morris)
     assert store.studies.list().total == 0

@@ -29,6 +29,7 @@ import pytest
 import sqlalchemy as sa
 from test_store_sensitivity import CASE, LOG
 
+from scm_core.calibration import MorrisSettings
 from scm_core.signals import load_log
 from services.config import Settings
 from services.store import Store
@@ -160,7 +161,8 @@ def _morris_study(store: Store) -> tuple[int, list]:
     raw = LOG.read_bytes()
     meta = json.loads(LOG.with_suffix(".json").read_text())
     rec, _ = store.datasets.add(load_log(raw, metadata=meta), raw, meta=meta)
-    spec = sensitivity_spec(store, Settings(), CASE, rec.id, r=3, levels=4, seed=9, batch_size=4)
+    morris = MorrisSettings(r=3, levels=4, seed=9)
+    spec = sensitivity_spec(store, Settings(), CASE, rec.id, morris, batch_size=4)
     study = store.studies.create(spec)
     start_study(store, study.id, None)
     return study.id, [b.key for b in store.batches.list(study.id, 0)]

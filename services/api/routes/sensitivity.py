@@ -13,6 +13,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 
+from scm_core.calibration import MorrisSettings
 from services.limits import INT64_MAX
 from services.store import Store, StudyRecord
 from services.studies import base_case, create_and_start, sensitivity_spec
@@ -63,11 +64,7 @@ def create_sensitivity(
         settings,
         base_case(body.preset, body.case),
         body.dataset_id,
-        r=body.r,
-        levels=body.levels,
-        seed=body.seed,
-        joint_k=not body.separate_k,
-        bounds=body.bounds,
+        MorrisSettings(body.r, body.levels, body.seed, not body.separate_k, body.bounds),
         batch_size=body.batch_size,
         name=body.name,
     )

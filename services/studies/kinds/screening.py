@@ -26,6 +26,7 @@ from pydantic import ValidationError
 from scm_core.calibration import (
     CaseDefinition,
     MorrisModel,
+    MorrisSettings,
     SensitivityDesign,
     StudyModel,
     analyze_sensitivity,
@@ -92,12 +93,8 @@ def sensitivity_spec(
     settings: Settings,
     case: CaseDefinition,
     dataset_id: int,
+    morris: MorrisSettings,
     *,
-    r: int = 20,
-    levels: int = 4,
-    seed: int = 0,
-    joint_k: bool = True,
-    bounds: Mapping[str, tuple[float, float]] | None = None,
     batch_size: int | None = None,
     name: str | None = None,
 ) -> StudySpec:
@@ -109,12 +106,12 @@ def sensitivity_spec(
     except LimitError as exc:
         raise StudyRequestError(str(exc)) from None
     check_dataset_ids(store, [int(dataset_id)], "dataset_id")
-    if r < 2:
-        raise StudyRequestError(f"r: need at least 2 trajectories, got {r}")
-    if levels < 2 or levels % 2:
-        raise StudyRequestError(f"levels: must be an even integer >= 2, got {levels}")
+    if morris.r < 2:
+        raise StudyRequestError(f"r: need at least 2 trajectories, got {morris.r}")
+    if morris.levels < 2 or morris.levels % 2:
+        raise StudyRequestError(f"levels: must be an even integer >= 2, got {morris.levels}")
     try:
-        design = sensitivity_design(case, r, levels, seed, joint_k, bounds)
+        design = sensitivity_design(case, morris)
     except ValueError as exc:
         text = str(exc)
         if text.startswith("bounds of "):
@@ -144,11 +141,11 @@ def sensitivity_spec(
         name=name or f"{case.name} sensitivity",
         case=case.to_dict(),
         dataset_ids=[int(dataset_id)],
-        seed=int(seed),
+        seed=int(morris.seed),
         n_samples=design.n_points,
         batch_size=size,
         kind=KIND.name,
-        payload={"design": _settings(design, joint_k)},
+        payload={"design": _settings(design, morris.joint_k)},
     )
 
 
@@ -189,9 +186,10 @@ def design_of(study: StudyRecord, case: CaseDefinition) -> SensitivityDesign:
 
 def _design(case: CaseDefinition, cfg: Mapping[str, Any], seed: int) -> SensitivityDesign:
     bounds = {k: (float(v[0]), float(v[1])) for k, v in cfg["bounds"].items()}
-    return sensitivity_design(
-        case, int(cfg["r"]), int(cfg["levels"]), int(seed), bool(cfg["joint_k"]), bounds
+    morris = MorrisSettings(
+        int(cfg["r"]), int(cfg["levels"]), int(seed), bool(cfg["joint_k"]), bounds
     )
+    return sensitivity_design(case, morris)
 
 
 @dataclass
