@@ -473,19 +473,27 @@ def compare(
     return cache.get_or_make(("compare", tuple(s.id for s in studies), seed, fmt), make)
 
 
-def run_chains(store: Store, studies: Sequence[StudyRecord]) -> tuple[list[str], np.ndarray] | None:
-    """The studies' final populations as runs of one posterior: (names, chains (K, n, d)), n
-    samples of each (the smallest population; subsampled as ``/pooled`` takes them, seed 0).
-    None unless they share their parameters in order and hold at least 4 samples each."""
-    names = study_terms(studies[0]).parameter_names
-    if any(study_terms(s).parameter_names != names for s in studies[1:]):
-        return None
+def final_populations(store: Store, studies: Sequence[StudyRecord]) -> list[np.ndarray] | None:
+    """Each study's samples at its last finished stage (n_i, d_i); None if one has none."""
     finals = []
     for st in studies:
         done = [s.stage_index for s in store.stages.list(st.id) if s.status == "done"]
         if not done:
             return None
         finals.append(store.samples.arrays(st.id, done[-1]).samples)
+    return finals
+
+
+def runs_as_chains(
+    studies: Sequence[StudyRecord], finals: Sequence[np.ndarray] | None
+) -> tuple[list[str], np.ndarray] | None:
+    """The studies' final populations (``finals``, see :func:`final_populations`) as runs of
+    one posterior: (names, chains (K, n, d)), n samples of each (the smallest population;
+    subsampled as ``/pooled`` takes them, seed 0). None unless they share their parameters
+    in order and hold at least 4 samples each."""
+    names = study_terms(studies[0]).parameter_names
+    if finals is None or any(study_terms(s).parameter_names != names for s in studies[1:]):
+        return None
     n = min(len(x) for x in finals)
     if n < 4:
         return None
@@ -494,7 +502,7 @@ def run_chains(store: Store, studies: Sequence[StudyRecord]) -> tuple[list[str],
 
 def ranks(store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureCache) -> bytes:
     """Rank plots of the studies' final populations, one run each (ArviZ's plot_rank)."""
-    chains = run_chains(store, studies)
+    chains = runs_as_chains(studies, final_populations(store, studies))
     if chains is None:
         raise FigureError("rank plots need studies of the same parameters (runs of one case)")
 

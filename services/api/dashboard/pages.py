@@ -51,8 +51,9 @@ from .figures import (
     compare,
     dataset_signals,
     default_matrix,
+    final_populations,
     ranks,
-    run_chains,
+    runs_as_chains,
     study_figure,
 )
 
@@ -497,15 +498,14 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         )
     per: dict[int, dict[str, Any]] = {}
     shared: list[str] | None = None
-    for s in studies:
-        done = [st.stage_index for st in store.stages.list(s.id) if st.status == "done"]
-        a = store.samples.arrays(s.id, done[-1])
+    finals = final_populations(store, studies)
+    for s, samples in zip(studies, finals or [], strict=False):
         names = parameter_names(s)
-        params, _, _ = parameter_summaries(a.samples, names, parameter_units(s))
+        params, _, _ = parameter_summaries(samples, names, parameter_units(s))
         per[s.id] = {p.name: p for p in params}
         shared = names if shared is None else [n for n in shared if n in names]
     # the runs' agreement (R-hat across them), on equal subsamples as /pooled takes them
-    chains = run_chains(store, studies)
+    chains = runs_as_chains(studies, finals)
     agreement = None if chains is None else agreement_of(chains[1], chains[0], studies)
     table = [
         {"name": n, "cells": [per[s.id][n] for s in studies], "unit": per[studies[0].id][n].unit}
