@@ -55,6 +55,7 @@ from .params import NOT_FOUND_PARAMS
 from .routes import (
     ERROR_DESCRIPTIONS,
     ERROR_HEADERS,
+    cases,
     datasets,
     health,
     pooled,
@@ -390,7 +391,7 @@ def create_app(
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     app.add_middleware(TokenFirstMiddleware)  # outermost: runs first
     _install_error_handlers(app)
-    routers = [m.router for m in (health, datasets, presets, studies, sensitivity, pooled)]
+    routers = [m.router for m in (health, datasets, presets, cases, studies, sensitivity, pooled)]
     routers += [kind_router(k) for k in KINDS.values() if k.http is not None]
     if settings.dashboard:
         routers.append(dashboard_router())

@@ -299,6 +299,27 @@ class StudyPage(PageInfo):
     items: list[StudyBrief]
 
 
+# ---------------------------------------------------------------------------- case files
+
+
+#: characters of a TOML case file (the committed ones are 2-5 kB)
+CASE_FILE_MAX = 200_000
+
+
+class CaseFileIn(_In):
+    """A case file's text."""
+
+    toml: str = Field(
+        min_length=1, max_length=CASE_FILE_MAX, description="The TOML case file's text."
+    )
+
+
+class CaseFileOut(BaseModel):
+    case: dict[str, Any] = Field(
+        description="The case document, every default filled in (POST /studies' 'case')."
+    )
+
+
 # ---------------------------------------------------------------------------- sensitivity
 
 

@@ -9,7 +9,7 @@ Layers: ``scm_core`` <- ``services.store`` <- ``services.studies`` (kinds, lifec
 
 from .batching import DEFAULT_WORKERS, work_batches
 from .errors import StudyRequestError
-from .intake import base_case, run_specs, with_overrides
+from .intake import base_case, case_from_toml, run_specs, with_overrides
 from .kinds.calibration import calibration_spec
 from .kinds.checks import check_runs
 from .kinds.screening import sensitivity_spec
@@ -27,6 +27,7 @@ __all__ = [
     "StudyRequestError",
     "base_case",
     "calibration_spec",
+    "case_from_toml",
     "check_runs",
     "create_and_start",
     "create_runs_and_start",

@@ -38,6 +38,15 @@ def base_case(preset: str | None, document: Mapping[str, Any] | None) -> CaseDef
         raise StudyRequestError(text if text.startswith("case") else f"case.{text}") from None
 
 
+def case_from_toml(text: str) -> CaseDefinition:
+    """The case of a TOML case file's text, checked as the command line checks it;
+    StudyRequestError("toml: <the command line's message>")."""
+    try:
+        return CaseDefinition.from_toml(text)
+    except CaseError as exc:
+        raise StudyRequestError(f"toml: {' '.join(str(exc).split())}") from None
+
+
 def with_overrides(
     case: CaseDefinition, top: Mapping[str, Any], sampler: Mapping[str, Any]
 ) -> CaseDefinition:

@@ -265,6 +265,18 @@ CASES: list[tuple[str, str, str, Callable[[Env], dict], int, tuple[str, ...]]] =
     ("sens-unknown-study", "GET", "/sensitivity/999", lambda e: {}, 404, ("study 999",)),
     ("unknown-kind-filter", "GET", "/studies?kind=sobol", lambda e: {}, 422,
      ("query.kind",)),
+    ("case-file-not-toml", "POST", "/cases/check",
+     lambda e: {"json": {"toml": "[parameters\nphi = 1\n"}},
+     422, ("toml: case file is not valid TOML", "line 1")),
+    ("case-file-bad-field", "POST", "/cases/check",
+     lambda e: {"json": {"toml": 'name = "x"\n[parameters]\nphi = { dist = "gamma" }\n'}},
+     422, ("toml: parameters.phi",)),
+    ("case-file-empty", "POST", "/cases/check", lambda e: {"json": {"toml": ""}}, 422,
+     ("toml",)),
+    ("case-file-too-long", "POST", "/cases/check",
+     lambda e: {"json": {"toml": "#" * 200_001}}, 422, ("toml", "200000")),
+    ("case-file-no-text", "POST", "/cases/check", lambda e: {"json": {"text": "x"}}, 422,
+     ("text", "unknown field")),
 ]  # fmt: skip
 
 

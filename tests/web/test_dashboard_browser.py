@@ -570,6 +570,164 @@ def test_new_study_from_a_preset_and_chosen_datasets(server, browser) -> None:
         w.close()
 
 
+#: tiny_case(seed=7, params=("phi",)) as a case file
+TINY_TOML = """name = "tiny"
+seed = 7
+likelihood = "gaussian"
+
+[parameters]
+phi = { dist = "uniform", lower = 20.0, upper = 35.0, unit = "deg" }
+
+[nominal]
+k_c = 0.0
+sigma_F = 30.0
+sigma_T = 3.0
+sigma_z = 0.005
+
+[simulator]
+duration = 8.0
+dx = 0.01
+dt = 0.04
+offset_F = 3.0
+offset_T = 3.0
+offset_z = 3.0
+
+[sampler]
+n_samples = 20
+moves = "leader"
+max_stages = 8
+"""
+
+
+def _studies_total(base: str) -> int:
+    return httpx.get(f"{base}/studies", params={"limit": 1}).json()["total"]
+
+
+def _open_new_study_form(w: Watched, base: str) -> None:
+    w.goto(f"{base}/")
+    _set_token(w.page)
+    w.page.click("details.new-study summary")
+    w.page.wait_for_selector("#new-study-form")
+    w.page.click("details.case-file summary")
+
+
+def test_a_case_file_starts_a_calibration_and_a_bad_one_shows_the_servers_error(
+    server, browser, tmp_path
+) -> None:
+    """The case-file form: a bad file answers the command line's one-line message (the server
+    checks it) and stores nothing; a good one, opened from disk, runs to completion."""
+    base, (d1, d2) = server["base"], server["datasets"]
+    w = Watched(browser)
+    try:
+        _open_new_study_form(w, base)
+        before = _studies_total(base)
+        w.page.fill("#new-study-form textarea", TINY_TOML.replace("dx = 0.01", 'dx = "fine"'))
+        w.page.check(f"#new-study-form input[name=dataset_ids][value='{d1}']")
+        w.page.click("#new-study-form button")
+        w.page.wait_for_selector("#new-study-form .write-result.error")
+        message = w.page.inner_text("#new-study-form .write-result")
+        assert message.startswith("toml: simulator.dx: ") and "\n" not in message, message
+        assert _studies_total(base) == before
+        w.expect(422)
+        path = tmp_path / "tiny.toml"
+        path.write_text(TINY_TOML)
+        w.page.set_input_files("#new-study-form input[name=case_file]", str(path))
+        w.page.wait_for_function(
+            "() => document.querySelector('#new-study-form textarea').value.startsWith('name')"
+        )
+        w.page.check(f"#new-study-form input[name=dataset_ids][value='{d2}']")
+        w.page.click("#new-study-form button")
+        w.page.wait_for_url("**/ui/studies/*")
+        sid = int(w.page.url.rsplit("/", 1)[1])
+        study = _wait(base, sid)
+        assert study["status"] == "completed", study
+        assert study["dataset_ids"] == [d1, d2] and study["seed"] == 7
+        w.page.wait_for_selector("#study-status:has-text('completed')", timeout=60_000)
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_a_screening_starts_from_the_page(server, browser) -> None:
+    """Morris from the page: its own fields appear, one dataset is required, it completes."""
+    base, (d1, d2) = server["base"], server["datasets"]
+    w = Watched(browser)
+    try:
+        _open_new_study_form(w, base)
+        assert not w.page.is_visible("#new-study-form input[name=r]")
+        w.page.check("#new-study-form input[name=kind][value=morris]")
+        assert w.page.is_visible("#new-study-form input[name=r]")
+        assert not w.page.is_visible("#new-study-form input[name=n_samples]")
+        w.page.fill("#new-study-form textarea", TINY_TOML)
+        w.page.fill("#new-study-form input[name=r]", "2")
+        for d in (d1, d2):
+            w.page.check(f"#new-study-form input[name=dataset_ids][value='{d}']")
+        w.page.click("#new-study-form button")
+        w.page.wait_for_selector("#new-study-form .write-result.error")
+        assert "exactly one dataset" in w.page.inner_text("#new-study-form .write-result")
+        w.page.uncheck(f"#new-study-form input[name=dataset_ids][value='{d2}']")
+        w.page.click("#new-study-form button")
+        w.page.wait_for_url("**/ui/studies/*")
+        sid = int(w.page.url.rsplit("/", 1)[1])
+        study = _wait(base, sid, "/sensitivity")
+        assert study["status"] == "completed" and study["dataset_id"] == d1, study
+        assert study["r"] == 2
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_an_update_and_a_prediction_start_from_a_completed_calibration(server, browser) -> None:
+    """A completed calibration's page offers an update (datasets not yet in its posterior)
+    and a prediction (datasets, or a slip sweep at a load); both run to completion."""
+    base, a, (d1, d2) = server["base"], server["a"], server["datasets"]
+    w = Watched(browser)
+    try:
+        w.goto(f"{base}/ui/studies/{a}")
+        w.figures_loaded()  # (leaving the page earlier would abort their requests)
+        _set_token(w.page)
+        w.page.click("details.next-steps summary")
+        w.page.wait_for_selector("#update-form")
+        offered = w.page.locator("#update-form input[name=dataset_ids]").evaluate_all(
+            "els => els.map(e => Number(e.value))"
+        )
+        assert d1 not in offered and d2 not in offered and offered, offered
+        w.page.check(f"#update-form input[name=dataset_ids][value='{offered[0]}']")
+        w.page.fill("#update-form input[name=name]", "update from the page")
+        w.page.click("#update-form button")
+        w.page.wait_for_url(lambda url: not url.endswith(f"/ui/studies/{a}"))
+        u = int(w.page.url.rsplit("/", 1)[1])
+        assert u != a
+        update = _wait(base, u)
+        assert update["status"] == "completed" and update["kind"] == "update", update
+        w.page.wait_for_selector("#study-status:has-text('completed')", timeout=60_000)
+        w.figures_loaded()
+        w.goto(f"{base}/ui/studies/{a}")
+        w.figures_loaded()
+        w.page.click("details.next-steps summary")
+        w.page.wait_for_selector("#predict-form")
+        w.page.fill("#predict-form input[name=sweep_w]", "315")
+        w.page.fill("#predict-form input[name=sweep_lo]", "0.5")
+        w.page.fill("#predict-form input[name=sweep_hi]", "-0.5")
+        w.page.click("#predict-form button")
+        w.page.wait_for_selector("#predict-form .write-result.error")
+        assert w.page.inner_text("#predict-form .write-result").startswith("sweep: ")
+        w.page.fill("#predict-form input[name=sweep_lo]", "-0.5")
+        w.page.fill("#predict-form input[name=sweep_hi]", "0.5")
+        w.page.fill("#predict-form input[name=sweep_n]", "3")
+        w.page.fill("#predict-form input[name=draws]", "4")
+        w.page.click("#predict-form button")
+        w.page.wait_for_url(lambda url: not url.endswith(f"/ui/studies/{a}"))
+        p = int(w.page.url.rsplit("/", 1)[1])
+        pred = _wait(base, p, "/predictions")
+        assert pred["status"] == "completed", pred
+        slips = [c["slip_symmetric"] for c in pred["result"]["predictions"]]
+        assert slips == pytest.approx([-0.5, 0.0, 0.5], abs=1e-9), slips
+        w.clean()
+    finally:
+        w.close()
+
+
 def test_reads_need_the_token_when_the_server_says_so(browser, tmp_path) -> None:
     from test_api_support import serve_env
 

@@ -311,7 +311,7 @@ def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
                     summary=params,
                     names=names,
                     pairs=default_pairs(names, 1),
-                    matrix=default_matrix(names),
+                    matrix=default_matrix(names) if len(names) >= 2 else [],
                     matrix_max=MATRIX_MAX,
                 )
         return _fragment(templates, request, "_study_results.html", tag, **ctx)
@@ -372,6 +372,21 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
         d = dataset_out(store.datasets.get(dataset_id))
         units = {k: condition_unit(k) for k in d.conditions}
         return _fragment(templates, request, "_dataset.html", None, d=d, units=units)
+
+    @reads.get("/ui/f/studies/{study_id}/next")
+    def next_steps_fragment(request: Request, study_id: StudyId, store: StoreDep) -> Response:
+        """Forms that start from a completed calibration: an update, a prediction."""
+        study = store.studies.get(study_id)
+        datasets = store.datasets.list(limit=200).items
+        return _fragment(
+            templates,
+            request,
+            "_study_next.html",
+            None,
+            s=study_brief(study),
+            used=set(study.dataset_ids),
+            datasets=datasets,
+        )
 
     @reads.get("/ui/f/presets")
     def new_study_fragment(request: Request, store: StoreDep) -> Response:

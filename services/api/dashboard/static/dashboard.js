@@ -142,6 +142,37 @@
     loadFigure(img);
   });
 
+  /* the checked dataset ids in upload order (the likelihood's order), not the list's */
+  const checkedIds = (form, name) =>
+    [...form.querySelectorAll("input[name=" + name + "]:checked")].map((i) => Number(i.value)).sort((a, b) => a - b);
+
+  const postJson = (path, body) =>
+    fetch(path, {
+      method: "POST",
+      headers: { ...authHeaders(), "Content-Type": "application/json" },
+      body: JSON.stringify(body),
+    });
+
+  /* a slip sweep of the prediction form as conditions (LO..HI in N steps at load W, the
+     lab's symmetric slip, -1 locked), null when its load is empty, or a one-line error */
+  const sweepConditions = (f) => {
+    if (!f.sweep_w.value) return null;
+    const lo = Number(f.sweep_lo.value), hi = Number(f.sweep_hi.value), n = Number(f.sweep_n.value);
+    if (!(lo >= -1 && lo < hi && hi < 1) || !(n >= 2 && n <= 200)) {
+      return "sweep: need -1 <= from < to < 1 and 2 to 200 slips";
+    }
+    return Array.from({ length: n }, (_, k) => {
+      const slip = lo + ((hi - lo) * k) / (n - 1);
+      return { W: Number(f.sweep_w.value), slip, slip_convention: "symmetric", name: "slip " + slip.toFixed(3) };
+    });
+  };
+
+  /* a case file opened in the form fills its text box */
+  document.addEventListener("change", async (ev) => {
+    if (ev.target.name !== "case_file" || !ev.target.files.length) return;
+    ev.target.form.elements.case_toml.value = await ev.target.files[0].text();
+  });
+
   document.addEventListener("submit", async (ev) => {
     const form = ev.target;
     if (form.id === "token-form") {
@@ -170,20 +201,51 @@
       ev.preventDefault();
       if (!token()) return say(out, "starting a study needs the API token (set it above)", true);
       const f = form.elements;
-      const body = {
-        preset: f.preset.value,
-        dataset_ids: [...form.querySelectorAll("input[name=dataset_ids]:checked")].map((i) => Number(i.value)),
-      };
-      if (f.n_samples.value) body.n_samples = Number(f.n_samples.value);
+      const ids = checkedIds(form, "dataset_ids");
+      const body = {};
+      if (f.case_toml.value.trim()) {
+        // the server checks the case file as the command line does (one-line errors)
+        const checked = await postJson("/cases/check", { toml: f.case_toml.value });
+        if (!checked.ok) return say(out, await detailOf(checked), true);
+        body.case = (await checked.json()).case;
+      } else {
+        body.preset = f.preset.value;
+      }
       if (f.name.value) body.name = f.name.value;
-      const resp = await fetch("/studies", {
-        method: "POST",
-        headers: { ...authHeaders(), "Content-Type": "application/json" },
-        body: JSON.stringify(body),
-      });
+      let path = "/studies";
+      if (f.kind.value === "morris") {
+        if (ids.length !== 1) return say(out, "dataset_id: a screening runs on exactly one dataset: check one", true);
+        Object.assign(body, { dataset_id: ids[0], r: Number(f.r.value), levels: Number(f.levels.value) });
+        path = "/sensitivity";
+      } else {
+        body.dataset_ids = ids;
+        if (f.n_samples.value) body.n_samples = Number(f.n_samples.value);
+      }
+      const resp = await postJson(path, body);
       if (!resp.ok) return say(out, await detailOf(resp), true);
-      const s = await resp.json();
-      window.location.href = "/ui/studies/" + s.id;
+      window.location.href = "/ui/studies/" + (await resp.json()).id;
+    } else if (form.id === "update-form" || form.id === "predict-form") {
+      ev.preventDefault();
+      const what = form.id === "update-form" ? "an update" : "a prediction";
+      if (!token()) return say(out, what + " needs the API token (set it above)", true);
+      const f = form.elements;
+      const study = Number(form.dataset.study);
+      const ids = checkedIds(form, "dataset_ids");
+      let path, body;
+      if (form.id === "update-form") {
+        path = "/studies";
+        body = { update_of: study, dataset_ids: ids };
+      } else {
+        path = "/predictions";
+        body = { study_id: study, draws: Number(f.draws.value) };
+        const sweep = sweepConditions(f);
+        if (typeof sweep === "string") return say(out, sweep, true);
+        if (sweep) body.conditions = sweep; else body.dataset_ids = ids;
+      }
+      if (f.name.value) body.name = f.name.value;
+      const resp = await postJson(path, body);
+      if (!resp.ok) return say(out, await detailOf(resp), true);
+      window.location.href = "/ui/studies/" + (await resp.json()).id;
     }
   });
 
