@@ -41,7 +41,7 @@ def test_every_example_case_file_gives_the_command_lines_case(env, path: Path) -
 @pytest.mark.parametrize(
     "change",
     [
-        ("dist = \"uniform\", lower = 15.0, upper = 45.0", "dist = \"uniform\", lower = 45.0"),
+        ('dist = "uniform", lower = 15.0, upper = 45.0', 'dist = "uniform", lower = 45.0'),
         ('\nsinkage_datum = "rim"', '\nsinkage_datum = "axle"'),
         ("n_samples = 400", "n_samples = -4"),
         ("[parameters]", "[parameters"),
