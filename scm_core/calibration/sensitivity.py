@@ -39,7 +39,7 @@ from scm_core.inference.morris import MorrisDesign, morris_analyze, morris_desig
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
 from scm_core.simulator import simulate_packed
-from scm_core.simulator.layout import N_PARAMS, pack
+from scm_core.simulator.layout import N_PARAMS, STATUS_NAMES, pack
 
 from .case import CALIBRATABLE, RESPONSES, CaseDefinition
 from .model import DatasetTerms, build_configs, dataset_terms
@@ -47,12 +47,14 @@ from .model import DatasetTerms, build_configs, dataset_terms
 __all__ = [
     "DEFAULT_BOUNDS",
     "FACTOR_UNITS",
+    "INVALID_CONFIGURATION",
     "TABLE1_PARAMETERS",
     "MorrisModel",
     "MorrisSettings",
     "SensitivityDesign",
     "SensitivityResult",
     "analyze_sensitivity",
+    "failure_counts",
     "run_sensitivity",
     "screening_factors",
     "sensitivity_design",
@@ -116,9 +118,22 @@ def screening_factors(
     return names, b, log
 
 
+#: a run's status code: -1 the simulator configuration could not be built, else the index of
+#: its simulator status in STATUS_NAMES (0: ok)
+INVALID_CONFIGURATION = -1
+
+
+def failure_counts(status: ArrayLike) -> dict[str, int]:
+    """Failed runs by reason, from status codes (see :data:`INVALID_CONFIGURATION`)."""
+    codes, counts = np.unique(np.asarray(status, dtype=np.int64), return_counts=True)
+    names = {INVALID_CONFIGURATION: "invalid_configuration", **dict(enumerate(STATUS_NAMES))}
+    return {names[int(c)]: int(k) for c, k in zip(codes, counts, strict=True) if c != 0}
+
+
 class MorrisModel:
-    """Picklable ``func_batch``: factor points (m, d) -> steady means (m, 3) [N, N m, m] under
-    one dataset's conditions (NaN for failed or invalid runs), rows run in one
+    """Picklable ``func_batch``: factor points (m, d) -> (steady means (m, 3) [N, N m, m]
+    under one dataset's conditions, NaN for failed or invalid runs; status codes (m,), see
+    :data:`INVALID_CONFIGURATION`), rows run in one
     :func:`~scm_core.simulator.simulate_packed` call."""
 
     def __init__(
@@ -150,7 +165,7 @@ class MorrisModel:
                 out[name] = float(v)
         return out
 
-    def __call__(self, X: ArrayLike) -> NDArray[np.float64]:
+    def __call__(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         prms = np.zeros((X.shape[0], N_PARAMS))
         valid = np.zeros(X.shape[0], dtype=bool)
@@ -164,13 +179,15 @@ class MorrisModel:
             prms[i] = pack(*cfg)
             valid[i] = True
         out = np.full((X.shape[0], 3), np.nan)
+        status = np.full(X.shape[0], INVALID_CONFIGURATION, dtype=np.int64)
         rows = np.flatnonzero(valid)
         if rows.size:
             res = simulate_packed(prms[rows])
             means = res.means.copy()
             means[~res.ok] = np.nan
             out[rows] = means
-        return out
+            status[rows] = [STATUS_NAMES.index(s) for s in res.status]
+        return out, status
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,6 +209,7 @@ class SensitivityResult:
     levels: int
     seed: int
     dataset: str
+    status: NDArray[np.int64] | None = None  # per point (see INVALID_CONFIGURATION)
 
     @property
     def n_runs(self) -> int:
@@ -228,6 +246,8 @@ class SensitivityResult:
             "dataset": self.dataset,
             "n_runs": self.n_runs,
             "n_failed_runs": self.n_failed,
+            # why they failed (absent for results stored before the reasons were kept)
+            **({} if self.status is None else {"failed_runs_by": failure_counts(self.status)}),
             "mu": table(self.mu),
             "mu_star": table(self.mu_star),
             "sigma": table(self.sigma),
@@ -330,10 +350,14 @@ def sensitivity_design(
 
 
 def analyze_sensitivity(
-    design: SensitivityDesign, outputs: ArrayLike, dataset: str = ""
+    design: SensitivityDesign,
+    outputs: ArrayLike,
+    dataset: str = "",
+    status: ArrayLike | None = None,
 ) -> SensitivityResult:
     """Morris statistics from the outputs (n_points, 3) of the design's points, in order
-    (NaN rows for failed runs: the elementary effects that touch them are left out)."""
+    (NaN rows for failed runs: the elementary effects that touch them are left out);
+    ``status``: the runs' status codes, kept to say why runs failed."""
     Y = np.asarray(outputs, dtype=float)
     if Y.shape != (design.n_points, len(RESPONSES)):
         raise ValueError(f"outputs have shape {Y.shape}, expected ({design.n_points}, 3)")
@@ -355,6 +379,7 @@ def analyze_sensitivity(
         levels=design.design.levels,
         seed=design.seed,
         dataset=dataset,
+        status=None if status is None else np.asarray(status, dtype=np.int64),
     )
 
 
@@ -374,5 +399,7 @@ def run_sensitivity(
     n = points.shape[0]
     size = n if batch_size is None else int(batch_size)
     chunks = [points[i : i + size] for i in range(0, n, size)]
-    Y = np.concatenate([np.asarray(y) for y in map(model, chunks)], axis=0)
-    return analyze_sensitivity(design, Y, model.dataset.name)
+    runs = list(map(model, chunks))
+    Y = np.concatenate([np.asarray(y) for y, _ in runs], axis=0)
+    status = np.concatenate([s for _, s in runs])
+    return analyze_sensitivity(design, Y, model.dataset.name, status)

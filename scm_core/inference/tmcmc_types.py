@@ -366,7 +366,8 @@ class ChainBatchResult(_Fields):
 class PointEvaluation(_Fields):
     """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures,
     log b (m,) where the likelihood gives a base density (else None; see the module doc), the
-    likelihood parts run (m x parts) and the points run (m less repeated ones; None: m)."""
+    likelihood parts run (m x parts), the points run (m less repeated ones; None: m) and, where
+    the model gives them, the runs' status codes (m,) (a screening: why runs failed)."""
 
     log_likelihood: NDArray[np.float64]
     responses: NDArray[np.float64] | None
@@ -374,6 +375,7 @@ class PointEvaluation(_Fields):
     log_base: NDArray[np.float64] | None = None
     part_runs: int = 0
     model_runs: int | None = None
+    status: NDArray[np.int64] | None = None
 
     @property
     def runs(self) -> int:

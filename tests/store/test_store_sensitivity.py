@@ -80,6 +80,8 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     # negative: on soft soils the motion resistance exceeds the thrust at slip 0.2)
     ok = np.all(np.isfinite(a.responses), axis=1)
     assert ok.sum() >= 15 and np.all(a.responses[ok, 1:] > 0)
+    # why the others failed, one reason per failed run
+    assert sum(done.result["failed_runs_by"].values()) == done.result["n_failed_runs"]
 
     # a second delivery of a batch changes nothing
     before = store.studies.get(study.id)
@@ -118,3 +120,16 @@ def test_unbuildable_configuration_is_refused(store: Store, dataset_id: int) -> 
         morris = MorrisSettings(r=2, bounds={"phi": (80.0, 120.0)})
         sensitivity_spec(store, Settings(), CASE, dataset_id, morris)
     assert store.studies.list().total == 0
+
+
+def test_a_screening_says_why_its_runs_failed(store: Store, dataset_id: int) -> None:
+    """A factor box of soils too soft for the wheel's load: the wheel sinks beyond the
+    bottoming-out depth (the paper wheel at 315 N needs k* of order 1e6 to stay within 0.1 m),
+    so every run fails, and the result says so by reason."""
+    (dataset,) = load_datasets(store, CASE, [dataset_id])
+    morris = MorrisSettings(r=2, levels=4, seed=1, bounds={"k_star": (1.0e3, 3.0e3)})
+    result = run_sensitivity(dataset, CASE, morris).to_dict()
+    n = result["n_runs"]
+    assert n == 2 * (len(result["factors"]) + 1)
+    assert result["n_failed_runs"] == n
+    assert result["failed_runs_by"] == {"bottomed_out": n}

@@ -672,6 +672,12 @@ def test_a_screening_starts_from_the_page(server, browser) -> None:
         study = _wait(base, sid, "/sensitivity")
         assert study["status"] == "completed" and study["dataset_id"] == d1, study
         assert study["r"] == 2
+        w.page.wait_for_selector("#morris-runs", timeout=60_000)  # runs, and why any failed
+        runs = w.page.inner_text("#morris-runs")
+        failed = study["result"]["n_failed_runs"]
+        assert runs.startswith(f"{study['n_points']} runs, "), runs
+        assert ("none failed" in runs) == (failed == 0), runs
+        w.figures_loaded()
         w.clean()
     finally:
         w.close()

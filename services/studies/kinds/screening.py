@@ -202,14 +202,17 @@ class MorrisRun:
 
     @property
     def model_function(self):
-        """Points (m, d) -> steady means (m, 3) [N, N m, m]; NaN rows for failed runs."""
+        """Points (m, d) -> (steady means (m, 3) [N, N m, m], NaN rows for failed runs; the
+        runs' status codes (m,))."""
         return self.model
 
     def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
         X = self.design.points[lease.chain_start : lease.chain_stop]
-        Y = np.asarray(model_function(X), dtype=float)
+        Y, status = model_function(X)
+        Y = np.asarray(Y, dtype=float)
         failed = int(np.count_nonzero(~np.all(np.isfinite(Y), axis=1)))
-        return batch_output(lease, PointEvaluation(np.full(X.shape[0], np.nan), Y, failed))
+        nan = np.full(X.shape[0], np.nan)
+        return batch_output(lease, PointEvaluation(nan, Y, failed, status=np.asarray(status)))
 
     def reducer(self, workers: int) -> Reducer:
         """The Morris analysis of the study's only stage (``workers`` is not needed)."""
@@ -217,7 +220,10 @@ class MorrisRun:
         def reduce(inp: ReduceInput) -> StageAdvance:
             points = [decode(b, PointEvaluation) for b in inp.results]
             Y = np.concatenate([np.asarray(p.responses) for p in points], axis=0)
-            result = analyze_sensitivity(self.design, Y, self.model.dataset.name)
+            # the reasons of failed runs (None if a batch was stored before they were kept)
+            known = all(p.status is not None for p in points)
+            status = np.concatenate([p.status for p in points]) if known else None
+            result = analyze_sensitivity(self.design, Y, self.model.dataset.name, status)
             n = self.design.n_points
             nan = np.full(n, np.nan)
             reduced = ReducedStage(
