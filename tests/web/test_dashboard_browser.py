@@ -244,6 +244,17 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
                 width = w.page.evaluate("document.documentElement.scrollWidth")
                 assert width <= size[0], (name, size_name, width)
                 w.shoot(f"{name}_{size_name}")
+                # the forms behind the page's disclosures (new study, case file, update and
+                # prediction) fit as well
+                w.page.evaluate("document.querySelectorAll('details').forEach(d => d.open = true)")
+                w.page.wait_for_function(
+                    "() => !document.querySelector('.htmx-request')"
+                    " && !/Loading/.test(document.querySelector('main').innerText)"
+                    " && [...document.querySelectorAll('details')].every(d => d.open)",
+                    timeout=60_000,
+                )
+                width = w.page.evaluate("document.documentElement.scrollWidth")
+                assert width <= size[0], (name, "forms open", size_name, width)
                 w.clean()
             finally:
                 w.close()
