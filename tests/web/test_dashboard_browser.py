@@ -246,11 +246,12 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
                 w.shoot(f"{name}_{size_name}")
                 # the forms behind the page's disclosures (new study, case file, update and
                 # prediction) fit as well
-                w.page.evaluate("document.querySelectorAll('details').forEach(d => d.open = true)")
+                # (a form may bring its own disclosure: each poll opens what is closed)
                 w.page.wait_for_function(
-                    "() => !document.querySelector('.htmx-request')"
-                    " && !/Loading/.test(document.querySelector('main').innerText)"
-                    " && [...document.querySelectorAll('details')].every(d => d.open)",
+                    "() => { const shut = document.querySelectorAll('details:not([open])');"
+                    " shut.forEach(d => { d.open = true; });"
+                    " return shut.length === 0 && !document.querySelector('.htmx-request')"
+                    " && !/Loading/.test(document.querySelector('main').innerText); }",
                     timeout=60_000,
                 )
                 width = w.page.evaluate("document.documentElement.scrollWidth")
