@@ -22,7 +22,9 @@ Every run averages its whole window: the CMU case's early stop of settled runs
 Wheels: the paper's (its wheel, soil and rig at the nine slips), the CMU smooth wheel (R 58 mm,
 b 50 mm, the datasets' loads and speeds from ``examples/cmu_smooth/``) and a CMU-like grousered
 wheel built from the same rig (12 grousers of 5 mm), with its grousers as faces in the z-buffer
-(``grouser_contact = "faces"``) and as trapped soil (``"tip_circle"``).
+(``grouser_contact = "faces"``), as trapped soil on the tip circle (``"tip_circle"``) and as
+blades whose rim bears (``"rim_bearing"``, the CMU cases'); every wheel's sinkage read from its
+rim (the cases' ``sinkage_datum = "rim"``).
 """
 
 from __future__ import annotations
@@ -114,6 +116,7 @@ def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
         "CMU smooth": {},
         "CMU 12x5 mm faces": {**GROUSERS, "grouser_contact": "faces"},
         "CMU 12x5 mm tip circle": {**GROUSERS, "grouser_contact": "tip_circle"},
+        "CMU 12x5 mm rim bearing": {**GROUSERS, "grouser_contact": "rim_bearing"},
     }
     simulate_swt()  # warm-up (JIT)
 

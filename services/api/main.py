@@ -40,7 +40,7 @@ from services.store import NotFoundError, SchemaVersionError, Store
 from services.studies import StudyRequestError
 from services.studies.kinds.registry import KINDS
 
-from .dashboard import dashboard_router, mount_static
+from .dashboard import FigureCache, FigureWarmer, dashboard_router, mount_static
 from .deps import route_needs_token
 from .inference_export import NetcdfCache
 from .middleware import (
@@ -355,9 +355,13 @@ def create_app(
                 app.state.dispatcher = celery_dispatcher(settings)
             app.state.runtime = runtime
             app.state.store = st
+            if app.state.figure_warmer is not None:
+                app.state.figure_warmer.start(st)
             log.info("scm-calib API (%s mode) on %s", mode, st.engine.url)
             yield
         finally:
+            if app.state.figure_warmer is not None:
+                app.state.figure_warmer.stop()
             app.state.store = None
             if runtime is not None:
                 runtime.stop()
@@ -376,6 +380,7 @@ def create_app(
     app.state.dispatcher = None
     app.state.runtime = None
     app.state.netcdf_cache = NetcdfCache()
+    app.state.figure_warmer = FigureWarmer(FigureCache()) if settings.dashboard else None
 
     def limit_for(path: str) -> tuple[int, str]:
         if path.rstrip("/") == "/datasets":
@@ -394,7 +399,7 @@ def create_app(
     routers = [m.router for m in (health, datasets, presets, cases, studies, sensitivity, pooled)]
     routers += [kind_router(k) for k in KINDS.values() if k.http is not None]
     if settings.dashboard:
-        routers.append(dashboard_router())
+        routers.append(dashboard_router(app.state.figure_warmer))
         mount_static(app)
     for router in routers:
         app.include_router(router)

@@ -190,6 +190,18 @@ def _stage_evaluations(store: Store, study: StudyRecord, stage: StageRecord) -> 
     return planned, done, ran, int(sum(done_flags)), len(batches)
 
 
+#: how many of the newest prediction studies :func:`predictions_of` looks through
+PREDICTIONS_SCANNED = 500
+
+
+def predictions_of(store: Store, study: StudyRecord) -> list[StudyRecord]:
+    """The prediction studies made from ``study``'s posterior, newest first (among the newest
+    :data:`PREDICTIONS_SCANNED` predictions: the link is in their stored payload, which the
+    store keeps as a document and does not query inside)."""
+    page = store.studies.list(kind="prediction", limit=PREDICTIONS_SCANNED)
+    return [p for p in page.items if (p.payload or {}).get("study_id") == study.id]
+
+
 def study_progress(store: Store, study: StudyRecord, now: datetime | None = None) -> ProgressOut:
     """The progress block of ``GET /studies/{id}`` (see :class:`ProgressOut`)."""
     now = now or store.db.now()

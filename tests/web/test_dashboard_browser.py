@@ -18,6 +18,7 @@ import os
 import shutil
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
+from datetime import UTC, datetime
 from pathlib import Path
 
 import httpx
@@ -220,7 +221,7 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
         "dataset": f"{base}/ui/datasets/{server['datasets'][0]}",
     }
     expected_figures = {
-        "study_calibration": 6,  # schedule, prior-posterior, trace, pair, matrix, fit
+        "study_calibration": 7,  # schedule, prior-posterior, trace, pair, matrix, fit, predictive
         "study_sensitivity": 1,
         "study_update": 6,
         "study_prediction": 1,
@@ -292,7 +293,8 @@ def test_study_page_downloads_parse(server, browser) -> None:
                 kinds["png"] = kinds.get("png", 0) + 1
             else:
                 pytest.fail(f"{href}: unexpected content type {ctype}")
-        assert kinds.get("svg") == kinds.get("png") == 6 and kinds.get("json") == 1
+        # six of the stage and the posterior predictive panel (the fixture's prediction)
+        assert kinds.get("svg") == kinds.get("png") == 7 and kinds.get("json") == 1
         assert kinds.get("csv", 0) >= 2  # every finished stage
         # the pair chooser redraws the bivariate density for another pair
         chooser = w.page.locator("form.pair-chooser")
@@ -450,6 +452,75 @@ def test_running_study_advances_on_screen_until_it_completes(server, browser) ->
             w.page.locator(f"#study-row-{running}").get_attribute("hx-get") or ""
         )
         w.shoot("studies_completed")
+        w.clean()
+    finally:
+        w.close()
+
+
+#: what a study page records (ms since the epoch): when each stage number first shows in its
+#: progress, and when every figure of each finished stage has first loaded
+_KEEPS_UP = """
+window.__seen = {stage: {}, figs: {}};
+setInterval(() => {
+  const now = Date.now();
+  const st = document.getElementById("progress-stage");
+  const k = st && st.textContent.trim();
+  if (k && !(k in window.__seen.stage)) window.__seen.stage[k] = now;
+  const h = document.querySelector("#results h2");
+  const m = h && /stage (\\d+)/.exec(h.textContent);
+  const imgs = [...document.querySelectorAll("#results img[data-figure]")];
+  const ok = imgs.length > 0 && imgs.every((i) => i.src && i.dataset.loaded === i.dataset.src
+    && !i.classList.contains("loading") && i.complete && i.naturalWidth > 0);
+  if (m && ok && !(m[1] in window.__seen.figs)) window.__seen.figs[m[1]] = now;
+}, 50);
+"""
+
+
+def _epoch_ms(stamp: str) -> float:
+    t = datetime.fromisoformat(stamp)
+    return (t if t.tzinfo else t.replace(tzinfo=UTC)).timestamp() * 1000.0
+
+
+def test_a_running_studys_page_keeps_up_with_its_stages_and_figures(server, browser) -> None:
+    """Issue 45: the page follows a running study stage by stage without a reload (it polls
+    every second; the server draws a stage's figures as it ends, FigureWarmer) and ends on the
+    final stage's figures. The lags, measured against the stages' own timestamps (one machine,
+    one clock), are printed; the bounds asserted are loose because the test suite's two workers
+    and the study's two share two cores with the browser (quiet-machine numbers: issue 45's
+    note). Timing is not asserted tighter in a test (benchmarks measure speed)."""
+    base, (d1, d2) = server["base"], server["datasets"]
+    case = tiny_case(seed=13, params=("phi", "n", "J"), n_samples=60)
+    case["sampler"]["max_stages"] = 12
+    case["nominal"].update(sigma_F=3.0, sigma_T=0.3, sigma_z=0.0005)  # sharper: more stages
+    sid = _submit(base, {"case": case, "dataset_ids": [d1, d2], "name": "kept up", "batch_size": 6})
+    w = Watched(browser)
+    try:
+        w.page.add_init_script(_KEEPS_UP)
+        w.page.goto(f"{base}/ui/studies/{sid}", wait_until="load")
+        w.page.wait_for_selector("#study-status.status-completed", timeout=int(TIMEOUT * 1000))
+        stages = httpx.get(f"{base}/studies/{sid}/stages", headers=AUTH).json()
+        final = stages[-1]["stage"]
+        w.page.wait_for_function(f"() => '{final}' in window.__seen.figs", timeout=60_000)
+        seen = w.page.evaluate("() => window.__seen")
+        shown = {
+            st["stage"]: seen["stage"][str(st["stage"])] - _epoch_ms(st["created_at"])
+            for st in stages
+            if st["stage"] > 0 and str(st["stage"]) in seen["stage"]
+        }
+        drawn = {
+            st["stage"]: seen["figs"][str(st["stage"])] - _epoch_ms(st["finished_at"])
+            for st in stages
+            if st["finished_at"] and str(st["stage"]) in seen["figs"]
+        }
+        print(f"\nstage shown after the API [ms]: {shown}\nfigures after the stage's end: {drawn}")
+        assert len(stages) >= 4 and len(shown) >= 3, (stages, shown)  # followed while running
+        assert max(shown.values()) <= 5000.0, shown  # the issue saw a 14.4 s poll gap
+        assert drawn[final] <= 20_000.0, drawn  # and 6.8-14.9 s per figure, on request
+        heading = w.page.locator("#results h2").first.inner_text()
+        assert f"stage {final})" in heading, heading  # the final stage's, not a running one's
+        schedule = w.page.locator("img[data-figure=schedule]").get_attribute("data-src")
+        version = httpx.get(f"{base}/studies/{sid}", headers=AUTH).json()["version"]
+        assert schedule.endswith(f"?v={version}"), schedule  # the completed study's own
         w.clean()
     finally:
         w.close()
@@ -741,6 +812,19 @@ def test_an_update_and_a_prediction_start_from_a_completed_calibration(server, b
         assert pred["status"] == "completed", pred
         slips = [c["slip_symmetric"] for c in pred["result"]["predictions"]]
         assert slips == pytest.approx([-0.5, 0.0, 0.5], abs=1e-9), slips
+        w.page.wait_for_selector("#study-status:has-text('completed')", timeout=60_000)
+        w.figures_loaded()
+        # back on the calibration: its posterior predictive panel shows the newest prediction
+        w.goto(f"{base}/ui/studies/{a}")
+        w.figures_loaded()
+        src = w.page.locator("#fig-predictive img").get_attribute("src")
+        assert src and src.startswith("blob:"), src  # loaded (the page fetches with the token)
+        shown = w.page.locator("#fig-predictive img").get_attribute("data-src")
+        assert shown == f"/ui/figures/studies/{p}/predictions.svg", shown
+        listed = w.page.locator("#results a[href^='/ui/studies/']").evaluate_all(
+            "els => els.map(e => e.getAttribute('href'))"
+        )
+        assert f"/ui/studies/{p}" in listed and f"/ui/studies/{server['prediction']}" in listed
         w.clean()
     finally:
         w.close()
@@ -824,7 +908,7 @@ def test_study_page_first_load_is_light(server, browser) -> None:
     w.page.on("requestfinished", finished)
     try:
         w.goto(f"{server['base']}/ui/studies/{server['a']}")
-        assert w.figures_loaded() == 6
+        assert w.figures_loaded() == 7  # six of the stage and the predictive panel
         w.page.wait_for_load_state("networkidle")
         total = sum(n for _, n, _ in sizes)
         big = [(u, n, e) for u, n, e in sizes if n > 4096]

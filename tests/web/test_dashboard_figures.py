@@ -3,6 +3,7 @@ stages not yet done, thinning of large samples, and the cache."""
 
 from __future__ import annotations
 
+import threading
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -49,6 +50,39 @@ def test_cache_keeps_the_newest_entries() -> None:
     for key in ("a", "b", "a", "c", "b"):
         cache.get_or_make(key, lambda k=key: made.append(k) or k)
     assert made == ["a", "b", "c", "b"]  # "a" reused once; "b" evicted by "c" after "a"
+
+
+def test_cache_makes_a_value_once_for_concurrent_callers() -> None:
+    """A figure asked for while it is being drawn (the warmer drawing, a page asking) is drawn
+    once: the second caller waits and gets the first's bytes; a failed draw is retried."""
+    cache = FigureCache()
+    started, release, made = threading.Event(), threading.Event(), []
+
+    def slow() -> bytes:
+        made.append(1)
+        started.set()
+        release.wait(10)
+        return b"drawn"
+
+    got: list[bytes] = []
+    first = threading.Thread(target=lambda: got.append(cache.get_or_make("k", slow)))
+    first.start()
+    started.wait(10)
+    second = threading.Thread(target=lambda: got.append(cache.get_or_make("k", slow)))
+    second.start()
+    second.join(0.2)
+    assert second.is_alive()  # waiting, not drawing beside the first
+    release.set()
+    first.join(10)
+    second.join(10)
+    assert got == [b"drawn", b"drawn"] and made == [1] and "k" in cache
+
+    def broken() -> bytes:
+        raise RuntimeError("no")
+
+    with pytest.raises(RuntimeError):
+        cache.get_or_make("bad", broken)
+    assert cache.get_or_make("bad", lambda: b"ok") == b"ok"
 
 
 def test_stage_trace_draws_each_stage_population_quantiles() -> None:

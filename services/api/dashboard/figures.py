@@ -49,6 +49,7 @@ __all__ = [
     "FigureError",
     "compare",
     "dataset_signals",
+    "page_figures",
     "study_figure",
     "warm_up",
 ]
@@ -61,24 +62,46 @@ class FigureError(ValueError):
 
 
 class FigureCache:
-    """A thread-safe LRU cache of rendered figures (bytes) and of MAP simulations."""
+    """A thread-safe LRU cache of rendered figures (bytes) and of MAP simulations. A value
+    being made is made once: a second caller of the same key waits for the first (a page's
+    request during :class:`~services.api.dashboard.warmer.FigureWarmer`'s drawing, or two
+    browsers), instead of drawing it again beside it."""
 
     def __init__(self, max_entries: int = 256) -> None:
         self.max_entries = max_entries
         self._items: OrderedDict[Hashable, Any] = OrderedDict()
+        self._making: dict[Hashable, threading.Event] = {}
         self._lock = threading.Lock()
 
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._items)
+
+    def __contains__(self, key: Hashable) -> bool:
+        with self._lock:
+            return key in self._items
+
     def get_or_make(self, key: Hashable, make: Callable[[], Any]) -> Any:
-        with self._lock:
-            if key in self._items:
-                self._items.move_to_end(key)
-                return self._items[key]
-        value = make()  # outside the lock: figures take a while; a race only draws twice
-        with self._lock:
-            self._items[key] = value
-            while len(self._items) > self.max_entries:
-                self._items.popitem(last=False)
-        return value
+        while True:
+            with self._lock:
+                if key in self._items:
+                    self._items.move_to_end(key)
+                    return self._items[key]
+                busy = self._making.get(key)
+                if busy is None:
+                    self._making[key] = threading.Event()
+                    break
+            busy.wait()  # another thread is drawing it; if that failed, try ourselves
+        try:
+            value = make()  # outside the lock: figures take a while
+            with self._lock:
+                self._items[key] = value
+                while len(self._items) > self.max_entries:
+                    self._items.popitem(last=False)
+            return value
+        finally:
+            with self._lock:
+                self._making.pop(key).set()
 
 
 @dataclass(frozen=True)
@@ -252,6 +275,22 @@ def _pairs(
 MATRIX_MAX = 6
 
 
+def page_figures(names: Sequence[str], stage: int) -> list[dict[str, Any]]:
+    """The figures a calibration's page shows for its last finished ``stage``, as keyword
+    arguments of :func:`study_figure` (the results fragment draws its links from the same
+    defaults; :class:`~services.api.dashboard.warmer.FigureWarmer` draws them ahead of it)."""
+    out: list[dict[str, Any]] = [
+        {"name": "schedule"},
+        {"name": "prior_posterior", "stage": stage},
+        {"name": "trace", "stage": stage},
+    ]
+    out += [{"name": "pairs", "stage": stage, "pair": tuple(p)} for p in default_pairs(names, 1)]
+    if len(names) >= 2:
+        out.append({"name": "matrix", "stage": stage, "params": tuple(default_matrix(names))})
+    out.append({"name": "fit", "stage": stage})
+    return out
+
+
 def default_matrix(names: Sequence[str]) -> list[str]:
     """The pair matrix's parameters unless chosen: those of the default pairs (the paper's),
     then the other physical parameters, at most four."""
@@ -407,8 +446,9 @@ def study_figure(
         elif stage not in done:
             raise FigureError(f"stage {stage} of study {study.id} is not finished")
         key: tuple = (study.id, stage, name, pair, params, fmt)
-    else:
-        key = (study.id, study.version, name, fmt)
+    else:  # what it shows: the stages' rows and the study's state (not every batch's version)
+        rows = tuple((s.stage_index, s.status, s.exponent, s.acceptance, s.ess) for s in stages)
+        key = (study.id, study.status, rows, name, fmt)
 
     def make() -> bytes:
         fig = build(

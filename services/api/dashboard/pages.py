@@ -40,6 +40,7 @@ from ..views import (
     parameter_names,
     parameter_summaries,
     parameter_units,
+    predictions_of,
     stage_out,
     study_brief,
     study_progress,
@@ -56,13 +57,14 @@ from .figures import (
     runs_as_chains,
     study_figure,
 )
+from .warmer import FigureWarmer
 
 __all__ = ["dashboard_router", "mount_static"]
 
 PAGE_SIZE = 50
 ACTIVE = ("queued", "running")
 #: seconds between polls of a live fragment (the list's own poll is slower: new studies)
-POLL_SECONDS = 2
+POLL_SECONDS = 1
 LIST_POLL_SECONDS = 10
 KIND_TITLES = {
     "tmcmc": "calibration",
@@ -136,14 +138,15 @@ def _fmt(fmt: str) -> str:
     return fmt
 
 
-def dashboard_router() -> APIRouter:
-    """Pages, fragments and figures of the dashboard (not in the OpenAPI document)."""
+def dashboard_router(warmer: FigureWarmer) -> APIRouter:
+    """Pages, fragments and figures of the dashboard (not in the OpenAPI document); the figures
+    go through ``warmer``'s cache, and a study's live fragments ask it to keep them drawn."""
     templates = _templates()
     router = APIRouter(include_in_schema=False)
     router.include_router(_page_routes(templates))
-    router.include_router(_study_fragment_routes(templates))
+    router.include_router(_study_fragment_routes(templates, warmer))
     router.include_router(_other_fragment_routes(templates))
-    router.include_router(_figure_routes(FigureCache()))
+    router.include_router(_figure_routes(warmer.cache))
     return router
 
 
@@ -213,7 +216,7 @@ def _page_routes(templates: Jinja2Templates) -> APIRouter:
     return pages
 
 
-def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
+def _study_fragment_routes(templates: Jinja2Templates, warmer: FigureWarmer) -> APIRouter:
     """The studies list and a study's live fragments (ETag-versioned)."""
     reads = _reads()
 
@@ -259,6 +262,7 @@ def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
 
     @reads.get("/ui/f/studies/{study_id}/live")
     def study_live_fragment(request: Request, study_id: StudyId, store: StoreDep) -> Response:
+        warmer.watch(study_id)
         tag = etag_of("ui-live", study_id, store.studies.version(study_id))
         if (unchanged := not_modified(request, tag)) is not None:
             return unchanged
@@ -281,9 +285,13 @@ def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
     @reads.get("/ui/f/studies/{study_id}/results")
     def study_results_fragment(request: Request, study_id: StudyId, store: StoreDep) -> Response:
         study = store.studies.get(study_id)
+        warmer.watch(study_id)
         # the results change when a stage finishes (the current stage moves on) or the study
-        # ends: both are on the study's row
-        tag = etag_of("ui-results", study_id, study.status, study.current_stage)
+        # ends, both on the study's row, and, once it has ended, with the predictions made
+        # from its posterior
+        predictions = predictions_of(store, study) if study.status == "completed" else []
+        made = [(p.id, p.status) for p in predictions]
+        tag = etag_of("ui-results", study_id, study.status, study.current_stage, made)
         if (unchanged := not_modified(request, tag)) is not None:
             return unchanged
         done_stages = [s for s in store.stages.list(study_id) if s.status == "done"]
@@ -299,6 +307,8 @@ def _study_fragment_routes(templates: Jinja2Templates) -> APIRouter:
             "matrix": [],
             "names": [],
             "result": study.result,
+            "predictions": [study_brief(p) for p in predictions],
+            "predicted": next((p.id for p in predictions if p.status == "completed"), None),
         }
         if study.kind in ("tmcmc", "update") and finished is not None:
             a = store.samples.arrays(study_id, finished)
