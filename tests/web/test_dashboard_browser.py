@@ -570,6 +570,33 @@ def test_cancel_works_with_the_token_and_is_refused_without(server, browser) -> 
         w.close()
 
 
+def test_prediction_page_links_its_posterior_and_tables_its_numbers(server, browser) -> None:
+    """Issue 45's thin prediction page: it names the study whose posterior it uses and gives
+    the numbers behind its figure, one row per condition and response, as the API has them."""
+    base, p, a = server["base"], server["prediction"], server["a"]
+    doc = httpx.get(f"{base}/predictions/{p}", headers=AUTH).json()["result"]
+    w = Watched(browser)
+    try:
+        w.goto(f"{base}/ui/studies/{p}")
+        w.figures_loaded()
+        assert w.page.locator("#prediction-source").get_attribute("href") == f"/ui/studies/{a}"
+        rows = w.page.locator("#prediction-table tbody tr")
+        expected = [(c, r) for c in doc["predictions"] for r in c["responses"]]
+        assert rows.count() == len(expected) > 0
+        for k, (c, r) in enumerate(expected):
+            cells = rows.nth(k).locator("th, td").all_inner_texts()
+            assert cells[0] == c["name"] and cells[4].startswith(r), cells
+            scale = 1000.0 if r == "z" else 1.0
+            median = c["responses"][r]["simulated"]["median"] * scale
+            assert float(cells[5]) == pytest.approx(median, rel=1e-3, abs=1e-9), cells
+            measured = c["responses"][r]["measured"]
+            if measured is not None:
+                assert float(cells[8]) == pytest.approx(measured * scale, rel=1e-3), cells
+        w.clean()
+    finally:
+        w.close()
+
+
 def test_a_tapped_figure_opens_enlarged_and_closes(server, browser) -> None:
     """At a phone's width a figure shrinks to the screen; tapped, it opens full-screen at least
     as wide as its own drawing (wider than the phone: it scrolls in its dialog), and a tap

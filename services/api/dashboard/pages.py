@@ -278,6 +278,7 @@ def _study_fragment_routes(templates: Jinja2Templates, warmer: FigureWarmer) -> 
             stages=stages,
             kind_title=KIND_TITLES.get(study.kind, study.kind),
             parent=(study.payload or {}).get("update_of"),
+            source=(study.payload or {}).get("study_id"),  # a prediction's posterior
             result=study.result,
             runs=[] if study.run_group is None else store.studies.run_group(study.run_group),
         )
