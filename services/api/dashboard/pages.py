@@ -66,12 +66,7 @@ ACTIVE = ("queued", "running")
 #: seconds between polls of a live fragment (the list's own poll is slower: new studies)
 POLL_SECONDS = 1
 LIST_POLL_SECONDS = 10
-KIND_TITLES = {
-    "tmcmc": "calibration",
-    "morris": "sensitivity",
-    "update": "posterior update",
-    "prediction": "prediction",
-}
+KIND_TITLES = {name: kind.title for name, kind in KINDS.items()}
 
 
 def _templates() -> Jinja2Templates:

@@ -33,7 +33,7 @@ def kind_router(kind: StudyKind) -> APIRouter:
     out_model = KindStudyOut[result_model]
     page_model = KindStudyPage[result_model]
     request_model = http.request
-    plural = f"{http.title}s"
+    plural = f"{kind.title}s"
     router = APIRouter(
         prefix=http.path, tags=[http.path.strip("/")], dependencies=[Depends(require_read)]
     )
@@ -50,7 +50,7 @@ def kind_router(kind: StudyKind) -> APIRouter:
         study = store.studies.get(study_id)
         if study.kind != kind.name:
             raise HTTPException(
-                404, f"{http.title} {study_id} not found (study {study_id} is a {study.kind} study)"
+                404, f"{kind.title} {study_id} not found (study {study_id} is a {study.kind} study)"
             )
         return study
 
@@ -58,7 +58,7 @@ def kind_router(kind: StudyKind) -> APIRouter:
         "",
         response_model=out_model,
         status_code=201,
-        summary=f"Submit a {http.title}",
+        summary=f"Submit a {kind.title}",
         description=http.description,
         dependencies=[Depends(require_write)],
         responses=errors(401, 404, 413, 422),
@@ -96,7 +96,7 @@ def kind_router(kind: StudyKind) -> APIRouter:
     @router.get(
         "/{study_id}",
         response_model=out_model,
-        summary=f"A {http.title}: progress and result",
+        summary=f"A {kind.title}: progress and result",
         responses=errors(401, 404),
     )
     def read(study_id: StudyId, request: Request, response: Response, store: StoreDep) -> Any:

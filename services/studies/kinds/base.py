@@ -70,14 +70,13 @@ class KindHttp:
     ``path``: the collection ("/predictions"); ``request``: the body of ``POST path`` (a
     pydantic model; unknown fields should be refused); ``spec(store, settings, body)``: the
     validated study (StudyRequestError naming the field, nothing stored); ``result``: the model
-    of the study's stored ``result`` (None: any JSON object); ``title``: what one study of the
-    kind is called ("prediction"); ``description``: the POST's documentation."""
+    of the study's stored ``result`` (None: any JSON object); ``description``: the POST's
+    documentation (the kind's ``title`` names one study of it)."""
 
     path: str
     request: type[BaseModel]
     spec: Callable[[Store, Settings, Any], StudySpec]
     result: type[BaseModel] | None
-    title: str
     description: str
 
 
@@ -115,10 +114,12 @@ def case_terms(case: Mapping[str, Any]) -> StudyTerms:
 
 
 class StudyKind(Protocol):
-    """A kind of study; ``name`` is what ``studies.kind`` holds; ``http`` its API collection,
-    if it has its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``)."""
+    """A kind of study; ``name`` is what ``studies.kind`` holds; ``title`` what one study of
+    the kind is called on pages ("posterior update"); ``http`` its API collection, if it has
+    its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``)."""
 
     name: str
+    title: str
     http: KindHttp | None
 
     def build(self, store: Store, study: StudyRecord) -> StudyRun:

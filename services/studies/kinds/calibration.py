@@ -320,6 +320,7 @@ class CalibrationKind:
     """The plug-in of kind "tmcmc" (see :mod:`.base`)."""
 
     name = "tmcmc"
+    title = "calibration"
     http = None  # POST /studies
 
     def build(self, store: Store, study: StudyRecord) -> CalibrationRun:

@@ -292,12 +292,12 @@ class PredictionKind:
     """The plug-in of kind "prediction" (see :mod:`.base`)."""
 
     name = "prediction"
+    title = "prediction"
     http = KindHttp(
         path="/predictions",
         request=PredictionRequest,
         spec=prediction_spec,
         result=PredictionResult,
-        title="prediction",
         description="Simulate ``draws`` samples of a completed calibration's posterior under "
         "the test conditions of stored datasets (``dataset_ids``) or of ``conditions``; the "
         "result gives per target and response (F N, T N m, z m) the median and 95 % bands "

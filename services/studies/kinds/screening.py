@@ -242,6 +242,7 @@ class ScreeningKind:
     """The plug-in of kind "morris" (see :mod:`.base`)."""
 
     name = "morris"
+    title = "sensitivity"
     http = None  # POST /sensitivity (routes written before kinds had their own)
 
     def build(self, store: Store, study: StudyRecord) -> MorrisRun:

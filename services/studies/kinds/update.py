@@ -159,6 +159,7 @@ class UpdateKind(CalibrationKind):
     """The plug-in of kind "update" (see :mod:`.base`); batches and reducer as a calibration."""
 
     name = "update"
+    title = "posterior update"
     http = None  # POST /studies with update_of
 
     def build(self, store: Store, study: StudyRecord) -> UpdateRun:
