@@ -615,6 +615,23 @@ def test_a_tapped_figure_opens_enlarged_and_closes(server, browser) -> None:
         assert zoom.evaluate("i => i.getBoundingClientRect().width") >= natural - 1
         assert w.page.evaluate("document.documentElement.scrollWidth") <= 400
         w.shoot("figure_enlarged_400x800")
+        # the wheel zooms about the pointer, a drag pans and leaves it open, a tap closes it
+        w.page.mouse.move(200, 300)
+        w.page.mouse.wheel(0, -400)
+        w.page.wait_for_function(
+            "() => Number(document.querySelector('#figure-zoom img').dataset.scale) > 1.5"
+        )
+        before = zoom.evaluate("i => i.style.transform")
+        w.page.mouse.down()
+        w.page.mouse.move(120, 250, steps=5)
+        w.page.mouse.up()
+        assert zoom.evaluate("i => i.style.transform") != before
+        assert w.page.locator("dialog#figure-zoom[open]").count() == 1  # a drag does not close
+        w.shoot("figure_zoomed_400x800")
+        w.page.mouse.wheel(0, 4000)  # back out: never below the enlarged size
+        w.page.wait_for_function(
+            "() => document.querySelector('#figure-zoom img').dataset.scale === '1.000'"
+        )
         zoom.click()
         w.page.wait_for_selector("dialog#figure-zoom", state="hidden")
         w.clean()

@@ -98,17 +98,63 @@
   });
 
   /* tap a figure to enlarge it: a full-screen dialog at the figure's own size or the
-     screen's, whichever is wider (it scrolls in place); a tap or Escape closes it */
+     screen's, whichever is wider (it scrolls in place); there the wheel (or a pinch: the
+     browser's ctrl+wheel) zooms about the pointer from 1x to 8x and a drag pans; a tap that
+     did not drag, or Escape, closes it */
+  const ZOOM_MAX = 8;
+  function zoomView(dlg) {
+    const view = { s: 1, tx: 0, ty: 0, drag: null, dragged: false };
+    const pic = () => dlg.querySelector("img");
+    const apply = () => {
+      const p = pic();
+      if (!p) return;
+      p.style.transform = `translate(${view.tx}px, ${view.ty}px) scale(${view.s})`;
+      p.dataset.scale = view.s.toFixed(3);
+    };
+    view.reset = () => { view.s = 1; view.tx = 0; view.ty = 0; view.dragged = false; apply(); };
+    dlg.addEventListener("wheel", (ev) => {
+      const p = pic();
+      if (!p) return;
+      ev.preventDefault();
+      const box = p.getBoundingClientRect();  // the drawn box: its origin is the translate's
+      const lx = ev.clientX - (box.left - view.tx), ly = ev.clientY - (box.top - view.ty);
+      const s = Math.min(Math.max(view.s * Math.exp(-ev.deltaY * 0.002), 1), ZOOM_MAX);
+      view.tx = lx - (lx - view.tx) * (s / view.s);  // the point under the pointer stays
+      view.ty = ly - (ly - view.ty) * (s / view.s);
+      view.s = s;
+      if (s === 1) { view.tx = 0; view.ty = 0; }
+      apply();
+    }, { passive: false });
+    dlg.addEventListener("pointerdown", (ev) => {
+      view.drag = { x: ev.clientX, y: ev.clientY, tx: view.tx, ty: view.ty };
+      view.dragged = false;
+    });
+    dlg.addEventListener("pointermove", (ev) => {
+      if (!view.drag || view.s === 1) return;
+      const dx = ev.clientX - view.drag.x, dy = ev.clientY - view.drag.y;
+      if (Math.abs(dx) + Math.abs(dy) > 4) view.dragged = true;
+      view.tx = view.drag.tx + dx;
+      view.ty = view.drag.ty + dy;
+      apply();
+    });
+    dlg.addEventListener("pointerup", () => { view.drag = null; });
+    dlg.addEventListener("click", () => { if (!view.dragged) dlg.close(); view.dragged = false; });
+    return view;
+  }
+  let zoom = null;
   document.addEventListener("click", (ev) => {
     const img = ev.target.closest("figure.fig img");
     if (!img || !img.src) return;
     let dlg = document.getElementById("figure-zoom");
     if (!dlg) {
       dlg = Object.assign(document.createElement("dialog"), { id: "figure-zoom", className: "figure-zoom" });
-      dlg.addEventListener("click", () => dlg.close());
       document.body.append(dlg);
+      zoom = zoomView(dlg);
     }
-    dlg.replaceChildren(Object.assign(document.createElement("img"), { src: img.src, alt: img.alt }));
+    const pic = Object.assign(document.createElement("img"), { src: img.src, alt: img.alt });
+    pic.draggable = false;
+    dlg.replaceChildren(pic);
+    zoom.reset();
     dlg.showModal();
   });
 
