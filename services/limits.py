@@ -22,6 +22,13 @@ INT32_MAX = 2**31 - 1
 _JSON_TOKENS = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]')
 
 
+def seed_error(seed: int) -> str | None:
+    """Why ``seed`` cannot seed a study (it must fit the BIGINT column), or None."""
+    if not 0 <= int(seed) <= INT64_MAX:
+        return f"must be 0 <= seed <= 2**63 - 1 (got {seed})"
+    return None
+
+
 def run_seeds(seed: int, runs: int) -> list[int]:
     """The seeds of ``runs`` repeated runs of a study seeded ``seed``: seed, seed + 1, ...;
     ValueError if the last would not fit a BIGINT column (the CLI checks the same, so a run

@@ -12,7 +12,7 @@ from dataclasses import replace
 from typing import Any
 
 from scm_core.calibration import CaseDefinition, CaseError, preset_case
-from services.limits import INT64_MAX, run_seeds
+from services.limits import run_seeds, seed_error
 from services.store import StudySpec
 
 from .errors import StudyRequestError
@@ -51,14 +51,14 @@ def with_overrides(
     case: CaseDefinition, top: Mapping[str, Any], sampler: Mapping[str, Any]
 ) -> CaseDefinition:
     """``case`` with top-level (name, seed, likelihood) and ``[sampler]`` overrides applied; the
-    seed must fit the database (< 2**63)."""
+    seed must fit the database (:func:`services.limits.seed_error`)."""
     if sampler or top:
         try:
             case = case.with_changes(**top, **({"sampler": dict(sampler)} if sampler else {}))
         except CaseError as exc:
             raise StudyRequestError(str(exc).removeprefix("sampler.")) from None
-    if case.seed > INT64_MAX:
-        raise StudyRequestError(f"seed: must be < 2**63 (got {case.seed})")
+    if why := seed_error(case.seed):
+        raise StudyRequestError(f"seed: {why}")
     return case
 
 

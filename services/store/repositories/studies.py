@@ -15,7 +15,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from services.limits import INT64_MAX
+from services.limits import seed_error
 
 from ..errors import NotFoundError
 from ..models import STUDY_ACTIVE, STUDY_KIND_PATTERN, STUDY_STATUSES, Dataset, Study, StudyDataset
@@ -137,8 +137,8 @@ class StudyRepository:
 
     def create(self, spec: StudySpec) -> StudyRecord:
         """Insert a queued study with its datasets (in order) and a "study_created" event."""
-        if not 0 <= int(spec.seed) <= INT64_MAX:
-            raise ValueError(f"seed must satisfy 0 <= seed < 2**63, got {spec.seed}")
+        if why := seed_error(spec.seed):
+            raise ValueError(f"seed: {why}")
         _check_kind(spec.kind)
         if int(spec.n_samples) < 1:
             raise ValueError(f"n_samples must be >= 1, got {spec.n_samples}")

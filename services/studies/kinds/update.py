@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from scm_core.calibration import CaseDefinition, StudyModel, UpdateLikelihood
 from scm_core.inference.tmcmc_stage import StageState
 from services.config import Settings
-from services.limits import INT64_MAX
+from services.limits import INT64_MAX, seed_error
 from services.store import NotFoundError, Store, StudyRecord, StudySpec
 
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
@@ -95,8 +95,8 @@ def update_spec(
     case = CaseDefinition.from_dict(parent.case)
     if seed is None:
         seed = (parent.seed + 1) % (INT64_MAX + 1)
-    if not 0 <= int(seed) <= INT64_MAX:
-        raise StudyRequestError(f"seed: must be 0 <= seed < 2**63 (got {seed})")
+    if why := seed_error(seed):
+        raise StudyRequestError(f"seed: {why}")
     size = batch_size_of(batch_size, parent.batch_size, DEFAULT_BATCH_SIZE)
     check_limits(settings, case, old + ids, size)
     precheck(store, settings, case, ids)
