@@ -40,7 +40,7 @@ from services.store import NotFoundError, SchemaVersionError, Store
 from services.studies import StudyRequestError
 from services.studies.kinds.registry import KINDS
 
-from .dashboard import FigureCache, FigureWarmer, dashboard_router, mount_static
+from .dashboard import FigureCache, FigureProcess, FigureWarmer, dashboard_router, mount_static
 from .deps import route_needs_token
 from .inference_export import NetcdfCache
 from .middleware import (
@@ -356,12 +356,15 @@ def create_app(
             app.state.runtime = runtime
             app.state.store = st
             if app.state.figure_warmer is not None:
-                app.state.figure_warmer.start(st)
+                drawer = FigureProcess(st.engine.url.render_as_string(hide_password=False))
+                if app.state.warm_figures:
+                    drawer.warm()
+                app.state.figure_warmer.start(st, drawer)
             log.info("scm-calib API (%s mode) on %s", mode, st.engine.url)
             yield
         finally:
             if app.state.figure_warmer is not None:
-                app.state.figure_warmer.stop()
+                app.state.figure_warmer.close()
             app.state.store = None
             if runtime is not None:
                 runtime.stop()
@@ -381,6 +384,7 @@ def create_app(
     app.state.runtime = None
     app.state.netcdf_cache = NetcdfCache()
     app.state.figure_warmer = FigureWarmer(FigureCache()) if settings.dashboard else None
+    app.state.warm_figures = False  # scm-calib serve: start the figure process at once
 
     def limit_for(path: str) -> tuple[int, str]:
         if path.rstrip("/") == "/datasets":

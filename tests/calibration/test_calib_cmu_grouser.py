@@ -46,13 +46,19 @@ def test_the_means_are_the_readmes() -> None:
     assert z[0.9] == pytest.approx(42, abs=0.5)
 
 
-def test_the_grouser_case_reads_the_four_matching_slips() -> None:
+def test_the_single_wheel_cases_read_the_same_five_lab_slips() -> None:
+    """cmu_smooth.toml and cmu_grouser.toml calibrate on the same five lab slips (the grousered
+    wheel's: locked to 0.9), with the same model, priors and sampler; the grousered case adds
+    the one parameter only a grousered wheel identifies, its pockets' fill."""
     case = load_case(EXAMPLES / "cmu_grouser.toml")
     smooth = load_case(EXAMPLES / "cmu_smooth.toml")
-    slips = [round(load_dataset(p).conditions.slip_symmetric, 1) for p in case.data_paths()]
-    assert slips == [-0.5, 0.0, 0.5, 0.9]
-    # the same model, priors and sampler as the smooth wheel's case: only the data differ
-    assert case.parameter_names == smooth.parameter_names
+    for c in (case, smooth):
+        slips = [round(load_dataset(p).conditions.slip_symmetric, 1) for p in c.data_paths()]
+        assert slips == [-1.0, -0.5, 0.0, 0.5, 0.9]
+    assert set(case.parameter_names) - set(smooth.parameter_names) == {"pocket_fill"}
+    assert set(smooth.parameter_names) <= set(case.parameter_names)
+    for name in smooth.parameter_names:
+        assert case.parameters[name] == smooth.parameters[name], name
     assert case.simulator == smooth.simulator and case.sampler == smooth.sampler
 
 

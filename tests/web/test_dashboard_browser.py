@@ -16,9 +16,10 @@ import io
 import json
 import os
 import shutil
+import threading
+import time
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
-from datetime import UTC, datetime
 from pathlib import Path
 
 import httpx
@@ -476,46 +477,66 @@ setInterval(() => {
 """
 
 
-def _epoch_ms(stamp: str) -> float:
-    t = datetime.fromisoformat(stamp)
-    return (t if t.tzinfo else t.replace(tzinfo=UTC)).timestamp() * 1000.0
+def _watch_api(base: str, sid: int, stop: threading.Event, seen: dict) -> None:
+    """Record (ms since the epoch) when the API first gives each stage as the study's current
+    one, and first lists it done, polling every 0.1 s (the API's progress as a client sees
+    it)."""
+    with httpx.Client(base_url=base, headers=AUTH, timeout=10) as client:
+        while not stop.is_set():
+            now = time.time() * 1000.0
+            study = client.get(f"/studies/{sid}")
+            if study.status_code == 200 and study.json()["current_stage"] is not None:
+                seen["started"].setdefault(study.json()["current_stage"], now)
+            r = client.get(f"/studies/{sid}/stages")
+            if r.status_code == 200:
+                for st in r.json():
+                    if st["status"] == "done":
+                        seen["ended"].setdefault(st["stage"], now)
+            stop.wait(0.1)
 
 
 def test_a_running_studys_page_keeps_up_with_its_stages_and_figures(server, browser) -> None:
     """Issue 45: the page follows a running study stage by stage without a reload (it polls
-    every second; the server draws a stage's figures as it ends, FigureWarmer) and ends on the
-    final stage's figures. The lags, measured against the stages' own timestamps (one machine,
-    one clock), are printed; the bounds asserted are loose because the test suite's two workers
-    and the study's two share two cores with the browser (quiet-machine numbers: issue 45's
-    note). Timing is not asserted tighter in a test (benchmarks measure speed)."""
+    every second; the server draws a stage's figures as it ends, FigureWarmer, in a process of
+    its own) and ends on the final stage's figures. The lags behind the API (polled every 0.1 s
+    beside the page) are printed; the progress must be within 2 s of the API's (it polls every
+    second and fetches figures two at a time, so they never hold its connections); how soon the
+    figures come is CPU time the suite's workers share, printed, not asserted."""
     base, (d1, d2) = server["base"], server["datasets"]
     case = tiny_case(seed=13, params=("phi", "n", "J"), n_samples=60)
     case["sampler"]["max_stages"] = 12
     case["nominal"].update(sigma_F=3.0, sigma_T=0.3, sigma_z=0.0005)  # sharper: more stages
-    sid = _submit(base, {"case": case, "dataset_ids": [d1, d2], "name": "kept up", "batch_size": 6})
+    api: dict = {"started": {}, "ended": {}}
+    stop = threading.Event()
     w = Watched(browser)
     try:
         w.page.add_init_script(_KEEPS_UP)
+        body = {"case": case, "dataset_ids": [d1, d2], "name": "kept up", "batch_size": 6}
+        sid = _submit(base, body)
+        watcher = threading.Thread(target=_watch_api, args=(base, sid, stop, api), daemon=True)
+        watcher.start()
         w.page.goto(f"{base}/ui/studies/{sid}", wait_until="load")
         w.page.wait_for_selector("#study-status.status-completed", timeout=int(TIMEOUT * 1000))
         stages = httpx.get(f"{base}/studies/{sid}/stages", headers=AUTH).json()
         final = stages[-1]["stage"]
         w.page.wait_for_function(f"() => '{final}' in window.__seen.figs", timeout=60_000)
+        stop.set()
+        watcher.join(10)
         seen = w.page.evaluate("() => window.__seen")
         shown = {
-            st["stage"]: seen["stage"][str(st["stage"])] - _epoch_ms(st["created_at"])
-            for st in stages
-            if st["stage"] > 0 and str(st["stage"]) in seen["stage"]
+            k: seen["stage"][str(k)] - t
+            for k, t in api["started"].items()
+            if k > 0 and str(k) in seen["stage"]
         }
         drawn = {
-            st["stage"]: seen["figs"][str(st["stage"])] - _epoch_ms(st["finished_at"])
-            for st in stages
-            if st["finished_at"] and str(st["stage"]) in seen["figs"]
+            k: seen["figs"][str(k)] - t for k, t in api["ended"].items() if str(k) in seen["figs"]
         }
-        print(f"\nstage shown after the API [ms]: {shown}\nfigures after the stage's end: {drawn}")
+        print(f"\nstage shown after the API [ms]: {shown}\nfigures after the API's end: {drawn}")
         assert len(stages) >= 4 and len(shown) >= 3, (stages, shown)  # followed while running
-        assert max(shown.values()) <= 5000.0, shown  # the issue saw a 14.4 s poll gap
-        assert drawn[final] <= 20_000.0, drawn  # and 6.8-14.9 s per figure, on request
+        assert max(shown.values()) <= 2000.0, shown  # issue 45: within 2 s of the API
+        # the final stage's figures appeared (waited for above, at most 60 s); how soon is
+        # printed, not asserted: it is CPU time the suite's parallel workers share
+        assert final in drawn, drawn
         heading = w.page.locator("#results h2").first.inner_text()
         assert f"stage {final})" in heading, heading  # the final stage's, not a running one's
         schedule = w.page.locator("img[data-figure=schedule]").get_attribute("data-src")
@@ -523,6 +544,7 @@ def test_a_running_studys_page_keeps_up_with_its_stages_and_figures(server, brow
         assert schedule.endswith(f"?v={version}"), schedule  # the completed study's own
         w.clean()
     finally:
+        stop.set()
         w.close()
 
 

@@ -427,10 +427,12 @@ def study_figure(
     stage: int | None = None,
     pair: tuple[str, str] | None = None,
     params: tuple[str, ...] | None = None,
+    drawer: Any = None,
 ) -> bytes:
     """Figure ``name`` of ``study`` as SVG or PNG bytes (cached). ``stage``: a finished stage
-    (default the last); ``pair``: the parameters of the bivariate density. FigureError if the
-    figure does not apply."""
+    (default the last); ``pair``: the parameters of the bivariate density; ``drawer``: a
+    :class:`~services.api.dashboard.drawing.FigureProcess` that draws what ``cache`` lacks
+    (None: drawn here). FigureError if the figure does not apply."""
     if name not in STUDY_FIGURES:
         raise FigureError(f"figure: unknown figure {name!r}; one of {sorted(STUDY_FIGURES)}")
     build, needs_stage, kinds = STUDY_FIGURES[name]
@@ -451,6 +453,9 @@ def study_figure(
         key = (study.id, study.status, rows, name, fmt)
 
     def make() -> bytes:
+        if drawer is not None:
+            options = {"stage": stage, "pair": pair, "params": params}
+            return drawer.study_figure(study.id, name, fmt, options)
         fig = build(
             store=store,
             study=study,

@@ -47,7 +47,6 @@ from ..views import (
 )
 from .figures import (
     MATRIX_MAX,
-    FigureCache,
     FigureError,
     compare,
     dataset_signals,
@@ -141,7 +140,7 @@ def dashboard_router(warmer: FigureWarmer) -> APIRouter:
     router.include_router(_page_routes(templates))
     router.include_router(_study_fragment_routes(templates, warmer))
     router.include_router(_other_fragment_routes(templates))
-    router.include_router(_figure_routes(warmer.cache))
+    router.include_router(_figure_routes(warmer))
     return router
 
 
@@ -404,9 +403,11 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
     return reads
 
 
-def _figure_routes(cache: FigureCache) -> APIRouter:
-    """Figures (SVG or PNG) of studies, datasets and comparisons."""
+def _figure_routes(warmer: FigureWarmer) -> APIRouter:
+    """Figures (SVG or PNG) of studies, datasets and comparisons (in ``warmer``'s cache; study
+    figures drawn by its drawing process)."""
     reads = _reads()
+    cache = warmer.cache
 
     @reads.get("/ui/figures/studies/{study_id}/{name}.{fmt}")
     def study_figure_route(
@@ -433,7 +434,15 @@ def _figure_routes(cache: FigureCache) -> APIRouter:
         pair = (a, b) if a and b else None
         try:
             data = study_figure(
-                store, study, name, fmt, cache, stage=stage, pair=pair, params=_names(p)
+                store,
+                study,
+                name,
+                fmt,
+                cache,
+                stage=stage,
+                pair=pair,
+                params=_names(p),
+                drawer=warmer.drawer,
             )
         except FigureError as exc:
             raise HTTPException(404, str(exc)) from None

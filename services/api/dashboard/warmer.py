@@ -23,6 +23,7 @@ from services.store import Store
 from services.store.errors import NotFoundError
 from services.store.models import STUDY_ACTIVE
 
+from .drawing import FigureProcess
 from .figures import FigureCache, FigureError, page_figures, study_figure
 
 __all__ = ["FigureWarmer"]
@@ -37,6 +38,7 @@ class FigureWarmer:
         self, cache: FigureCache, *, interval: float = 0.2, forget_after: float = 600.0
     ) -> None:
         self.cache = cache
+        self.drawer: FigureProcess | None = None  # set by start: figures drawn out of process
         self.interval = interval
         self.forget_after = forget_after
         self._seen: dict[int, float] = {}  # study id -> when a page last asked (monotonic s)
@@ -54,7 +56,9 @@ class FigureWarmer:
         with self._lock:
             return sorted(self._seen)
 
-    def start(self, store: Store) -> FigureWarmer:
+    def start(self, store: Store, drawer: FigureProcess | None = None) -> FigureWarmer:
+        """Watch on a thread of this process; figures drawn by ``drawer`` (None: here)."""
+        self.drawer = drawer
         self._thread = threading.Thread(
             target=self._run, args=(store,), name="dashboard-figure-warmer", daemon=True
         )
@@ -67,6 +71,13 @@ class FigureWarmer:
             self._thread.join(timeout)
             self._thread = None
         self._stop.clear()  # passes by hand (tests) still draw
+
+    def close(self) -> None:
+        """Stop watching and stop the drawing process."""
+        self.stop()
+        if self.drawer is not None:
+            self.drawer.close()
+            self.drawer = None
 
     def _run(self, store: Store) -> None:
         while not self._stop.wait(self.interval):
@@ -106,16 +117,23 @@ class FigureWarmer:
                 names = parameter_names(study)
             except (KeyError, TypeError, ValueError):
                 names = []
-            for spec in page_figures(names, done[-1]):
-                if self._stop.is_set():
-                    return False
+            for k, spec in enumerate(page_figures(names, done[-1])):
+                if self._stop.is_set() or (k and self._moved_on(store, study_id, state)):
+                    return False  # a newer stage's figures come next: these would be stale
                 # FigureError: not drawn for this kind or stage, so the page does not show it
                 with contextlib.suppress(FigureError):
-                    study_figure(store, study, fmt="svg", cache=self.cache, **spec)
+                    study_figure(
+                        store, study, fmt="svg", cache=self.cache, drawer=self.drawer, **spec
+                    )
         self._drawn[study_id] = state
         if study.status not in STUDY_ACTIVE:
             self._forget(study_id)  # ended: its figures are final
         return True
+
+    @staticmethod
+    def _moved_on(store: Store, study_id: int, state: tuple) -> bool:
+        study = store.studies.get(study_id)
+        return (study.status, study.current_stage) != state
 
     def _forget(self, study_id: int) -> None:
         with self._lock:

@@ -32,13 +32,27 @@
     }
   }
 
-  /* figures: fetched with the token, shown from a blob URL */
+  /* figures: fetched with the token, shown from a blob URL; at most FIGURE_FETCHES at a time,
+     so that a stage's figures being drawn never hold all of the browser's six connections to
+     the server and the progress polls wait behind them */
+  const FIGURE_FETCHES = 2;
+  let fetching = 0;
+  const waiting = [];
+  async function figureSlot() {
+    if (fetching < FIGURE_FETCHES) { fetching += 1; return; }
+    await new Promise((resolve) => waiting.push(resolve));  // the slot is handed over
+  }
+  function releaseSlot() {
+    const next = waiting.shift();
+    if (next) next(); else fetching -= 1;
+  }
   const shown = new Map();
   async function loadFigure(img) {
     const src = img.dataset.src;
     if (!src || img.dataset.loaded === src) return;
     img.dataset.loaded = src;
     img.classList.add("loading");
+    await figureSlot();
     try {
       const resp = await fetch(src, { headers: authHeaders() });
       if (!resp.ok) {
@@ -55,6 +69,7 @@
       shown.set(img, url);
       if (old) URL.revokeObjectURL(old);
     } finally {
+      releaseSlot();
       img.classList.remove("loading");
     }
   }
