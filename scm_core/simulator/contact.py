@@ -37,6 +37,7 @@ from .layout import (
     P_TAPER,
     P_V,
 )
+from .state import Columns, Ground, Patches
 
 # Nodes whose levels (reference, unloaded surface, elastic range, shear path) differ by less than
 # this [m] share one stress evaluation; each node's own state is still updated exactly. 0.1 um is a
@@ -79,25 +80,29 @@ def inclination_factor(nx: float, nz: float, tx: float, tz: float, mu: float, m:
     return 1.0 - (1.0 - i) * nz * nz
 
 
+@njit(cache=True, inline="always")
+def surface_velocity(
+    v: float, vz: float, omega: float, rx: float, rz: float, nx: float, nz: float
+) -> tuple[float, float, float]:
+    """Velocity of the wheel's surface point r = (rx, rz) from the axle over the ground [m/s]:
+    the axle's (v, vz) plus omega x r (the wheel turning at omega [rad/s], clockwise for
+    forward travel), and its component along the surface normal (nx, nz). Returns (v_x, v_z,
+    v_n); the slip velocity along the surface is (v_x, v_z) - v_n (nx, nz)."""
+    vpx = v + omega * rz
+    vpz = vz - omega * rx
+    return vpx, vpz, vpx * nx + vpz * nz
+
+
 @njit(cache=True)
 def build_patches(
-    h0: np.ndarray,
-    sp: np.ndarray,
-    sy: np.ndarray,
-    ke: np.ndarray,
-    js: np.ndarray,
+    ground: Ground,
+    cols: Columns,
+    patches: Patches,
     c0: int,
     ncw: int,
     jw0: int,
     nyw: int,
-    e: np.ndarray,
-    eb: np.ndarray,
     z_low: float,
-    pc: np.ndarray,
-    pj0: np.ndarray,
-    pj1: np.ndarray,
-    pst: np.ndarray,
-    gtop: np.ndarray,
 ) -> tuple[int, float]:
     """Group the nodes under the wheel into patches of identical state.
 
@@ -107,6 +112,9 @@ def build_patches(
     gtop[k]: highest ground level h0 - sp of column k under the wheel's width [m] (-inf beyond the
     tip circle ``eb``), from which evaluate_contact finds the tip circle's footprint.
     """
+    h0, sp, sy, ke, js = ground.h0, ground.sp, ground.sy, ground.ke, ground.js
+    e, eb, gtop = cols.e, cols.eb, cols.gtop
+    pc, pj0, pj1, pst = patches.pc, patches.pj0, patches.pj1, patches.pst
     npatch = 0
     ztop = -np.inf
     gtop[ncw:] = -np.inf
@@ -191,66 +199,24 @@ def tip_footprint_length(
 
 
 @njit(cache=True)
-def evaluate_contact(
+def _footprint(
     zw: float,
-    vz: float,
     prm: np.ndarray,
     npatch: int,
-    pc: np.ndarray,
-    pj0: np.ndarray,
-    pj1: np.ndarray,
-    pst: np.ndarray,
-    xi: np.ndarray,
-    e: np.ndarray,
-    eb: np.ndarray,
-    gtop: np.ndarray,
-    fx: np.ndarray,
-    fz: np.ndarray,
+    patches: Patches,
+    cols: Columns,
     dx: float,
     dy: float,
     nyw: int,
-    gx: np.ndarray,
-    gyc: np.ndarray,
-    pflag: np.ndarray,
-    psig: np.ndarray,
     res: np.ndarray,
     freeze: bool,
-) -> None:
-    """Stresses and resultant soil forces for the axle at height zw moving down at -vz.
-
-    Fills ``res`` (see R_* indices), ``pflag`` (0 free, 1 elastic contact, 2 yielding) and ``psig``
-    (untapered stress of eq. (7) per patch, Pa). The plate width of Bekker's law is b_eff = 2A/L of
-    the *tip circle's footprint*, a rectangle of the wheel's width w and the length l over which
-    ``eb``, the circle through the grouser tips (the rim for a smooth wheel), is below the ground
-    ``gtop``: b_eff = l w / (l + w). The soil between grousers is trapped and moves with the wheel
-    (Wong & Reece's effective radius r + h_g), so a grousered wheel presses on the soil as one
-    plate of that footprint, not as a few grouser tips one grid cell wide; l is interpolated
-    between columns (tip_footprint_length), so k* = k_c / b_eff + k_phi is continuous in the axle
-    height and the parameters instead of stepping with node counts. The border taper
-    gamma_i (separable half sines over the bounding box of the loaded nodes, normalised to mean one
-    over them) is evaluated on the loaded footprint.
-    eq. (9)-(10) with the node's cell area dA = dx dy.
-
-    With ``freeze`` the footprint quantities (k*, taper extent and normalisation) of the previous
-    call are kept: G(z) is then smooth apart from contact kinks, which lets the vertical solve
-    converge in few steps; the solve ends with an unfrozen evaluation at the solution.
-    """
-    for i in (R_FX, R_FZ, R_T, R_DFZ):
-        res[i] = 0.0
-    n_exp = prm[P_N]
-    tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
-    tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8))
-    coh = prm[P_C]
-    dsoil = prm[P_DSOIL]
-    J = prm[P_J]
-    dt = prm[P_DT]
-    v = prm[P_V]
-    # the surface that shears the soil turns at omega and lies kin times farther out than the
-    # contact circle (rim bearing: the grouser tips), so it moves as omega * kin at the circle
-    kin = prm[P_SHEARSCALE]
-    omega = prm[P_OMEGA] * kin
-    disp_form = prm[P_SHEARDISP] > 0.5
-    incl_exp = prm[P_INCL]
+) -> tuple[int, float, float, int, int]:
+    """evaluate_contact's first pass: which patches touch (``pflag`` 1, ``psig`` 0 where free),
+    the loaded node count, k* of the tip circle's footprint, the border taper's normalisation
+    (``gx``, ``gyc`` filled) and the loaded columns' range; frozen from ``res`` with
+    ``freeze``. Returns (loaded nodes, k*, taper normalisation, first and last loaded column)."""
+    pc, pj0, pj1, pst, pflag, psig = patches
+    e, gx, gyc = cols.e, cols.gx, cols.gyc
     # ---- pass 1: which patches touch, footprint extent
     ncont = 0
     cmin = 1 << 30
@@ -271,8 +237,7 @@ def evaluate_contact(
             psig[p] = 0.0
     if ncont == 0:
         res[R_NCONTACT] = 0.0
-        return
-    dA = dx * dy
+        return 0, 0.0, 1.0, cmin, cmax
     taper = prm[P_TAPER] > 0.5
     if freeze and res[R_NCONTACT] > 0:
         kstar = res[R_KSTAR]
@@ -281,7 +246,7 @@ def evaluate_contact(
         cmax = int(res[R_CMAX])
     else:
         # Bekker's plate: the tip circle's footprint, length l by the wheel's width w
-        length = tip_footprint_length(zw, xi, eb, gtop, dx)
+        length = tip_footprint_length(zw, cols.xi, cols.eb, cols.gtop, dx)
         width = nyw * dy
         beff = length * width / (length + width)  # 2A/L of the l x w rectangle
         kstar = prm[P_KC] / beff + prm[P_KPHI]
@@ -309,6 +274,67 @@ def evaluate_contact(
                     ssum += gx[pc[p]] * (gyc[pj1[p]] - gyc[pj0[p]])
             norm = ncont / ssum
         res[R_NORM] = norm
+    return ncont, kstar, norm, cmin, cmax
+
+
+@njit(cache=True)
+def evaluate_contact(
+    zw: float,
+    vz: float,
+    prm: np.ndarray,
+    npatch: int,
+    patches: Patches,
+    cols: Columns,
+    dx: float,
+    dy: float,
+    nyw: int,
+    res: np.ndarray,
+    freeze: bool,
+) -> None:
+    """Stresses and resultant soil forces for the axle at height zw moving down at -vz.
+
+    Fills ``res`` (see R_* indices), ``pflag`` (0 free, 1 elastic contact, 2 yielding) and ``psig``
+    (untapered stress of eq. (7) per patch, Pa). The plate width of Bekker's law is b_eff = 2A/L of
+    the *tip circle's footprint*, a rectangle of the wheel's width w and the length l over which
+    ``eb``, the circle through the grouser tips (the rim for a smooth wheel), is below the ground
+    ``gtop``: b_eff = l w / (l + w). The soil between grousers is trapped and moves with the wheel
+    (Wong & Reece's effective radius r + h_g), so a grousered wheel presses on the soil as one
+    plate of that footprint, not as a few grouser tips one grid cell wide; l is interpolated
+    between columns (tip_footprint_length), so k* = k_c / b_eff + k_phi is continuous in the axle
+    height and the parameters instead of stepping with node counts. The border taper
+    gamma_i (separable half sines over the bounding box of the loaded nodes, normalised to mean one
+    over them) is evaluated on the loaded footprint.
+    eq. (9)-(10) with the node's cell area dA = dx dy.
+
+    With ``freeze`` the footprint quantities (k*, taper extent and normalisation) of the previous
+    call are kept: G(z) is then smooth apart from contact kinks, which lets the vertical solve
+    converge in few steps; the solve ends with an unfrozen evaluation at the solution.
+    """
+    pc, pj0, pj1, pst, pflag, psig = patches
+    xi, e, fx, fz, gx, gyc = cols.xi, cols.e, cols.fx, cols.fz, cols.gx, cols.gyc
+    for i in (R_FX, R_FZ, R_T, R_DFZ):
+        res[i] = 0.0
+    n_exp = prm[P_N]
+    tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
+    tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8))
+    coh = prm[P_C]
+    dsoil = prm[P_DSOIL]
+    J = prm[P_J]
+    dt = prm[P_DT]
+    v = prm[P_V]
+    # the surface that shears the soil turns at omega and lies kin times farther out than the
+    # contact circle (rim bearing: the grouser tips), so it moves as omega * kin at the circle
+    kin = prm[P_SHEARSCALE]
+    omega = prm[P_OMEGA] * kin
+    disp_form = prm[P_SHEARDISP] > 0.5
+    incl_exp = prm[P_INCL]
+    ncont, kstar, norm, cmin, cmax = _footprint(
+        zw, prm, npatch, patches, cols, dx, dy, nyw, res, freeze
+    )
+    if ncont == 0:
+        return
+    dA = dx * dy
+    taper = prm[P_TAPER] > 0.5
     # ---- pass 2: stresses and forces (patches come column by column)
     Fx = 0.0
     Fz = 0.0
@@ -330,9 +356,7 @@ def evaluate_contact(
             rz = e[k]
             nx = fx[k]
             nz = fz[k]
-            vpx = v + omega * rz
-            vpz = vz - omega * rx
-            vn = vpx * nx + vpz * nz
+            vpx, vpz, vn = surface_velocity(v, vz, omega, rx, rz, nx, nz)
             pen = -vn  # rate of penetration into the soil [m/s]
             sd = 0.0
             dsd = 0.0

@@ -55,10 +55,12 @@ import math
 import numpy as np
 from numba import njit
 
+from .contact import surface_velocity
 from .layout import (
     P_COMPACTION,
     P_DIGMOB,
     P_DT,
+    P_DX,
     P_FACEPLOUGH,
     P_FLOWDEPTH,
     P_HG,
@@ -68,12 +70,14 @@ from .layout import (
     P_PLOUGH,
     P_POCKET,
     P_POCKETFILL,
+    P_R,
     P_SHEARDISP,
     P_SHEARSCALE,
     P_SLIPFLOW,
     P_TANDELTA,
     P_V,
 )
+from .state import Columns, FlowScratch, Ground, Marks, Patches, Window
 
 EROSION_TOL = 1e-6  # m: slopes may exceed the angle of repose by this height difference
 EROSION_MAX_MOVES_PER_NODE = 64
@@ -90,27 +94,11 @@ def commit_contact(
     vz: float,
     prm: np.ndarray,
     npatch: int,
-    pc: np.ndarray,
-    pj0: np.ndarray,
-    pj1: np.ndarray,
-    pflag: np.ndarray,
-    psig: np.ndarray,
-    xi: np.ndarray,
-    e: np.ndarray,
-    fx: np.ndarray,
-    fz: np.ndarray,
-    c0: int,
-    jw0: int,
-    h0: np.ndarray,
-    sp: np.ndarray,
-    sy: np.ndarray,
-    ke: np.ndarray,
-    js: np.ndarray,
-    cflag: np.ndarray,
-    dsp: np.ndarray,
-    hl: np.ndarray,
-    ncw: int,
-    nyw: int,
+    patches: Patches,
+    cols: Columns,
+    ground: Ground,
+    marks: Marks,
+    window: Window,
 ) -> float:
     """Apply the converged step to the nodes under the wheel; return the displaced soil
     [m * nodes].
@@ -122,6 +110,11 @@ def commit_contact(
     the nodes under the wheel of column k (LOADED_ELASTIC, LOADED_YIELDING, or LOOSE_PUSHED when
     only its loose soil was reached) and dsp[k + 1, j] holds what each displaced.
     """
+    pc, pj0, pj1, _pst, pflag, psig = patches
+    xi, e, fx, fz = cols.xi, cols.e, cols.fx, cols.fz
+    h0, sp, sy, ke, js, hl = ground
+    cflag, dsp = marks
+    c0, ncw, jw0, nyw = window
     K = prm[P_K]
     dt = prm[P_DT]
     disp_form = prm[P_SHEARDISP] > 0.5
@@ -136,9 +129,7 @@ def commit_contact(
             continue
         vt = 0.0
         if disp_form:
-            vpx = v + omega * e[k]
-            vpz = vz - omega * xi[k]
-            vn = vpx * fx[k] + vpz * fz[k]
+            vpx, vpz, vn = surface_velocity(v, vz, omega, xi[k], e[k], fx[k], fz[k])
             vt = math.hypot(vpx - vn * fx[k], vpz - vn * fz[k])
         sb = psig[p]
         for j in range(pj0[p], pj1[p]):
@@ -326,67 +317,81 @@ def _conveyed(depth: float, f: float, u: float, v: float, mobilised: bool) -> fl
     return depth * speed
 
 
+#: the flow fields' scratch rows (FlowScratch.work, .iwork): per window column the swept
+#: circle's lowest level (0), the slip velocity along x (1), the parallel share (2) and the slip
+#: speed (7); per row the volumes flowing forward (3) and backward (4); per column to +y (5) and
+#: -y (6); per row (iwork) the first (0) and last (1) occupied column and the front-most node
+#: loaded on its ground (2); per column the first (3) and last (4) occupied row
+
+
 @njit(cache=True)
 def flow_and_deposit(
     prm: np.ndarray,
     zw: float,
     vz: float,
-    r_out: float,
-    xi: np.ndarray,
-    e: np.ndarray,
-    fx: np.ndarray,
-    fz: np.ndarray,
-    c0: int,
-    ncw: int,
-    jw0: int,
-    nyw: int,
-    dx: float,
+    cols: Columns,
+    ground: Ground,
+    marks: Marks,
+    window: Window,
     dy: float,
-    tan_repose: float,
-    h0: np.ndarray,
-    sp: np.ndarray,
-    hl: np.ndarray,
-    js: np.ndarray,
-    cflag: np.ndarray,
-    dsp: np.ndarray,
-    work: np.ndarray,
-    iwork: np.ndarray,
-    queue: np.ndarray,
-    inq: np.ndarray,
+    scratch: FlowScratch,
     tail: int,
 ):
     """Flow fields: the displaced and dragged soil deposited outside the footprint (see the
     module docstring).
 
-    ``work`` (>= 8 rows, >= max(ncw, ny) columns) and ``iwork`` (int64, >= 5 rows, as many
-    columns) are scratch space (allocated once per run, not per step); ``work``'s row 0 is left
-    holding the wheel's swept circle per window column (for :func:`erode`). The nodes that
-    received soil are queued in ``queue`` / ``inq`` after the ``tail`` queued before. Returns
+    ``scratch.work`` (>= 8 rows, >= max(ncw, ny) columns) and ``scratch.iwork`` (int64, >= 5
+    rows, as many columns) are scratch space (allocated once per run, not per step); ``work``'s
+    row 0 is left holding the wheel's swept circle per window column (for :func:`erode`). The
+    nodes that received soil are queued in ``scratch.queue`` / ``inq`` after the ``tail`` queued
+    before. Returns
     (compacted volume [m^3], spilled volume [m^3], queue length).
     """
-    nx, ny = h0.shape
+    ncw, jw0, nyw = window.ncw, window.jw0, window.nyw
+    dx = prm[P_DX]
     dA = dx * dy
-    v = prm[P_V]
-    omega = prm[P_OMEGA]
-    r_shear = prm[P_SHEARSCALE] * r_out  # the surface shearing the soil (rim bearing: the tips)
-    omega_s = omega * prm[P_SHEARSCALE]  # its angular speed at the contact circle
-    dt = prm[P_DT]
     keep = 1.0 - prm[P_COMPACTION]
-    depth = prm[P_FLOWDEPTH]
-    fslip = prm[P_SLIPFLOW]
-    plough = prm[P_PLOUGH]
-    face_plough = prm[P_FACEPLOUGH] > 0.5
-    # sliding face: height above the lowest point of the part of a skidding wheel's front face
-    # where the rim slides over the soil (see sliding_face_height)
-    y_slide = sliding_face_height(v, omega_s, r_out, prm[P_TANDELTA]) if face_plough else 0.0
-    dig_mobilised = prm[P_DIGMOB] > 0.5
-    # soil trapped between grousers: carried at the rim speed of the pocket's mean radius,
-    # half a pocket inside the tips
-    pocket = prm[P_POCKET]
-    u_pocket = omega * (r_shear - 0.5 * pocket) - v
-    fill = prm[P_POCKETFILL]
-    J = prm[P_J]
-    disp_form = prm[P_SHEARDISP] > 0.5
+    xsum, nload = _survey(prm, zw, vz, cols, marks, window, scratch)
+    if nload == 0:
+        return 0.0, 0.0, tail  # the nodes queued earlier still wait for erosion
+    iwork = scratch.iwork
+    ny = scratch.inq.shape[1]
+    rmax = iwork[1, :ny]
+    cmax = iwork[4, :ncw]
+    xc = xsum / nload
+    yc = jw0 + 0.5 * (nyw - 1)
+    # radial flow: along x and y in the proportion the footprint's ring faces them (its rows
+    # against its columns), forwards or backwards from the centroid, to either side of the
+    # centre line; the same for every row, so identical rows stay identical (patches)
+    n_rows = 0
+    for j in range(jw0, jw0 + nyw):
+        if rmax[j] >= 0:
+            n_rows += 1
+    n_cols = 0
+    for k in range(ncw):
+        if cmax[k] >= 0:
+            n_cols += 1
+    wx = n_rows / (n_rows + n_cols)
+    compacted = _displaced(keep, cols.xi, marks, window, scratch, xc, yc, wx)
+    _convey(prm, zw, cols.xi, ground, marks, window, scratch)
+    spilled, tail = _deposit_flows(ground, marks, window, scratch, tail)
+    return compacted * dA, spilled * dA, tail
+
+
+@njit(cache=True)
+def _survey(prm, zw, vz, cols, marks, window, scratch):
+    """flow_and_deposit's first pass: per window column the swept circle, the surface's slip
+    velocity and parallel share, the occupied rows and columns (scratch rows as above), the
+    per-row and per-column accumulators zeroed. Returns (sum of the loaded nodes' x, their
+    count)."""
+    xi, e, fx, fz = cols.xi, cols.e, cols.fx, cols.fz
+    cflag = marks.cflag
+    ncw, jw0, nyw = window.ncw, window.jw0, window.nyw
+    work, iwork = scratch.work, scratch.iwork
+    ny = scratch.inq.shape[1]
+    v = prm[P_V]
+    r_out = prm[P_R] + prm[P_HG]
+    omega_s = prm[P_OMEGA] * prm[P_SHEARSCALE]  # the shearing surface's at the contact circle
     clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
     vtx_col = work[1]  # horizontal slip velocity of the wheel surface over ground [m/s]
     share_col = work[2]  # parallel share |v_t| / (|v_t| + |v_n|)
@@ -415,9 +420,7 @@ def flow_and_deposit(
         acc_p[k] = 0.0
         acc_m[k] = 0.0
         # contact kinematics of the column (see contact.evaluate_contact)
-        vpx = v + omega_s * e[k]
-        vpz = vz - omega_s * xi[k]
-        vn = vpx * fx[k] + vpz * fz[k]
+        vpx, vpz, vn = surface_velocity(v, vz, omega_s, xi[k], e[k], fx[k], fz[k])
         vtx = vpx - vn * fx[k]
         vtz = vpz - vn * fz[k]
         vt = math.sqrt(vtx * vtx + vtz * vtz)
@@ -437,22 +440,21 @@ def flow_and_deposit(
     for j in range(ny):
         acc_f[j] = 0.0
         acc_b[j] = 0.0
-    if nload == 0:
-        return 0.0, 0.0, tail  # the nodes queued earlier still wait for erosion
-    xc = xsum / nload
-    yc = jw0 + 0.5 * (nyw - 1)
-    # radial flow: along x and y in the proportion the footprint's ring faces them (its rows
-    # against its columns), forwards or backwards from the centroid, to either side of the
-    # centre line; the same for every row, so identical rows stay identical (patches)
-    n_rows = 0
-    for j in range(jw0, jw0 + nyw):
-        if rmax[j] >= 0:
-            n_rows += 1
-    n_cols = 0
-    for k in range(ncw):
-        if cmax[k] >= 0:
-            n_cols += 1
-    wx = n_rows / (n_rows + n_cols)
+    return xsum, nload
+
+
+@njit(cache=True)
+def _displaced(keep, xi, marks, window, scratch, xc, yc, wx):
+    """The displaced volume of the loaded nodes, less the compacted share (1 - keep): its
+    parallel share along the surface's slip and the rest radially from the centroid (xc, yc),
+    in the proportion wx along x, gathered per row and column. Returns the compacted volume
+    [m * nodes]."""
+    cflag, dsp = marks
+    ncw = window.ncw
+    work, iwork = scratch.work, scratch.iwork
+    vtx_col, share_col = work[1], work[2]
+    acc_f, acc_b, acc_p, acc_m = work[3], work[4], work[5], work[6]
+    cmin, cmax = iwork[3, :ncw], iwork[4, :ncw]
     # ---- displaced volume: radial and parallel shares, gathered per row / column
     compacted = 0.0
     for k in range(ncw):
@@ -484,6 +486,45 @@ def flow_and_deposit(
             else:
                 acc_p[k] += 0.5 * side
                 acc_m[k] += 0.5 * side
+    return compacted
+
+
+@njit(cache=True)
+def _convey(prm, zw, xi, ground, marks, window, scratch):
+    """The layer the sliding surface drags per row along its mean slip (skid: forwards from
+    under the wheel's bottom into the bow wave; drive: thinned under the wheel and left behind
+    it), and the grouser pockets' soil cut from the front wall; added to the rows'
+    accumulators."""
+    h0, sp, hl, js = ground.h0, ground.sp, ground.hl, ground.js
+    cflag = marks.cflag
+    c0, jw0, nyw = window.c0, window.jw0, window.nyw
+    work, iwork = scratch.work, scratch.iwork
+    nx, ny = h0.shape
+    vtx_col, vt_col = work[1], work[7]
+    acc_f, acc_b = work[3], work[4]
+    rmin, gmax = iwork[0, :ny], iwork[2, :ny]
+    dx = prm[P_DX]
+    r_out = prm[P_R] + prm[P_HG]
+    v = prm[P_V]
+    omega = prm[P_OMEGA]
+    r_shear = prm[P_SHEARSCALE] * r_out  # the surface shearing the soil (rim bearing: the tips)
+    omega_s = omega * prm[P_SHEARSCALE]  # its angular speed at the contact circle
+    dt = prm[P_DT]
+    depth = prm[P_FLOWDEPTH]
+    fslip = prm[P_SLIPFLOW]
+    plough = prm[P_PLOUGH]
+    face_plough = prm[P_FACEPLOUGH] > 0.5
+    # sliding face: height above the lowest point of the part of a skidding wheel's front face
+    # where the rim slides over the soil (see sliding_face_height)
+    y_slide = sliding_face_height(v, omega_s, r_out, prm[P_TANDELTA]) if face_plough else 0.0
+    dig_mobilised = prm[P_DIGMOB] > 0.5
+    # soil trapped between grousers: carried at the rim speed of the pocket's mean radius,
+    # half a pocket inside the tips
+    pocket = prm[P_POCKET]
+    u_pocket = omega * (r_shear - 0.5 * pocket) - v
+    fill = prm[P_POCKETFILL]
+    J = prm[P_J]
+    disp_form = prm[P_SHEARDISP] > 0.5
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
     if (depth > 0.0 and fslip > 0.0) or plough > 0.0 or y_slide > 0.0 or pocket > 0.0:
         for j in range(jw0, jw0 + nyw):
@@ -558,6 +599,21 @@ def flow_and_deposit(
                     # excavated instead of compacting it; left behind the wheel with the layer
                     _take(c0 + gmax[j], j, a_pocket, h0, hl)
                 acc_b[j] += a + a_pocket
+
+
+@njit(cache=True)
+def _deposit_flows(ground, marks, window, scratch, tail):
+    """Deposit the rows' and columns' accumulated flows outside the footprint, along the flow,
+    below the wheel's swept circle. Returns (spilled volume [m * nodes], queue length)."""
+    h0, sp, hl = ground.h0, ground.sp, ground.hl
+    cflag = marks.cflag
+    c0, ncw, jw0, nyw = window
+    work, iwork, queue, inq = scratch
+    ny = inq.shape[1]
+    clamp = work[0]
+    acc_f, acc_b, acc_p, acc_m = work[3], work[4], work[5], work[6]
+    rmin, rmax = iwork[0, :ny], iwork[1, :ny]
+    cmin, cmax = iwork[3, :ncw], iwork[4, :ncw]
     # ---- deposit outside the footprint, along the flow, below the wheel's swept circle
     grid = (c0, ncw, jw0, nyw, clamp, h0, sp, hl, cflag, queue, inq)
     spilled = 0.0
@@ -581,7 +637,7 @@ def flow_and_deposit(
         if acc_m[k] > 0.0:
             left, tail = _deposit(acc_m[k], c0 + k, cmin[k] - 1, zero, -one, grid, tail)
             spilled += left
-    return compacted * dA, spilled * dA, tail
+    return spilled, tail
 
 
 @njit(cache=True)
@@ -632,14 +688,10 @@ def _slide(
     cb: int,
     jb: int,
     excess: float,
-    lim_x: float,
-    lim_y: float,
+    lims: tuple[float, float],
     grid,
     tail: int,
-    stack: np.ndarray,
-    amounts: np.ndarray,
-    gaps: np.ndarray,
-    binds: np.ndarray,
+    scratch,
 ) -> tuple[int, bool]:
     """Soil slides from free node a down to its free neighbour b, the pair's height difference
     exceeding the angle of repose by ``excess`` [m]. Returns (queue tail, whether soil moved).
@@ -653,8 +705,11 @@ def _slide(
     in one pass, where the pair rule would relax the whole face pair by pair, step after step.
     Soil does not roll past a node held down by the wheel's swept circle (it rests against the
     wheel). ``stack`` (m x 2) and ``amounts`` (m) hold the rolling parcels; ``gaps`` and
-    ``binds`` (4) are scratch."""
+    ``binds`` (4) are scratch (:func:`erosion_scratch`); ``lims``: the rises at the angle of
+    repose over one cell along x and y [m]."""
     _c0, _ncw, _jw0, _nyw, _clamp, h0, _sp, hl, _cflag, queue, inq = grid
+    lim_x, lim_y = lims
+    stack, amounts, gaps, binds, _excess = scratch
     half = 0.5 * excess
     room_b, circle_b = _headroom(cb, jb, ca, ja, lim_x, lim_y, grid, gaps)
     n_b = 0
@@ -726,7 +781,7 @@ def erode(grid, dx: float, dy: float, tan_repose: float, tail: int, scratch) -> 
     see :func:`_slide`. ``scratch``: :func:`erosion_scratch`. Returns the node visits."""
     c0, ncw, _jw0, _nyw, _clamp, h0, sp, hl, cflag, queue, inq = grid
     nx, ny = h0.shape
-    stack, amounts, gaps, binds, excess = scratch
+    excess = scratch[4]
     lim_x = dx * tan_repose
     lim_y = dy * tan_repose
     head = 0
@@ -762,14 +817,12 @@ def erode(grid, dx: float, dy: float, tan_repose: float, tail: int, scratch) -> 
             jb = ja + STEPS[q, 1]
             if excess[q] > 0.0:
                 tail, moved = _slide(
-                    ca, ja, cb, jb, excess[q] / n_down, lim_x, lim_y, grid, tail, stack,
-                    amounts, gaps, binds,
-                )  # fmt: skip
+                    ca, ja, cb, jb, excess[q] / n_down, (lim_x, lim_y), grid, tail, scratch
+                )
             elif excess[q] < 0.0:
                 tail, moved = _slide(
-                    cb, jb, ca, ja, -excess[q], lim_x, lim_y, grid, tail, stack, amounts,
-                    gaps, binds,
-                )  # fmt: skip
+                    cb, jb, ca, ja, -excess[q], (lim_x, lim_y), grid, tail, scratch
+                )
             else:
                 continue
             if moved:

@@ -17,6 +17,7 @@ parallel batch loop, a cold compile took 49 s; now about 20 s).
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -69,6 +70,7 @@ from .layout import (
     STATUS_OK,
     STATUS_UNSTABLE,
 )
+from .state import Columns, FlowScratch, Ground, Marks, Patches, Window
 
 # columns of the output series
 S_T = 0
@@ -138,36 +140,25 @@ def grid_shape(prm: np.ndarray):
     return nx, ny, nyw, n_margin, dy, x0
 
 
+#: this step's vertical problem: the last axle height zn, the predicted zpred = zn + dt vn, the
+#: free-fall height z_free and the last contact ztop (the bracket), m / dt^2 (c_in), the load W,
+#: the time step dt and the height tolerance z_tol
+Vertical = namedtuple("Vertical", ["zn", "zpred", "z_free", "ztop", "c_in", "W", "dt", "z_tol"])
+#: what an evaluation of the contact reads: the packed parameters, the step's patch count, the
+#: grid (dx, dy, rows under the wheel), work = (patches, columns, res) and the diagnostics
+ContactCall = namedtuple("ContactCall", ["prm", "npatch", "dx", "dy", "nyw", "work", "diag"])
+
+
 @njit(cache=True)
-def _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, freeze, diag):
-    """Contact forces at axle height z (vertical velocity from the backward-Euler step)."""
-    pc, pj0, pj1, pst, xi, e, eb, gtop, fx, fz, gx, gyc, pflag, psig, res = work
+def _evaluate(z, zn, dt, call, freeze):
+    """Contact forces at axle height z (vertical velocity from the backward-Euler step from zn
+    over dt); ``call.work`` = (patches, columns, res)."""
+    patches, cols, res = call.work
     evaluate_contact(
-        z,
-        (z - zn) / dt,
-        prm,
-        npatch,
-        pc,
-        pj0,
-        pj1,
-        pst,
-        xi,
-        e,
-        eb,
-        gtop,
-        fx,
-        fz,
-        dx,
-        dy,
-        nyw,
-        gx,
-        gyc,
-        pflag,
-        psig,
-        res,
+        z, (z - zn) / dt, call.prm, call.npatch, patches, cols, call.dx, call.dy, call.nyw, res,
         freeze,
-    )
-    diag[D_ITERATIONS] += 1
+    )  # fmt: skip
+    call.diag[D_ITERATIONS] += 1
     return res[R_FZ]
 
 
@@ -189,46 +180,27 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
     c_in = m / (dt * dt)
     zpred = zn + dt * vn
     z_free = zpred - W / c_in  # free fall: no soil force
+    call = ContactCall(prm, npatch, dx, dy, nyw, work, diag)
     if z_free >= ztop:  # the wheel touches nothing at the free-fall height
-        _evaluate(z_free, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(False), diag)
+        _evaluate(z_free, zn, dt, call, np.bool_(False))
         return z_free, True
     z = min(max(zpred, z_free), max(ztop, z_free))
     z_tol = min(Z_TOL, G_TOL * W / c_in)  # the height change whose inertia is G_TOL W
+    vert = Vertical(zn, zpred, z_free, ztop, c_in, W, dt, z_tol)
     converged = False
     g_known = np.nan  # G at z on the current footprint, when the last evaluation was there
     for outer in range(MAX_OUTER):
         z, converged, g, at_z, unfrozen = _newton(
-            z,
-            zpred,
-            z_free,
-            ztop,
-            c_in,
-            W,
-            zn,
-            dt,
-            prm,
-            npatch,
-            dx,
-            dy,
-            nyw,
-            work,
-            diag,
-            FREEZE_AFTER if outer == 0 else 0,
-            z_tol,
-            g_known,
+            z, vert, call, FREEZE_AFTER if outer == 0 else 0, g_known
         )
         if not converged or outer == MAX_OUTER - 1:
             # the footprint keeps changing (e.g. k_c << 0): end on the balanced frozen solve
             # (already evaluated when the solve's last evaluation was at z)
             if not at_z:
-                _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(True), diag)
+                _evaluate(z, zn, dt, call, np.bool_(True))
             break
         if not (at_z and unfrozen):  # else the last evaluation was this footprint check
-            g = (
-                c_in * (z - zpred)
-                + W
-                - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, np.bool_(False), diag)
-            )
+            g = c_in * (z - zpred) + W - _evaluate(z, zn, dt, call, np.bool_(False))
         if abs(g) < OUTER_TOL * W:
             break
         g_known = g  # the next solve starts here, frozen on this footprint: the same G
@@ -236,32 +208,14 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
 
 
 @njit(cache=True)
-def _newton(
-    z,
-    zpred,
-    z_free,
-    ztop,
-    c_in,
-    W,
-    zn,
-    dt,
-    prm,
-    npatch,
-    dx,
-    dy,
-    nyw,
-    work,
-    diag,
-    freeze_after,
-    z_tol,
-    g_start,
-):
+def _newton(z, vert, call, freeze_after, g_start):
     """Safeguarded Newton for G(z) = 0 from ``z``; frozen footprint after ``freeze_after``
-    evaluations; converged when |G| < G_TOL W or the bracket or step is below ``z_tol`` [m].
-    ``g_start``: G at ``z`` when the contact state in ``work`` is already evaluated there on
+    evaluations; converged when |G| < G_TOL W or the bracket or step is below ``vert.z_tol``
+    [m]. ``g_start``: G at ``z`` when the contact state is already evaluated there on
     the footprint this solve uses (NaN: evaluate it). Returns (z, converged, G, at_z,
     unfrozen): G of the last evaluation, whether that evaluation was at the returned z (the
     contact state is then the solution's), and whether it was unfrozen."""
+    zn, zpred, z_free, ztop, c_in, W, dt, z_tol = vert
     lo = z_free
     g_lo = np.nan  # G(z_free) < 0, not evaluated: regula falsi waits until lo has a value
     hi = max(ztop, z_free)
@@ -278,11 +232,7 @@ def _newton(
         if it == 0 and np.isfinite(g_start):
             g = g_start
         else:
-            g = (
-                c_in * (z - zpred)
-                + W
-                - _evaluate(z, zn, dt, prm, npatch, dx, dy, nyw, work, frozen, diag)
-            )
+            g = c_in * (z - zpred) + W - _evaluate(z, zn, dt, call, frozen)
         if abs(g) < G_TOL * W:
             return z, True, g, True, not frozen
         if g > 0.0:
@@ -299,7 +249,7 @@ def _newton(
             side = -1
         if hi - lo < z_tol:
             return z, True, g, True, not frozen
-        dg = c_in - work[14][R_DFZ]
+        dg = c_in - call.work[2][R_DFZ]  # res
         z_new = z - g / dg if dg > 0.0 else lo - 1.0
         if not (lo < z_new < hi) or abs(g) > 0.5 * abs(g_prev):
             # Newton left the bracket or stalled at a kink: regula falsi on the bracket once
@@ -337,6 +287,40 @@ def _volume(h0: np.ndarray, sp: np.ndarray, hl: np.ndarray, dA: float) -> float:
         for j in range(h0.shape[1]):
             total += h0[c, j] - sp[c, j] + hl[c, j]
     return total * dA
+
+
+@njit(cache=True)
+def _work_space(nx: int, ny: int, nyw: int, ncw_max: int):
+    """A run's work space, allocated once (:mod:`.state`): the window's columns (wheel surface
+    and tip circle at infinity, no ground), its patches, the nodes' marks and the flow fields'
+    scratch with erosion's work list (a power of two at least nx ny long)."""
+    cols = Columns(
+        np.zeros(ncw_max),
+        np.full(ncw_max, np.inf),
+        np.full(ncw_max, np.inf),
+        np.full(ncw_max, -np.inf),  # ground top per column under the wheel (build_patches)
+        np.zeros(ncw_max),
+        np.zeros(ncw_max),
+        np.zeros(ncw_max),
+        np.zeros(nyw + 1),
+    )
+    max_patch = ncw_max * nyw
+    patches = Patches(
+        np.zeros(max_patch, np.int64),
+        np.zeros(max_patch, np.int64),
+        np.zeros(max_patch, np.int64),
+        np.zeros((max_patch, 5)),
+        np.zeros(max_patch, np.int64),
+        np.zeros(max_patch),
+    )
+    marks = Marks(np.zeros((ncw_max + 2, ny), np.int8), np.zeros((ncw_max + 2, ny)))
+    scratch = FlowScratch(
+        np.zeros((8, max(ncw_max, ny))),
+        np.zeros((5, max(ncw_max, ny)), np.int64),
+        np.zeros((1 << int(math.ceil(math.log2(nx * ny))), 2), np.int64),
+        np.zeros((nx, ny), np.int8),
+    )
+    return cols, patches, marks, scratch
 
 
 @njit(cache=True, nogil=True)  # batches run it on several threads (swt.simulate_packed)
@@ -382,37 +366,18 @@ def run_swt(prm: np.ndarray):
     if prm[P_KC] / beff_max + prm[P_KPHI] <= 0.0:
         return series[:0], 0, STATUS_NONPOSITIVE_STIFFNESS, h0 - sp + hl, diag
     ncw_max = int(math.ceil(2.0 * r_out / dx)) + 4
-    xi = np.zeros(ncw_max)
-    e = np.zeros(ncw_max)
-    eb = np.zeros(ncw_max)
-    gtop = np.full(ncw_max, -np.inf)  # ground top per column under the wheel (build_patches)
-    fx = np.zeros(ncw_max)
-    fz = np.zeros(ncw_max)
-    gx = np.zeros(ncw_max)
-    gyc = np.zeros(nyw + 1)
-    max_patch = ncw_max * nyw
-    pc = np.zeros(max_patch, np.int64)
-    pj0 = np.zeros(max_patch, np.int64)
-    pj1 = np.zeros(max_patch, np.int64)
-    pst = np.zeros((max_patch, 5))
-    pflag = np.zeros(max_patch, np.int64)
-    psig = np.zeros(max_patch)
+    cols, patches, marks, scratch = _work_space(nx, ny, nyw, ncw_max)
+    xi, e, eb, fx, fz = cols.xi, cols.e, cols.eb, cols.fx, cols.fz
     res = np.zeros(N_RES)
-    cflag = np.zeros((ncw_max + 2, ny), np.int8)
-    dsp = np.zeros((ncw_max + 2, ny))
-    fwork = np.zeros((8, max(ncw_max, ny)))
-    iwork = np.zeros((5, max(ncw_max, ny)), np.int64)
+    cflag = marks.cflag
+    fwork, queue, inq = scratch.work, scratch.queue, scratch.inq
     escratch = erosion_scratch()
     vis = np.empty((2, max(ng, 1)))  # wheel_envelope's visible grousers
-    work = (pc, pj0, pj1, pst, xi, e, eb, gtop, fx, fz, gx, gyc, pflag, psig, res)
-    queue = np.zeros((1 << int(math.ceil(math.log2(nx * ny))), 2), np.int64)  # erosion work list
-    inq = np.zeros((nx, ny), np.int8)
+    work = (patches, cols, res)
+    ground = Ground(h0, sp, sy, ke, js, hl)
     bulldoze = prm[P_BULLDOZE] > 0.5
     tail = np.int64(0)  # erosion's work list: nodes that received soil since it last ran
     erode_every = int(prm[P_EROSIONEVERY])
-    for k in range(ncw_max):
-        e[k] = np.inf
-        eb[k] = np.inf
     tan_repose = prm[P_TANREPOSE]
     zw = r_out  # wheel resting on the undisturbed surface (level 0), a grouser straight down
     vz = 0.0
@@ -437,9 +402,7 @@ def run_swt(prm: np.ndarray):
         wheel_envelope(xi[:ncw], dx, R, ng, hg, tg, theta, e, fx, fz, vis)
         tip_circle(xi[:ncw], r_out, eb)  # the Bekker footprint's envelope
         z_low = zw + dt * vz - prm[P_W] * dt * dt / prm[P_MASS]  # free fall: lowest possible
-        npatch, ztop = build_patches(
-            h0, sp, sy, ke, js, c0, ncw, n_margin, nyw, e, eb, z_low, pc, pj0, pj1, pst, gtop
-        )
+        npatch, ztop = build_patches(ground, cols, patches, c0, ncw, n_margin, nyw, z_low)
         diag[D_PATCH_STEPS] += npatch
         tick = _lap(diag, np.int64(D_CYC_GEOMETRY), tick)
         z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag)
@@ -454,62 +417,12 @@ def run_swt(prm: np.ndarray):
         vz = (z_new - zw) / dt
         zw = z_new
         diag[D_NODE_STEPS] += res[R_NCONTACT]
-        flow = commit_contact(
-            zw,
-            vz,
-            prm,
-            npatch,
-            pc,
-            pj0,
-            pj1,
-            pflag,
-            psig,
-            xi,
-            e,
-            fx,
-            fz,
-            c0,
-            n_margin,
-            h0,
-            sp,
-            sy,
-            ke,
-            js,
-            cflag,
-            dsp,
-            hl,
-            ncw,
-            nyw,
-        )
+        window = Window(c0, ncw, n_margin, nyw)
+        flow = commit_contact(zw, vz, prm, npatch, patches, cols, ground, marks, window)
         tick = _lap(diag, np.int64(D_CYC_COMMIT), tick)
         if bulldoze:
             compacted, spilled, tail = flow_and_deposit(
-                prm,
-                zw,
-                vz,
-                r_out,
-                xi,
-                e,
-                fx,
-                fz,
-                c0,
-                ncw,
-                n_margin,
-                nyw,
-                dx,
-                dy,
-                tan_repose,
-                h0,
-                sp,
-                hl,
-                js,
-                cflag,
-                dsp,
-                fwork,
-                iwork,
-                queue,
-                inq,
-                tail,
+                prm, zw, vz, cols, ground, marks, window, dy, scratch, tail
             )
             diag[D_COMPACTED] += compacted
             diag[D_SPILLED] += spilled

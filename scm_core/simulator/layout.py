@@ -9,55 +9,59 @@ import numpy as np
 from .params import RigConfig, SoilParams, WheelGeometry
 from .rig import ResolvedRig, resolve_rig
 
-# soil
-P_N = 0
-P_KC = 1
-P_KPHI = 2
-P_C = 3
-P_TANPHI = 4
-P_DSOIL = 5
-P_J = 6
-P_K = 7
-P_TANREPOSE = 8
-P_COMPACTION = 9
-P_FLOWDEPTH = 10
-P_SLIPFLOW = 11
-# wheel
-P_R = 12
-P_B = 13
-P_NGROUSERS = 14
-P_HG = 15
-P_TG = 16
-# rig and numerics
-P_W = 17
-P_MASS = 18
-P_V = 19
-P_OMEGA = 20
-P_DURATION = 21
-P_DT = 22
-P_DX = 23
-P_OUTEVERY = 24
-P_TAPER = 25
-P_BULLDOZE = 26
-P_SHEARDISP = 27
-P_MAXSINK = 28
-P_MARGIN = 29
-P_OFF_F = 30
-P_OFF_T = 31
-P_OFF_Z = 32
-P_DYDX = 33
-P_INCL = 34  # exponent of the bearing-capacity inclination factor (0: off)
-P_PLOUGH = 35  # fraction of a skidding wheel's path pushed ahead (0: off)
-P_DIGMOB = 36  # drive digging: 1 mobilised (dug depth d f), 0 thinning
-P_FACEPLOUGH = 37  # skid ploughing: 1 the front face's sliding zone (derived), 0 kappa
-P_EROSIONEVERY = 38  # steps between erosion passes
-P_SETTLE = 39  # early stop once the steady means are settled (fraction of W, W R, R; 0: off)
-P_POCKET = 40  # depth of the soil trapped between grousers, carried at the rim speed [m] (0: off)
-P_TANDELTA = 41  # friction of the soil on the wheel's surface, tan(delta) (eq. (8) on the wheel)
-P_POCKETFILL = 42  # how full the grouser pockets leave the contact (0: continuity, 1: full)
-P_ZDATUM = 43  # depth of the sinkage datum below the contact envelope's first contact [m]
-P_SHEARSCALE = 44  # radius of the surface shearing the soil / the contact envelope's (1: same)
-N_PARAMS = 45
+# the packed vector's slots: one declaration, each name its index in order (a new slot goes
+# at the end, so every older index stays)
+(
+    # soil
+    P_N,
+    P_KC,
+    P_KPHI,
+    P_C,
+    P_TANPHI,
+    P_DSOIL,
+    P_J,
+    P_K,
+    P_TANREPOSE,
+    P_COMPACTION,
+    P_FLOWDEPTH,
+    P_SLIPFLOW,
+    # wheel
+    P_R,
+    P_B,
+    P_NGROUSERS,
+    P_HG,
+    P_TG,
+    # rig and numerics
+    P_W,
+    P_MASS,
+    P_V,
+    P_OMEGA,
+    P_DURATION,
+    P_DT,
+    P_DX,
+    P_OUTEVERY,
+    P_TAPER,
+    P_BULLDOZE,
+    P_SHEARDISP,
+    P_MAXSINK,
+    P_MARGIN,
+    P_OFF_F,
+    P_OFF_T,
+    P_OFF_Z,
+    P_DYDX,
+    P_INCL,  # exponent of the bearing-capacity inclination factor (0: off)
+    P_PLOUGH,  # fraction of a skidding wheel's path pushed ahead (0: off)
+    P_DIGMOB,  # drive digging: 1 mobilised (dug depth d f), 0 thinning
+    P_FACEPLOUGH,  # skid ploughing: 1 the front face's sliding zone (derived), 0 kappa
+    P_EROSIONEVERY,  # steps between erosion passes
+    P_SETTLE,  # early stop once the steady means are settled (fraction of W, W R, R; 0: off)
+    P_POCKET,  # depth of the soil trapped between grousers, carried at the rim speed [m] (0: off)
+    P_TANDELTA,  # friction of the soil on the wheel's surface, tan(delta) (eq. (8) on the wheel)
+    P_POCKETFILL,  # how full the grouser pockets leave the contact (0: continuity, 1: full)
+    P_ZDATUM,  # depth of the sinkage datum below the contact envelope's first contact [m]
+    P_SHEARSCALE,  # radius of the surface shearing the soil / the contact envelope's (1: same)
+    N_PARAMS,
+) = range(46)
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0

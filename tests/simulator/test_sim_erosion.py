@@ -13,6 +13,7 @@ import pytest
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
 from scm_core.simulator.deformation import EROSION_TOL, erode, erosion_scratch, flow_and_deposit
 from scm_core.simulator.layout import pack
+from scm_core.simulator.state import Columns, FlowScratch, Ground, Marks, Window
 
 
 def _pour(volume: float, dx: float, dy: float, repose_deg: float, portions: int, n: int = 61):
@@ -83,10 +84,20 @@ def test_a_step_without_contact_keeps_the_nodes_waiting_for_erosion():
     queue[:3] = [(5, 4), (6, 4), (7, 4)]
     inq[5:8, 4] = 1
     prm = pack(SoilParams(), WheelGeometry(), RigConfig())
+    grid = np.zeros((nx, ny))
     out = flow_and_deposit(
-        prm, 1.0, 0.0, 0.134, zeros, np.full(ncw, np.inf), zeros, zeros, 10, ncw, 2, 8, 0.005,
-        0.01, 0.5, h0, h0.copy(), h0.copy(), h0.copy(), np.zeros((ncw + 2, ny), np.int8),
-        np.zeros((ncw + 2, ny)), np.zeros((8, max(ncw, ny))), np.zeros((5, max(ncw, ny)), np.int64),
-        queue, inq, 3,
+        prm,
+        1.0,
+        0.0,
+        Columns(zeros, np.full(ncw, np.inf), np.full(ncw, np.inf), zeros, zeros, zeros, zeros,
+                np.zeros(9)),
+        Ground(h0, grid.copy(), grid.copy(), grid.copy(), grid.copy(), grid.copy()),
+        Marks(np.zeros((ncw + 2, ny), np.int8), np.zeros((ncw + 2, ny))),
+        Window(10, ncw, 2, 8),
+        0.01,
+        FlowScratch(
+            np.zeros((8, max(ncw, ny))), np.zeros((5, max(ncw, ny)), np.int64), queue, inq
+        ),
+        3,
     )  # fmt: skip
     assert out == (0.0, 0.0, 3)
