@@ -198,7 +198,7 @@ def tip_footprint_length(
     return max(x_front - x_rear, dx)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _footprint(
     zw: float,
     prm: np.ndarray,
@@ -277,7 +277,7 @@ def _footprint(
     return ncont, kstar, norm, cmin, cmax
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def evaluate_contact(
     zw: float,
     vz: float,

@@ -681,7 +681,7 @@ def _binding(gaps: np.ndarray, room: float, lim_x: float, lim_y: float, binds: n
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _slide(
     ca: int,
     ja: int,
