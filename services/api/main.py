@@ -357,8 +357,6 @@ def create_app(
             app.state.store = st
             if app.state.figure_warmer is not None:
                 drawer = FigureProcess(st.engine.url.render_as_string(hide_password=False))
-                if app.state.warm_figures:
-                    drawer.warm()
                 app.state.figure_warmer.start(st, drawer)
             log.info("scm-calib API (%s mode) on %s", mode, st.engine.url)
             yield
@@ -384,7 +382,6 @@ def create_app(
     app.state.runtime = None
     app.state.netcdf_cache = NetcdfCache()
     app.state.figure_warmer = FigureWarmer(FigureCache()) if settings.dashboard else None
-    app.state.warm_figures = False  # scm-calib serve: start the figure process at once
 
     def limit_for(path: str) -> tuple[int, str]:
         if path.rstrip("/") == "/datasets":

@@ -115,8 +115,6 @@ def serve(host: str, port: int, workers: int | None, no_local_workers: bool, log
     app = create_app(settings, start_local_runtime=not no_local_workers)
     if settings.dashboard:
         click.echo(f"dashboard: http://{host}:{port}/", err=True)
-        # the first figure would otherwise pay for matplotlib's fonts and the simulator's load
-        app.state.warm_figures = True
     # uvicorn 0.29-0.30 re-raise the Ctrl-C they already handled: a clean stop all the same
     with contextlib.suppress(KeyboardInterrupt):
         uvicorn.run(app, host=host, port=port, log_level=log_level)

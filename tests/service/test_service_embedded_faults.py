@@ -247,10 +247,20 @@ def test_server_killed_and_restarted(server, reference_samples) -> None:
     study_id = _submit(server)
     store = Store.open(server.url)
     try:
+        _leased(store, study_id)
+        # a figure of the finished stage 0: drawn by the server's figure process (started by
+        # this first figure), which must die with the server as the pool does
+        r = httpx.get(
+            f"{server.base}/ui/figures/studies/{study_id}/prior_posterior.svg?stage=0",
+            headers=AUTH,
+            timeout=120,
+        )
+        assert r.status_code == 200 and r.content.startswith(b"<?xml"), r.text[:200]
         batch = _leased(store, study_id)
         pool = server.children()
+        assert len(pool) == 3, pool  # two pool processes and the figure process
         server.kill()
-        # the pool processes die with the server (parent-death signal)
+        # the pool and figure processes die with the server (parent-death signal)
         deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline and any(Path(f"/proc/{p}").exists() for p in pool):
             time.sleep(0.1)

@@ -5,19 +5,22 @@ interpreter; in the API's process it competed with every other request. :class:`
 keeps :data:`DRAWING_PROCESSES` spawned worker process with its own store connection and its own
 cache of simulations at the MAP; the API keeps the drawn bytes
 (:class:`~services.api.dashboard.figures.FigureCache`) and only asks the worker for what it does
-not hold. The worker starts on the first figure (``scm-calib serve``: at once) and stops with the
-app; if it dies, the next figure starts another. Measured with a study running beside two
-calibrations on two cores (tests/web, the page fetching two figures at a time): the last
-stage's figures 7.9-8.2 s after the API listed it done, against 9.5-15.8 s drawn in the API's
-process, and the page's progress 0.4-0.6 s behind the API against about 1 s.
+not hold. The worker starts with the first figure and ends with the server, even a killed one
+(:func:`worker.lifetime.exit_with_parent`: the kernel signals it when the thread that started
+it ends, so one long-lived thread of this class starts it and hands it every figure); if it
+dies, the next figure starts another. Measured with a study running beside two calibrations on
+two cores (tests/web, the page fetching two figures at a time): the last stage's figures
+7.9-8.2 s after the API listed it done, against 9.5-15.8 s drawn in the API's process, and the
+page's progress 0.4-0.6 s behind the API against about 1 s.
 """
 
 from __future__ import annotations
 
 import logging
 import multiprocessing
+import queue
 import threading
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
@@ -33,18 +36,15 @@ _worker: dict[str, Any] = {}
 
 
 def _start_worker(database_url: str) -> None:
+    from worker.lifetime import exit_with_parent
+
+    exit_with_parent()
     from services.store import Store
 
     from .figures import FigureCache
 
     _worker["store"] = Store.open(database_url)
     _worker["cache"] = FigureCache(max_entries=64)
-
-
-def _warm_worker() -> None:
-    from .figures import warm_up
-
-    warm_up()
 
 
 def _draw_study_figure(study_id: int, name: str, fmt: str, options: dict[str, Any]) -> bytes:
@@ -56,46 +56,58 @@ def _draw_study_figure(study_id: int, name: str, fmt: str, options: dict[str, An
 
 
 class FigureProcess:
-    """One worker process that draws study figures for the API (see the module)."""
+    """The worker process that draws study figures for the API (see the module)."""
 
     def __init__(self, database_url: str) -> None:
         self.database_url = database_url
-        self._pool: ProcessPoolExecutor | None = None
+        self._jobs: queue.Queue[tuple[tuple, Future] | None] = queue.Queue()
+        self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
-
-    def _executor(self) -> ProcessPoolExecutor:
-        with self._lock:
-            if self._pool is None:
-                self._pool = ProcessPoolExecutor(
-                    max_workers=DRAWING_PROCESSES,
-                    mp_context=multiprocessing.get_context("spawn"),
-                    initializer=_start_worker,
-                    initargs=(self.database_url,),
-                )
-            return self._pool
 
     def study_figure(self, study_id: int, name: str, fmt: str, options: dict[str, Any]) -> bytes:
         """The bytes of a study figure drawn in the worker (its errors raised here)."""
-        pool = self._executor()
-        try:
-            return pool.submit(_draw_study_figure, study_id, name, fmt, options).result()
-        except BrokenProcessPool:
-            log.warning("the figure worker died; starting another")
-            with self._lock:
-                if self._pool is pool:
-                    self._pool = None
-            pool.shutdown(wait=False, cancel_futures=True)
-            return (
-                self._executor().submit(_draw_study_figure, study_id, name, fmt, options).result()
-            )
-
-    def warm(self) -> None:
-        """Start the worker now and load matplotlib and the simulator in it, in the background
-        (the first figure would pay for them)."""
-        self._executor().submit(_warm_worker)
-
-    def close(self) -> None:
         with self._lock:
-            pool, self._pool = self._pool, None
+            if self._thread is None:
+                self._thread = threading.Thread(
+                    target=self._serve, name="dashboard-figure-process", daemon=True
+                )
+                self._thread.start()
+        done: Future = Future()
+        self._jobs.put(((study_id, name, fmt, options), done))
+        return done.result()
+
+    def _serve(self) -> None:
+        """The long-lived thread that starts the worker and hands it every figure."""
+        pool: ProcessPoolExecutor | None = None
+        while (job := self._jobs.get()) is not None:
+            args, done = job
+            for attempt in range(2):  # a dead worker is replaced once per figure
+                if pool is None:
+                    pool = ProcessPoolExecutor(
+                        max_workers=DRAWING_PROCESSES,
+                        mp_context=multiprocessing.get_context("spawn"),
+                        initializer=_start_worker,
+                        initargs=(self.database_url,),
+                    )
+                try:
+                    done.set_result(pool.submit(_draw_study_figure, *args).result())
+                    break
+                except BrokenProcessPool as exc:
+                    log.warning("the figure worker died; starting another")
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    pool = None
+                    if attempt:
+                        done.set_exception(exc)
+                except Exception as exc:  # the figure's own error (FigureError, ...)
+                    done.set_exception(exc)
+                    break
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
+
+    def close(self) -> None:
+        """Stop the thread and the worker (figures asked for before are drawn first)."""
+        with self._lock:
+            thread, self._thread = self._thread, None
+        if thread is not None:
+            self._jobs.put(None)
+            thread.join(30)

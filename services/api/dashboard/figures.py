@@ -51,7 +51,6 @@ __all__ = [
     "dataset_signals",
     "page_figures",
     "study_figure",
-    "warm_up",
 ]
 
 RESPONSES = ("F", "T", "z")
@@ -558,15 +557,3 @@ def ranks(store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureC
         return render(rank_figure(names, x, labels, title=title), fmt)
 
     return cache.get_or_make(("ranks", tuple(s.id for s in studies), fmt), make)
-
-
-def warm_up() -> None:
-    """Load what the first figure of a server would otherwise pay for: matplotlib's fonts
-    and renderers, and the simulator's compiled code (the fit at the MAP simulates)."""
-    from scm_core.simulator import warm_up as simulator_warm_up
-
-    fig = Figure(figsize=(2, 2))
-    fig.subplots().plot([0, 1], [0, 1], label="x")
-    for fmt in ("svg", "png"):
-        render(fig, fmt)
-    simulator_warm_up()
