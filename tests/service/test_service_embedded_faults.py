@@ -244,18 +244,19 @@ def test_pool_survives_request_threads_and_a_killed_process(server, reference_sa
 
 @pytest.mark.slow
 def test_server_killed_and_restarted(server, reference_samples) -> None:
-    study_id = _submit(server)
+    first = _submit(server)
     store = Store.open(server.url)
     try:
-        _leased(store, study_id)
-        # a figure of the finished stage 0: drawn by the server's figure process (started by
+        _leased(store, first)
+        # a figure of its finished stage 0: drawn by the server's figure process (started by
         # this first figure), which must die with the server as the pool does
         r = httpx.get(
-            f"{server.base}/ui/figures/studies/{study_id}/prior_posterior.svg?stage=0",
+            f"{server.base}/ui/figures/studies/{first}/prior_posterior.svg?stage=0",
             headers=AUTH,
             timeout=120,
         )
         assert r.status_code == 200 and r.content.startswith(b"<?xml"), r.text[:200]
+        study_id = _submit(server)  # running when the server is killed, however long that took
         batch = _leased(store, study_id)
         pool = server.children()
         assert len(pool) == 3, pool  # two pool processes and the figure process
