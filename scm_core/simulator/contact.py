@@ -32,6 +32,7 @@ from .layout import (
     P_OMEGA,
     P_SHEARDISP,
     P_SHEARSCALE,
+    P_SLIPV,
     P_TANDELTA,
     P_TANPHI,
     P_TAPER,
@@ -323,9 +324,13 @@ def evaluate_contact(
     dt = prm[P_DT]
     v = prm[P_V]
     # the surface that shears the soil turns at omega and lies kin times farther out than the
-    # contact circle (rim bearing: the grouser tips), so it moves as omega * kin at the circle
+    # contact circle (rim bearing: the grouser tips), so it moves as omega * kin at the circle;
+    # its slip over the ground sees the axle's velocity sv times (grouser_slip 'rim': sv = kin,
+    # so the slip velocity is kin times the rim's, Ding et al. 2011's j = r_s [(theta_1 -
+    # theta) - (1 - s)(sin theta_1 - sin theta)] with the rim's slip s; else 1: the tips')
     kin = prm[P_SHEARSCALE]
     omega = prm[P_OMEGA] * kin
+    sv = prm[P_SLIPV]
     disp_form = prm[P_SHEARDISP] > 0.5
     incl_exp = prm[P_INCL]
     ncont, kstar, norm, cmin, cmax = _footprint(
@@ -356,8 +361,8 @@ def evaluate_contact(
             rz = e[k]
             nx = fx[k]
             nz = fz[k]
-            vpx, vpz, vn = surface_velocity(v, vz, omega, rx, rz, nx, nz)
-            pen = -vn  # rate of penetration into the soil [m/s]
+            vpx, vpz, vn = surface_velocity(v * sv, vz * sv, omega, rx, rz, nx, nz)
+            pen = -vn / sv  # rate of penetration into the soil [m/s]
             sd = 0.0
             dsd = 0.0
             if dsoil > 0.0 and pen > 0.0:

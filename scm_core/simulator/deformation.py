@@ -73,6 +73,7 @@ from .layout import (
     P_R,
     P_SHEARDISP,
     P_SHEARSCALE,
+    P_SLIPV,
     P_SLIPFLOW,
     P_TANDELTA,
     P_V,
@@ -118,8 +119,10 @@ def commit_contact(
     K = prm[P_K]
     dt = prm[P_DT]
     disp_form = prm[P_SHEARDISP] > 0.5
-    v = prm[P_V]
-    omega = prm[P_OMEGA] * prm[P_SHEARSCALE]  # the shearing surface's (contact.evaluate_contact)
+    # the shearing surface's slip over the ground, as in contact.evaluate_contact
+    v = prm[P_V] * prm[P_SLIPV]
+    vz = vz * prm[P_SLIPV]
+    omega = prm[P_OMEGA] * prm[P_SHEARSCALE]
     flow = 0.0
     for p in range(npatch):
         k = pc[p]
@@ -389,7 +392,11 @@ def _survey(prm, zw, vz, cols, marks, window, scratch):
     ncw, jw0, nyw = window.ncw, window.jw0, window.nyw
     work, iwork = scratch.work, scratch.iwork
     ny = scratch.inq.shape[1]
-    v = prm[P_V]
+    # the shearing surface's slip over the ground (rim bearing with grouser_slip 'rim': the
+    # rim's slip velocity times r_s / r, contact.evaluate_contact)
+    sv = prm[P_SLIPV]
+    v = prm[P_V] * sv
+    vz = vz * sv
     r_out = prm[P_R] + prm[P_HG]
     omega_s = prm[P_OMEGA] * prm[P_SHEARSCALE]  # the shearing surface's at the contact circle
     clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
@@ -426,6 +433,7 @@ def _survey(prm, zw, vz, cols, marks, window, scratch):
         vt = math.sqrt(vtx * vtx + vtz * vtz)
         vtx_col[k] = vtx
         vt_col[k] = vt
+        vn = vn / sv  # the surface's own normal speed (the scale is the shear's, not the rim's)
         share_col[k] = vt / (vt + abs(vn)) if vt + abs(vn) > 0.0 else 0.0
         for j in range(jw0, jw0 + nyw):
             if cflag[k + 1, j] != 0:
@@ -516,7 +524,8 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
     face_plough = prm[P_FACEPLOUGH] > 0.5
     # sliding face: height above the lowest point of the part of a skidding wheel's front face
     # where the rim slides over the soil (see sliding_face_height)
-    y_slide = sliding_face_height(v, omega_s, r_out, prm[P_TANDELTA]) if face_plough else 0.0
+    v_s = v * prm[P_SLIPV]  # the carriage's speed in the shearing surface's slip
+    y_slide = sliding_face_height(v_s, omega_s, r_out, prm[P_TANDELTA]) if face_plough else 0.0
     dig_mobilised = prm[P_DIGMOB] > 0.5
     # soil trapped between grousers: carried at the rim speed of the pocket's mean radius,
     # half a pocket inside the tips

@@ -266,6 +266,16 @@ class RigConfig(_Frozen):
         "as in 'tip_circle'; Ding et al. 2011's shearing radius r + h_g); a smooth wheel is "
         "the same under all three",
     )
+    grouser_slip: Literal["tips", "rim"] = Field(
+        "tips",
+        description="With grouser_contact 'rim_bearing', the slip of the surface through the "
+        "grouser tips over the soil below (docs/simulator.md step 1): 'tips' (the tips' own "
+        "velocity, omega (r + h_g) - v at the bottom: the trapped soil slides over the ground "
+        "even at zero rim slip) or 'rim' (Ding et al. 2011, J. Terramechanics 48: shear "
+        "displacement j = r_s [(theta_1 - theta) - (1 - s)(sin theta_1 - sin theta)] with "
+        "r_s = r + h_g and s the rim's slip, i.e. the rim's slip velocity times r_s / r: the "
+        "soil below the tips moves with them until the rim slips); ignored otherwise",
+    )
     sinkage_datum: Literal["outer", "rim"] = Field(
         "outer",
         description="Where the reported sinkage z is zero: 'outer' (the axle height at which "

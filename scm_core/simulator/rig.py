@@ -74,6 +74,7 @@ class ResolvedRig:
     skid_ploughing: str
     grouser_contact: str
     sinkage_datum: str
+    grouser_slip: str
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -151,4 +152,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         skid_ploughing=rig.skid_ploughing,
         grouser_contact=rig.grouser_contact,
         sinkage_datum=rig.sinkage_datum,
+        grouser_slip=rig.grouser_slip,
     )

@@ -173,3 +173,65 @@ def test_a_skidding_rim_bearing_wheel_is_the_smooth_rim_turning_at_its_tips_spee
     np.testing.assert_array_equal(a.means[:, 0], b.means[:, 0])
     np.testing.assert_allclose(a.means[:, 1], kin * b.means[:, 1], rtol=1e-12)
     np.testing.assert_allclose(a.means[:, 2], b.means[:, 2] + H_G, atol=1e-12)
+
+
+@pytest.mark.parametrize("shear", ["velocity", "displacement"])
+@pytest.mark.parametrize("slip", [0.5, 0.0, -0.5])
+def test_rim_slip_shears_at_the_tips_with_the_rims_slip_scaled_by_the_shearing_radius(
+    shear: str, slip: float
+):
+    """grouser_slip = 'rim' (Ding et al. 2011): the slip velocity of the shearing surface is
+    (r + h_g) / r times the smooth rim's at the same rim slip, so eq. (8)'s mobilised shear,
+    1 - exp(-|v_j| / J) or 1 - exp(-j / J), equals the smooth rim's with J r / (r + h_g).
+    Without soil flow (which also moves the soil at those speeds) the rim-slip wheel pulls and
+    sinks as that smooth rim, and its torque is (r + h_g) / r times larger (the shear acts at
+    the tips). At zero rim slip the tips then pull no more than the rim does, where the tips'
+    own velocity (grouser_slip = 'tips') slides the trapped soil at omega h_g."""
+    kin = (R + H_G) / R
+    rim = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    common = dict(
+        W=22.0,
+        slip=slip,
+        slip_convention="symmetric",
+        carriage_speed=V,
+        slip_radius=R,
+        duration=12.0,
+        dt=0.02,
+        shear=shear,
+        bulldozing=False,
+    )
+    j_rim = SOIL.model_copy(update={"J": SOIL.J / kin})
+    g = simulate_swt(
+        SOIL, GROUSERED, RigConfig(grouser_contact="rim_bearing", grouser_slip="rim", **common)
+    )
+    s = simulate_swt(j_rim, rim, RigConfig(**common))
+    assert g.ok and s.ok
+    np.testing.assert_allclose(g.series["F"], s.series["F"], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(g.series["z"], s.series["z"] + H_G, atol=1e-12)
+    np.testing.assert_allclose(g.series["T"], kin * s.series["T"], rtol=1e-9, atol=1e-12)
+    if slip == 0.0:
+        tips = simulate_swt(
+            SOIL, GROUSERED, RigConfig(grouser_contact="rim_bearing", grouser_slip="tips", **common)
+        )
+        assert tips.means.F > g.means.F + 0.5  # the tips' slip pulls at zero rim slip
+
+
+def test_grouser_slip_changes_only_a_rim_bearing_grousered_wheel():
+    """'rim' packs the shearing radius ratio into the slip slot of a rim-bearing grousered
+    wheel only: a smooth wheel, grouser faces and the tip circle are bit for bit as with
+    'tips'."""
+    from scm_core.simulator.layout import P_SLIPV
+
+    smooth = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    for wheel, contact in (
+        (smooth, "rim_bearing"),
+        (GROUSERED, "faces"),
+        (GROUSERED, "tip_circle"),
+    ):
+        rig = _rig(0.5, contact)
+        a = pack(SOIL, wheel, rig)
+        b = pack(SOIL, wheel, rig.model_copy(update={"grouser_slip": "rim"}))
+        np.testing.assert_array_equal(a, b)
+    a = pack(SOIL, GROUSERED, _rig(0.5, "rim_bearing"))
+    b = pack(SOIL, GROUSERED, _rig(0.5, "rim_bearing").model_copy(update={"grouser_slip": "rim"}))
+    assert set(np.flatnonzero(a != b)) == {P_SLIPV} and b[P_SLIPV] == (R + H_G) / R
