@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import time
 import tomllib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -308,6 +308,31 @@ class SCMCalibClient:
                     f"{p.get('evaluations_planned')} evaluations)"
                 )
             time.sleep(min(poll, left))
+
+    def watch(self, study_id: int) -> Iterator[dict[str, Any]]:
+        """The study at once and after each change until it has ended, from its server-sent
+        events (``GET /studies/{id}/stream``: no polling; a stream the server ends after an
+        hour while the study runs is opened again)."""
+        url = f"{self.base_url}/studies/{int(study_id)}/stream"
+        while True:
+            study: dict[str, Any] | None = None
+            try:
+                timeout = httpx.Timeout(self._timeout, read=None)  # a quiet stream is no error
+                headers = self._headers()
+                with self._http.stream("GET", url, headers=headers, timeout=timeout) as response:
+                    if response.status_code >= 400:
+                        response.read()
+                        raise SCMCalibError(_message(response), response.status_code)
+                    for line in response.iter_lines():
+                        if line.startswith("data: "):
+                            study = json.loads(line[6:])
+                            yield study
+            except httpx.HTTPError as exc:
+                raise SCMCalibError(f"GET {url}: {type(exc).__name__}: {exc}") from None
+            if study is None:
+                raise SCMCalibError(f"GET {url}: the stream ended without an event")
+            if study["status"] not in ACTIVE:
+                return
 
     def samples(self, study_id: int, stage: int = -1, page_size: int = 5000) -> StageSamples:
         """All samples of a stage (default -1: the last finished stage) as numpy arrays."""

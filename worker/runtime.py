@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import signal
@@ -14,6 +15,11 @@ from services.store.records import BatchKey
 
 from .lifetime import exit_with_parent
 from .orchestrator import ContextCache, Dispatcher, execute_batch
+
+#: niceness added to an embedded pool process: a study's batches take the cores the server's
+#: own work leaves (pages, and the figures a stage's end has drawn), not the other way round;
+#: alone on the machine they get all of it, and the results do not depend on it
+POOL_NICENESS = 5
 
 
 @dataclass
@@ -52,7 +58,8 @@ def pool_process_main(conn, store_args: tuple[str, float, int], owner: str) -> N
     """Main of an embedded pool process (:class:`worker.local_pool.SupervisedPool`): exit
     with the server, open the store, load the compiled simulator, say "ready", then run each
     batch key received on ``conn`` and answer its outcome. One numba thread: the pool's
-    processes already use the cores. store_args: (url, lease_seconds, max_attempts)."""
+    processes already use the cores; niced by :data:`POOL_NICENESS`. store_args: (url,
+    lease_seconds, max_attempts)."""
     exit_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's; it stops us
     import numba
@@ -60,6 +67,8 @@ def pool_process_main(conn, store_args: tuple[str, float, int], owner: str) -> N
     from scm_core.simulator import warm_up
 
     numba.set_num_threads(1)
+    with contextlib.suppress(OSError):  # batches yield the cores to serving (pages, figures)
+        os.nice(POOL_NICENESS)
     url, lease, attempts = store_args
     me = local_worker_id(owner)
     try:

@@ -62,6 +62,7 @@ from .routes import (
     presets,
     sensitivity,
     studies,
+    study_events,
 )
 from .routes.kinds import kind_router
 from .schemas import ErrorOut
@@ -397,7 +398,10 @@ def create_app(
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     app.add_middleware(TokenFirstMiddleware)  # outermost: runs first
     _install_error_handlers(app)
-    routers = [m.router for m in (health, datasets, presets, cases, studies, sensitivity, pooled)]
+    routers = [
+        m.router
+        for m in (health, datasets, presets, cases, studies, study_events, sensitivity, pooled)
+    ]
     routers += [kind_router(k) for k in KINDS.values() if k.http is not None]
     if settings.dashboard:
         routers.append(dashboard_router(app.state.figure_warmer))

@@ -248,7 +248,7 @@ def test_server_killed_and_restarted(server, reference_samples) -> None:
     store = Store.open(server.url)
     try:
         _leased(store, first)
-        # a figure of its finished stage 0: drawn by the server's figure process (started by
+        # a figure of its finished stage 0: drawn by the server's figure processes (started by
         # this first figure), which must die with the server as the pool does
         r = httpx.get(
             f"{server.base}/ui/figures/studies/{first}/prior_posterior.svg?stage=0",
@@ -259,7 +259,8 @@ def test_server_killed_and_restarted(server, reference_samples) -> None:
         study_id = _submit(server)  # running when the server is killed, however long that took
         batch = _leased(store, study_id)
         pool = server.children()
-        assert len(pool) == 3, pool  # two pool processes and the figure process
+        # two pool processes and the figure processes (spawned as figures come: one or two)
+        assert 3 <= len(pool) <= 4, pool
         server.kill()
         # the pool and figure processes die with the server (parent-death signal)
         deadline = time.monotonic() + 10.0

@@ -27,7 +27,8 @@ import pytest
 from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, summary_doc, tiny_case, wait_ended
 
 ROOT = Path(__file__).resolve().parents[2]
-SHOTS = ROOT / "test-output" / "dashboard"
+#: where the screenshots go (docs/screenshots.py points it elsewhere)
+SHOTS = Path(os.environ.get("SCM_CALIB_SHOTS_DIR") or ROOT / "test-output" / "dashboard")
 CHROMIUM = os.environ.get("SCM_CALIB_TEST_CHROMIUM", "/usr/bin/chromium")
 ARGS = [
     "--no-sandbox",
@@ -352,6 +353,15 @@ def test_compare_page_of_two_runs_shows_their_agreement_and_rank_plots(server, b
         r = w.page.request.get(f"{base}/ui/figures/ranks.svg?ids={server['a']},{server['b']}")
         assert r.status == 404 and "same parameters" in r.json()["detail"]
         w.shoot("compare_runs_1280x800")
+        w.clean()
+    finally:
+        w.close()
+    w = Watched(browser, SIZES["400x800"])
+    try:
+        w.goto(f"{base}/ui/compare?ids={server['a']},{server['a2']}")
+        assert w.figures_loaded() == 2
+        assert w.page.evaluate("document.documentElement.scrollWidth") <= 400
+        w.shoot("compare_runs_400x800")
         w.clean()
     finally:
         w.close()

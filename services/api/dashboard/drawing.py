@@ -2,10 +2,12 @@
 
 Drawing a figure is seconds of matplotlib (and, for the fit, of the simulator) in one
 interpreter; in the API's process it competed with every other request. :class:`FigureProcess`
-keeps :data:`DRAWING_PROCESSES` spawned worker process with its own store connection and its own
-cache of simulations at the MAP; the API keeps the drawn bytes
+keeps :data:`DRAWING_PROCESSES` spawned worker processes, each with its own store connection and
+cache of simulations at the MAP, drawing one figure each at a time; the API keeps the drawn bytes
 (:class:`~services.api.dashboard.figures.FigureCache`) and only asks the worker for what it does
-not hold. The worker starts with the first figure and ends with the server, even a killed one
+not hold. The worker starts when a study page first polls (:meth:`FigureProcess.warm`: it
+loads matplotlib, the figures' modules and the simulator's compiled code then, about 5 s on two
+busy cores, instead of with the first stage's figures) and ends with the server, even a killed one
 (:func:`worker.lifetime.exit_with_parent`: the kernel signals it when the thread that started
 it ends, so one long-lived thread of this class starts it and hands it every figure); if it
 dies, the next figure starts another. Measured with a study running beside two calibrations on
@@ -29,7 +31,7 @@ __all__ = ["FigureProcess"]
 log = logging.getLogger(__name__)
 
 #: worker processes drawing at once (the page fetches two figures at a time)
-DRAWING_PROCESSES = 1
+DRAWING_PROCESSES = 2
 
 # the worker process's own state (set by _start_worker in that process only)
 _worker: dict[str, Any] = {}
@@ -45,6 +47,16 @@ def _start_worker(database_url: str) -> None:
 
     _worker["store"] = Store.open(database_url)
     _worker["cache"] = FigureCache(max_entries=64)
+    # what the first figure would otherwise pay for: matplotlib and the plotting modules, and
+    # the simulator's compiled kernel (the fit simulates at the MAP)
+    import numba
+
+    from scm_core.simulator import warm_up
+
+    from . import figures  # noqa: F401
+
+    numba.set_num_threads(1)
+    warm_up()
 
 
 def _draw_study_figure(study_id: int, name: str, fmt: str, options: dict[str, Any]) -> bytes:
@@ -56,16 +68,28 @@ def _draw_study_figure(study_id: int, name: str, fmt: str, options: dict[str, An
 
 
 class FigureProcess:
-    """The worker process that draws study figures for the API (see the module)."""
+    """The worker processes that draw study figures for the API (see the module)."""
 
     def __init__(self, database_url: str) -> None:
         self.database_url = database_url
-        self._jobs: queue.Queue[tuple[tuple, Future] | None] = queue.Queue()
+        self._jobs: queue.Queue[tuple[tuple | None, Future, int] | None] = queue.Queue()
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
+        self._broken = threading.Event()  # a worker died: the serving thread starts others
+
+    def warm(self) -> None:
+        """Start the workers now, if they are not running, so that the first figures find
+        them ready (returns at once; cheap when they run)."""
+        if self._thread is None:
+            for _ in range(DRAWING_PROCESSES):
+                self._submit(None)
 
     def study_figure(self, study_id: int, name: str, fmt: str, options: dict[str, Any]) -> bytes:
-        """The bytes of a study figure drawn in the worker (its errors raised here)."""
+        """The bytes of a study figure drawn in a worker (its errors raised here)."""
+        return self._submit((study_id, name, fmt, options)).result()
+
+    def _submit(self, args: tuple | None) -> Future:
+        """Queue a figure (None: a task that only starts a worker)."""
         with self._lock:
             if self._thread is None:
                 self._thread = threading.Thread(
@@ -73,39 +97,50 @@ class FigureProcess:
                 )
                 self._thread.start()
         done: Future = Future()
-        self._jobs.put(((study_id, name, fmt, options), done))
-        return done.result()
+        self._jobs.put((args, done, 0))
+        return done
 
     def _serve(self) -> None:
-        """The long-lived thread that starts the worker and hands it every figure."""
+        """The long-lived thread that starts the workers and hands them every figure (a
+        worker is spawned by the thread that submits to its pool, so this one submits all)."""
         pool: ProcessPoolExecutor | None = None
         while (job := self._jobs.get()) is not None:
-            args, done = job
-            for attempt in range(2):  # a dead worker is replaced once per figure
-                if pool is None:
-                    pool = ProcessPoolExecutor(
-                        max_workers=DRAWING_PROCESSES,
-                        mp_context=multiprocessing.get_context("spawn"),
-                        initializer=_start_worker,
-                        initargs=(self.database_url,),
-                    )
-                try:
-                    done.set_result(pool.submit(_draw_study_figure, *args).result())
-                    break
-                except BrokenProcessPool as exc:
-                    log.warning("the figure worker died; starting another")
-                    pool.shutdown(wait=False, cancel_futures=True)
-                    pool = None
-                    if attempt:
-                        done.set_exception(exc)
-                except Exception as exc:  # the figure's own error (FigureError, ...)
-                    done.set_exception(exc)
-                    break
+            if pool is not None and self._broken.is_set():
+                pool.shutdown(wait=False, cancel_futures=True)
+                pool = None
+            if pool is None:
+                self._broken.clear()
+                pool = ProcessPoolExecutor(
+                    max_workers=DRAWING_PROCESSES,
+                    mp_context=multiprocessing.get_context("spawn"),
+                    initializer=_start_worker,
+                    initargs=(self.database_url,),
+                )
+            args = job[0]
+            try:
+                task = pool.submit(int) if args is None else pool.submit(_draw_study_figure, *args)
+            except BrokenProcessPool:  # died since the last figure: start others, try again
+                self._broken.set()
+                self._jobs.put(job)
+                continue
+            task.add_done_callback(lambda t, job=job: self._finished(t, job))
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
 
+    def _finished(self, task: Future, job: tuple) -> None:
+        args, done, attempt = job
+        exc = task.exception()
+        if isinstance(exc, BrokenProcessPool) and attempt == 0:
+            log.warning("a figure worker died; starting others")
+            self._broken.set()  # a dead worker is replaced once per figure
+            self._jobs.put((args, done, 1))
+        elif exc is not None:  # the figure's own error (FigureError, ...)
+            done.set_exception(exc)
+        else:
+            done.set_result(task.result())
+
     def close(self) -> None:
-        """Stop the thread and the worker (figures asked for before are drawn first)."""
+        """Stop the thread and the workers (figures asked for before are drawn first)."""
         with self._lock:
             thread, self._thread = self._thread, None
         if thread is not None:

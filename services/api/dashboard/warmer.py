@@ -17,13 +17,14 @@ import logging
 import threading
 import time
 from collections.abc import Hashable
+from concurrent.futures import ThreadPoolExecutor
 
 from services.api.views import parameter_names
 from services.store import Store
 from services.store.errors import NotFoundError
 from services.store.models import STUDY_ACTIVE
 
-from .drawing import FigureProcess
+from .drawing import DRAWING_PROCESSES, FigureProcess
 from .figures import FigureCache, FigureError, page_figures, study_figure
 
 __all__ = ["FigureWarmer"]
@@ -51,6 +52,8 @@ class FigureWarmer:
         """A page of ``study_id`` is open: keep its figures drawn (cheap; call on every poll)."""
         with self._lock:
             self._seen[study_id] = time.monotonic()
+        if self.drawer is not None:
+            self.drawer.warm()
 
     def watched(self) -> list[int]:
         with self._lock:
@@ -117,7 +120,9 @@ class FigureWarmer:
                 names = parameter_names(study)
             except (KeyError, TypeError, ValueError):
                 names = []
-            for k, spec in enumerate(page_figures(names, done[-1])):
+
+            def draw(item: tuple[int, dict]) -> bool:
+                k, spec = item
                 if self._stop.is_set() or (k and self._moved_on(store, study_id, state)):
                     return False  # a newer stage's figures come next: these would be stale
                 # FigureError: not drawn for this kind or stage, so the page does not show it
@@ -125,6 +130,12 @@ class FigureWarmer:
                     study_figure(
                         store, study, fmt="svg", cache=self.cache, drawer=self.drawer, **spec
                     )
+                return True
+
+            # as many at once as the drawing processes draw (the page asks for two at a time)
+            with ThreadPoolExecutor(DRAWING_PROCESSES, thread_name_prefix="figure") as pool:
+                if not all(list(pool.map(draw, enumerate(page_figures(names, done[-1]))))):
+                    return False
         self._drawn[study_id] = state
         if study.status not in STUDY_ACTIVE:
             self._forget(study_id)  # ended: its figures are final
