@@ -36,13 +36,25 @@ KEEPALIVE_SECONDS = 15.0
 STREAM_SECONDS = 3600.0
 
 
+#: one event of the stream (the OpenAPI schema of an event-stream describes its events)
+_EVENT_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "event": {"type": "string", "enum": ["study"]},
+        "id": {"type": "string", "description": "the study's version"},
+        "data": {"type": "string", "description": "the study's JSON (StudyOut)"},
+    },
+    "required": ["event", "id", "data"],
+}
+
+
 @router.get(
     "/{study_id}/stream",
     summary="The study's progress as server-sent events",
     response_class=StreamingResponse,
     responses={
         200: {
-            "content": {"text/event-stream": {"schema": {"type": "string"}}},
+            "content": {"text/event-stream": {"schema": _EVENT_SCHEMA}},
             "description": "event: study, data: the study as GET /studies/{id} gives it; sent "
             "at once and on every change, until the study has ended",
         },
