@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 import shutil
 import threading
@@ -335,6 +336,80 @@ def test_pair_matrix_redraws_for_the_checked_parameters(server, browser) -> None
             f"{server['base']}/ui/figures/studies/{server['b']}/matrix.svg?stage=1&p=phi,K"
         )
         assert r.status == 404 and "p: K not among" in r.json()["detail"]
+    finally:
+        w.close()
+
+
+def _shown(v: float) -> float:
+    """Half a unit of the readout's fourth significant digit (toPrecision(4)) at v."""
+    return 0.5 * 10 ** (math.floor(math.log10(abs(v))) - 3) if v else 0.0
+
+
+def _read_out(text: str) -> dict[str, float]:
+    """'n [-] = 1.234, phi [deg] = 25.00' -> {'n [-]': 1.234, 'phi [deg]': 25.0}"""
+    return {k.strip(): float(v) for k, v in (part.split(" = ") for part in text.split(", "))}
+
+
+def test_hovering_a_figure_reads_out_the_data_under_the_pointer(server, browser) -> None:
+    """Issue 45's values on hover: over the bivariate density (and over its enlarged copy,
+    zoomed) the page shows the data coordinates under the pointer, from the axes the SVG
+    carries; a point a quarter into the axes' box reads a quarter of its limits (to a pixel)."""
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/studies/{server['a']}")
+        w.figures_loaded()
+        img = w.page.locator("img[data-figure=pairs]")
+        ax = json.loads(img.get_attribute("data-axes"))[0]
+        assert ax["xscale"] == ax["yscale"] == "linear", ax
+        left, top, right, bottom = ax["box"]
+
+        def hover_at(fx: float, fy: float, target) -> tuple[dict[str, float], float, float]:
+            target.scroll_into_view_if_needed()
+            box = target.bounding_box()
+            x = box["x"] + box["width"] * (left + fx * (right - left))
+            y = box["y"] + box["height"] * (bottom - fy * (bottom - top))
+            w.page.mouse.move(x, y)
+            w.page.wait_for_selector("#figure-readout:not([hidden])")
+            px = (ax["x"][1] - ax["x"][0]) / (box["width"] * (right - left))  # one pixel
+            py = (ax["y"][1] - ax["y"][0]) / (box["height"] * (bottom - top))
+            return _read_out(w.page.inner_text("#figure-readout")), px, py
+
+        got, px, py = hover_at(0.25, 0.75, img)
+        assert list(got) == [ax["xlabel"], ax["ylabel"]], got
+        xv, yv = got.values()
+        ex, ey = (
+            ax["x"][0] + 0.25 * (ax["x"][1] - ax["x"][0]),
+            ax["y"][0] + 0.75 * (ax["y"][1] - ax["y"][0]),
+        )
+        assert abs(xv - ex) <= 1.5 * px + _shown(ex), (got, ax)  # a pixel and the rounding
+        assert abs(yv - ey) <= 1.5 * py + _shown(ey), (got, ax)
+        w.page.mouse.move(1, 1)  # off the figure: the readout goes
+        w.page.wait_for_selector("#figure-readout", state="hidden")
+        img.click()  # enlarged, then zoomed about the pointer: the readout follows
+        big = w.page.locator("dialog.figure-zoom img")
+        big.wait_for()
+        w.page.mouse.wheel(0, -400)
+        w.page.wait_for_function(
+            "() => Number(document.querySelector('dialog img').dataset.scale) > 1"
+        )
+        # the pointer at the middle of the window, over the zoomed image's axes
+        w.page.mouse.move(640, 400)
+        w.page.mouse.move(641, 401)
+        box = big.bounding_box()
+        fx = ((641 - box["x"]) / box["width"] - left) / (right - left)
+        fy = (bottom - (401 - box["y"]) / box["height"]) / (bottom - top)
+        assert 0 < fx < 1 and 0 < fy < 1, (fx, fy, box)
+        w.page.wait_for_selector("#figure-readout:not([hidden])")
+        xv, yv = _read_out(w.page.inner_text("#figure-readout")).values()
+        px = (ax["x"][1] - ax["x"][0]) / (box["width"] * (right - left))  # one pixel, zoomed
+        py = (ax["y"][1] - ax["y"][0]) / (box["height"] * (bottom - top))
+        ex, ey = (
+            ax["x"][0] + fx * (ax["x"][1] - ax["x"][0]),
+            ax["y"][0] + fy * (ax["y"][1] - ax["y"][0]),
+        )
+        assert abs(xv - ex) <= 1.5 * px + _shown(ex), (xv, fx, ax)
+        assert abs(yv - ey) <= 1.5 * py + _shown(ey), (yv, fy, ax)
+        w.clean()
     finally:
         w.close()
 

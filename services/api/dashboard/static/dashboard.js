@@ -63,7 +63,9 @@
         }));
         return;
       }
-      const url = URL.createObjectURL(await resp.blob());
+      const blob = await resp.blob();
+      img.dataset.axes = blob.type.startsWith("image/svg") ? axesOf(await blob.text()) : "";
+      const url = URL.createObjectURL(blob);
       const old = shown.get(img);
       img.src = url;
       shown.set(img, url);
@@ -73,6 +75,52 @@
       img.classList.remove("loading");
     }
   }
+
+  /* hover readout: an SVG figure carries where its axes lie and their limits
+     (<metadata id="axes">, services.plots.figures.axes_geometry); the pointer over a figure, or
+     over its enlarged copy, shows the data coordinates under it */
+  function axesOf(svg) {
+    const m = /<metadata id="axes">([^<]*)<\/metadata>/.exec(svg);
+    return m ? m[1] : "";
+  }
+  function along(f, lim, scale) {  // f: fraction of the axis from its low-value end
+    if (scale === "log") return Math.pow(10, Math.log10(lim[0]) + f * (Math.log10(lim[1]) - Math.log10(lim[0])));
+    return lim[0] + f * (lim[1] - lim[0]);
+  }
+  function short(v) { return Math.abs(v) >= 1e4 || (v !== 0 && Math.abs(v) < 1e-3) ? v.toExponential(3) : v.toPrecision(4); }
+  function readoutAt(img, clientX, clientY) {
+    if (!img.dataset.axes) return null;
+    const box = img.getBoundingClientRect();
+    const fx = (clientX - box.left) / box.width, fy = (clientY - box.top) / box.height;
+    for (const ax of JSON.parse(img.dataset.axes)) {
+      const [l, t, r, b] = ax.box;
+      if (fx < l || fx > r || fy < t || fy > b) continue;
+      const x = along((fx - l) / (r - l), ax.x, ax.xscale), y = along((b - fy) / (b - t), ax.y, ax.yscale);
+      return `${ax.xlabel || "x"} = ${short(x)}, ${ax.ylabel || "y"} = ${short(y)}`;
+    }
+    return null;
+  }
+  function readoutBox() {
+    let el = document.getElementById("figure-readout");
+    if (!el) {
+      el = Object.assign(document.createElement("div"), { id: "figure-readout", className: "figure-readout" });
+      el.setAttribute("role", "status");
+    }
+    const host = document.querySelector("dialog[open]") || document.body;  // above a modal
+    if (el.parentElement !== host) host.append(el);
+    return el;
+  }
+  document.addEventListener("pointermove", (ev) => {
+    const img = ev.target.closest && ev.target.closest("figure.fig img, dialog.figure-zoom img");
+    const text = img ? readoutAt(img, ev.clientX, ev.clientY) : null;
+    const el = document.getElementById("figure-readout");
+    if (!text) { if (el) el.hidden = true; return; }
+    const box = readoutBox();
+    box.textContent = text;
+    box.hidden = false;
+    box.style.left = `${ev.clientX + 14}px`;
+    box.style.top = `${ev.clientY + 14}px`;
+  });
 
   function loadFigures(root) {
     root.querySelectorAll("img[data-src]").forEach(loadFigure);
@@ -167,6 +215,7 @@
       zoom = zoomView(dlg);
     }
     const pic = Object.assign(document.createElement("img"), { src: img.src, alt: img.alt });
+    pic.dataset.axes = img.dataset.axes || "";
     pic.draggable = false;
     dlg.replaceChildren(pic);
     zoom.reset();
