@@ -227,7 +227,8 @@ class SCMCalibClient:
     def studies(
         self, status: str | None = None, limit: int = 50, offset: int = 0, kind: str | None = None
     ) -> dict[str, Any]:
-        """A page of studies, newest first; ``kind``: "tmcmc" or "morris" (default: both)."""
+        """A page of studies, newest first; ``kind``: only studies of this kind (its name as
+        the studies' ``kind`` gives it; default: every kind)."""
         params: dict[str, Any] = {"limit": limit, "offset": offset}
         if status:
             params["status"] = status

@@ -73,8 +73,8 @@ from .layout import (
     P_R,
     P_SHEARDISP,
     P_SHEARSCALE,
-    P_SLIPV,
     P_SLIPFLOW,
+    P_SLIPV,
     P_TANDELTA,
     P_V,
 )

@@ -22,6 +22,7 @@ from scm_core.jsondoc import finite_or_none
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 from services.store.records import Page
 from services.studies.kinds import kind_of, study_terms
+from services.studies.kinds.prediction import KIND as PREDICTION
 
 from .schemas import (
     AgreementOut,
@@ -135,7 +136,8 @@ def study_out(store: Store, study: StudyRecord) -> StudyOut:
 
 
 def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
-    """A Morris study (kind "morris") as ``GET /sensitivity/{id}`` shows it."""
+    """A Morris study (:mod:`services.studies.kinds.screening`) as ``GET /sensitivity/{id}``
+    shows it."""
     terms = study_terms(study)
     cfg = terms.sampler
     return SensitivityOut(
@@ -198,7 +200,7 @@ def predictions_of(store: Store, study: StudyRecord) -> list[StudyRecord]:
     """The prediction studies made from ``study``'s posterior, newest first (among the newest
     :data:`PREDICTIONS_SCANNED` predictions: the link is in their stored payload, which the
     store keeps as a document and does not query inside)."""
-    page = store.studies.list(kind="prediction", limit=PREDICTIONS_SCANNED)
+    page = store.studies.list(kind=PREDICTION.name, limit=PREDICTIONS_SCANNED)
     return [p for p in page.items if (p.payload or {}).get("study_id") == study.id]
 
 

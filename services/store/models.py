@@ -41,6 +41,9 @@ __all__ = [
 STUDY_KIND_PATTERN = r"^[a-z][a-z0-9_]{0,15}$"
 STUDY_STATUSES = ("queued", "running", "completed", "failed", "cancelled", "stalled")
 STUDY_ACTIVE = ("queued", "running")
+#: the kind of the rows from before studies had kinds: migration 0002's server default, a
+#: fact of the schema (the store knows no kind otherwise)
+PRE_KIND_ROWS = "tmcmc"
 STUDY_FINAL = ("completed", "failed", "cancelled", "stalled")
 STAGE_STATUSES = ("planned", "running", "reducing", "done")
 BATCH_STATUSES = ("pending", "leased", "done", "failed")
@@ -112,14 +115,14 @@ class DatasetUpload(Base):
 class Study(Base):
     """A study: its case document, datasets, seed and progress.
 
-    ``kind`` names the plug-in that runs it (``services.studies.kinds``): "tmcmc" a
-    calibration (stages of TMCMC chains), "morris" a sensitivity screening (one stage whose
-    "chains" are the Morris design points) ... ``case_spec`` is the single source of what the
-    study is (priors, sampler and simulator settings are derived from it by the kind when
-    read); ``payload``: the kind's own settings (JSON: the study an update starts from, a
-    screening's design), ``result``: what the kind stores when the study ends. ``version``
-    goes up with every change of the study's state (each event appended for it, a stage
-    starting): the API's ETags.
+    ``kind`` names the plug-in that runs it (``services.studies.kinds``: a calibration's stages
+    of TMCMC chains, a screening's one stage whose "chains" are the Morris design points ...;
+    the column's server default is what rows from before kinds were). ``case_spec`` is the
+    single source of what the study is (priors, sampler and simulator settings are derived from
+    it by the kind when read); ``payload``: the kind's own settings (JSON: the study an update
+    starts from, a screening's design), ``result``: what the kind stores when the study ends.
+    ``version`` goes up with every change of the study's state (each event appended for it, a
+    stage starting): the API's ETags.
     """
 
     __tablename__ = "studies"
@@ -130,7 +133,7 @@ class Study(Base):
     )
 
     id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
-    kind: Mapped[str] = mapped_column(sa.String(16), default="tmcmc", server_default="tmcmc")
+    kind: Mapped[str] = mapped_column(sa.String(16), server_default=PRE_KIND_ROWS)
     name: Mapped[str] = mapped_column(sa.String(200))
     status: Mapped[str] = mapped_column(sa.String(16), default="queued")
     case_spec: Mapped[dict[str, Any]] = mapped_column(JSONType)

@@ -81,9 +81,9 @@ class StudySpec:
     case: the study's case document (free JSON to the store: the single source its kind
     derives priors and sampler settings from); ``dataset_ids`` in likelihood order. seed:
     0 <= seed < 2**63. n_samples: items of a stage (samples, design points, draws).
-    batch_size: items per work batch (None: the orchestrator decides). kind: the plug-in that
-    runs it ("tmcmc" a calibration, "morris" a sensitivity study ...; see
-    ``services.studies.kinds``). payload: the kind's own settings (JSON).
+    kind: the plug-in that runs it (a name of ``services.studies.kinds.KINDS``). batch_size:
+    items per work batch (None: the orchestrator decides). payload: the kind's own settings
+    (JSON).
     """
 
     name: str
@@ -91,8 +91,8 @@ class StudySpec:
     dataset_ids: Sequence[int]
     seed: int
     n_samples: int
+    kind: str
     batch_size: int | None = None
-    kind: str = "tmcmc"
     payload: Mapping[str, Any] | None = None
 
 

@@ -11,9 +11,9 @@ import re
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from services.plots.figures import render  # noqa: E402
+from services.plots.figures import render
 
 
 def _along(f: float, lim: list[float], scale: str) -> float:

@@ -889,7 +889,7 @@ def test_a_screening_starts_from_the_page(server, browser) -> None:
     try:
         _open_new_study_form(w, base)
         assert not w.page.is_visible("#new-study-form input[name=r]")
-        w.page.check("#new-study-form input[name=kind][value=morris]")
+        w.page.check("#new-study-form input[name=kind][value=screening]")
         assert w.page.is_visible("#new-study-form input[name=r]")
         assert not w.page.is_visible("#new-study-form input[name=n_samples]")
         w.page.fill("#new-study-form textarea", TINY_TOML)

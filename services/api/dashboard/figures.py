@@ -41,7 +41,7 @@ from services.plots.stages import schedule_figure, stage_trace_figure
 from services.plots.swt import measured_figure
 from services.store import StageRecord, Store, StudyRecord
 from services.studies.datasets import load_datasets, stored_log
-from services.studies.kinds import study_terms
+from services.studies.kinds import KINDS, KindPanel, kind_of, study_terms
 
 __all__ = [
     "STUDY_FIGURES",
@@ -198,13 +198,16 @@ def _trace(
     )
 
 
+def _panel(study: StudyRecord) -> KindPanel:
+    """How the study's kind is shown (its words for stage 0 and the last stage)."""
+    return kind_of(study.kind).panel
+
+
 def _stage_title(study: StudyRecord, stages: Sequence[StageRecord], stage: int) -> str:
     """ ", stage N" and, below exponent 1, what the samples are instead of a posterior."""
     p = next((s.exponent for s in stages if s.stage_index == stage), None)
     if stage == 0:
-        if study.kind == "update":
-            return ", stage 0 (the earlier posterior: not yet updated)"
-        return ", stage 0 (the prior sample: not a posterior)"
+        return f", stage 0 ({_panel(study).stage_zero})"
     if p is not None and p < 1.0:
         return f", stage {stage} (exponent {p:.3g}: not a posterior)"
     return f", stage {stage}"
@@ -217,7 +220,7 @@ def _prior_posterior(
     prior = case.prior()
     data = _stage_data(store, study, stage)
     first = _stage_data(store, study, 0)
-    earlier = "earlier posterior" if study.kind == "update" else "prior"
+    panel = _panel(study)
     return prior_posterior_figure(
         data.names,
         first.samples,
@@ -226,9 +229,9 @@ def _prior_posterior(
         units=dict(prior.units or {}),
         map_sample=_map(data),
         reference=case.reference,
-        title=f"{study.name}: {earlier} and{_stage_title(study, stages, stage)} (Figure 5)",
+        title=f"{study.name}: {panel.start} and{_stage_title(study, stages, stage)} (Figure 5)",
         log_params=_log_params(case),
-        labels=(earlier, "updated posterior" if study.kind == "update" else "posterior"),
+        labels=(panel.start, panel.end),
     )
 
 
@@ -348,7 +351,7 @@ def _fit(
     )
 
 
-def _morris(store: Store, study: StudyRecord, **_: Any) -> Figure:
+def _indices(store: Store, study: StudyRecord, **_: Any) -> Figure:
     res = study.result or {}
     if "linear_index" not in res:
         raise FigureError(f"study {study.id} has no Morris result yet ({study.status})")
@@ -404,16 +407,17 @@ def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
     )
 
 
-#: figure name -> (builder, needs a finished stage, the study kinds it is drawn for)
-STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool, tuple[str, ...]]] = {
-    "schedule": (_schedule, False, ("tmcmc", "update")),
-    "prior_posterior": (_prior_posterior, True, ("tmcmc", "update")),
-    "trace": (_trace, True, ("tmcmc", "update")),
-    "pairs": (_pairs, True, ("tmcmc", "update")),
-    "matrix": (_matrix, True, ("tmcmc", "update")),
-    "fit": (_fit, True, ("tmcmc", "update")),
-    "morris": (_morris, False, ("morris",)),
-    "predictions": (_predictions, False, ("prediction",)),
+#: figure name -> (builder, needs a finished stage); a kind names those it is drawn for
+#: (``KindPanel.figures``)
+STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool]] = {
+    "schedule": (_schedule, False),
+    "prior_posterior": (_prior_posterior, True),
+    "trace": (_trace, True),
+    "pairs": (_pairs, True),
+    "matrix": (_matrix, True),
+    "fit": (_fit, True),
+    "indices": (_indices, False),
+    "predictions": (_predictions, False),
 }
 
 
@@ -434,9 +438,11 @@ def study_figure(
     (None: drawn here). FigureError if the figure does not apply."""
     if name not in STUDY_FIGURES:
         raise FigureError(f"figure: unknown figure {name!r}; one of {sorted(STUDY_FIGURES)}")
-    build, needs_stage, kinds = STUDY_FIGURES[name]
-    if study.kind not in kinds:
-        raise FigureError(f"figure {name}: not drawn for a {study.kind} study")
+    build, needs_stage = STUDY_FIGURES[name]
+    kind = KINDS.get(study.kind)
+    if kind is None or name not in kind.panel.figures:
+        title = study.kind if kind is None else kind.title
+        raise FigureError(f"figure {name}: not drawn for a {title} study")
     stages = store.stages.list(study.id)
     if needs_stage:
         done = [s.stage_index for s in stages if s.status == "done"]

@@ -29,7 +29,7 @@ from services.limits import INT64_MAX
 from services.plots.figures import FORMATS
 from services.plots.posterior import default_pairs
 from services.store import NotFoundError, Store, StudyRecord
-from services.studies.kinds import KINDS
+from services.studies.kinds import KINDS, posterior_kinds
 
 from ..deps import StoreDep, require_read
 from ..etags import etag_of, not_modified, set_etag
@@ -65,18 +65,19 @@ ACTIVE = ("queued", "running")
 #: seconds between polls of a live fragment (the list's own poll is slower: new studies)
 POLL_SECONDS = 1
 LIST_POLL_SECONDS = 10
-KIND_TITLES = {name: kind.title for name, kind in KINDS.items()}
 
 
 def _templates() -> Jinja2Templates:
+    """The dashboard's templates, and the kinds' own where a kind brings them
+    (``KindPanel.templates``)."""
     folder = resources.files("services.api.dashboard") / "templates"
-    t = Jinja2Templates(directory=str(folder))
+    own = [str(k.panel.templates) for k in KINDS.values() if k.panel.templates is not None]
+    t = Jinja2Templates(directory=[str(folder), *own])
     t.env.filters["num"] = _fmt_num
     t.env.filters["duration"] = _fmt_duration
     t.env.globals.update(
         POLL_SECONDS=POLL_SECONDS,
         LIST_POLL_SECONDS=LIST_POLL_SECONDS,
-        KIND_TITLES=KIND_TITLES,
         ACTIVE=ACTIVE,
     )
     return t
@@ -180,7 +181,7 @@ def _page_routes(templates: Jinja2Templates) -> APIRouter:
             status=status or "",
             kind=kind or "",
             offset=offset,
-            kinds=sorted(KINDS),
+            kinds=[(name, KINDS[name].title) for name in sorted(KINDS)],
             statuses=("queued", "running", "completed", "stalled", "failed", "cancelled"),
         )
 
@@ -270,7 +271,9 @@ def _study_fragment_routes(templates: Jinja2Templates, warmer: FigureWarmer) -> 
             study=study_brief(study),
             progress=study_progress(store, study),
             stages=stages,
-            kind_title=KIND_TITLES.get(study.kind, study.kind),
+            kind_title=_title(study),
+            kind=KINDS.get(study.kind),
+            posterior=_posterior(study),
             parent=(study.payload or {}).get("update_of"),
             source=(study.payload or {}).get("study_id"),  # a prediction's posterior
             result=study.result,
@@ -302,10 +305,11 @@ def _study_fragment_routes(templates: Jinja2Templates, warmer: FigureWarmer) -> 
             "matrix": [],
             "names": [],
             "result": study.result,
+            "kind": KINDS.get(study.kind),
             "predictions": [study_brief(p) for p in predictions],
             "predicted": next((p.id for p in predictions if p.status == "completed"), None),
         }
-        if study.kind in ("tmcmc", "update") and finished is not None:
+        if _posterior(study) and finished is not None:
             a = store.samples.arrays(study_id, finished)
             if len(a) >= 2:
                 names = parameter_names(study)
@@ -333,8 +337,11 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
         request: Request, store: StoreDep, ids: Annotated[str | None, Query(max_length=400)] = None
     ) -> Response:
         chosen = _parse_ids(ids)
-        completed = store.studies.list("completed", kind="tmcmc", limit=500).items
-        completed += store.studies.list("completed", kind="update", limit=500).items
+        completed = [
+            s
+            for k in posterior_kinds()
+            for s in store.studies.list("completed", kind=k, limit=500).items
+        ]
         completed.sort(key=lambda s: -s.id)
         studies = []
         for sid in chosen:
@@ -342,11 +349,10 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
                 st = store.studies.get(sid)
             except NotFoundError:
                 raise HTTPException(422, f"ids: no study with id {sid}") from None
-            if st.kind not in ("tmcmc", "update") or st.status != "completed":
+            if not _posterior(st) or st.status != "completed":
                 raise HTTPException(
                     422,
-                    f"ids: study {sid} is a {st.status} {st.kind} study, not a completed "
-                    "calibration",
+                    f"ids: study {sid} is a {st.status} {_title(st)}, not a completed calibration",
                 )
             studies.append(st)
         ctx: dict[str, Any] = {"completed": completed, "chosen": chosen, "rows": [], "table": []}
@@ -487,11 +493,23 @@ def _names(text: str | None) -> tuple[str, ...] | None:
     return names or None
 
 
+def _title(study: StudyRecord) -> str:
+    """What a study of its kind is called (its kind's name for a kind this server lacks)."""
+    kind = KINDS.get(study.kind)
+    return study.kind if kind is None else kind.title
+
+
+def _posterior(study: StudyRecord) -> bool:
+    """Whether the study's stages temper to a posterior (its kind's ``posterior``)."""
+    kind = KINDS.get(study.kind)
+    return kind is not None and kind.posterior
+
+
 def _row(store: Store, study: StudyRecord) -> dict[str, Any]:
     return {
         "study": study_brief(study),
         "progress": study_progress(store, study),
-        "kind_title": KIND_TITLES.get(study.kind, study.kind),
+        "kind_title": _title(study),
         "case": str((study.case or {}).get("name") or "–"),
         "active": study.status in ACTIVE,
         "etag": etag_of("ui-row", study.id, study.version),

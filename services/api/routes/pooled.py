@@ -19,6 +19,7 @@ from scm_core.inference.posterior import pool_samples
 from scm_core.jsondoc import finite_or_none
 from services.limits import INT64_MAX
 from services.store import NotFoundError, Store
+from services.studies.kinds import kind_of
 
 from ..deps import StoreDep, require_read
 from ..params import parse_id_list
@@ -57,9 +58,11 @@ def pooled_summary(store: Store, req: PooledRequest) -> PooledOut:
             study = store.studies.get(sid)
         except NotFoundError:
             raise _unprocessable(f"study_ids: no study with id {sid}") from None
-        if study.kind != "tmcmc":
+        kind = kind_of(study.kind)
+        if not kind.posterior:
             raise _unprocessable(
-                f"study_ids: study {sid} is a {study.kind} sensitivity study, not a calibration"
+                f"study_ids: study {sid} is a {kind.title} study, not a calibration (it has no "
+                "posterior)"
             )
         if study.status != "completed":
             raise _unprocessable(

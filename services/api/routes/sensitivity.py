@@ -1,6 +1,6 @@
 """Sensitivity studies: Morris screening of the SCM soil parameters (paper section 4.4).
 
-A sensitivity study is a study of kind "morris" (see :mod:`services.studies.kinds.screening`):
+A sensitivity study is a study of the screening kind (:mod:`services.studies.kinds.screening`):
 its design points run as work batches like TMCMC chains (locally or on Celery workers) and the
 Morris analysis is stored when the last batch is in. Cancel it with ``POST /studies/{id}/cancel``;
 its design points and steady F, T, z are the samples of its stage 0
@@ -17,6 +17,7 @@ from scm_core.calibration import MorrisSettings
 from services.limits import INT64_MAX
 from services.store import Store, StudyRecord
 from services.studies import base_case, create_and_start, sensitivity_spec
+from services.studies.kinds.screening import KIND as SCREENING
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
 from ..etags import etag_of, not_modified, set_etag
@@ -32,7 +33,7 @@ router = APIRouter(
 
 def _get(store: Store, study_id: int) -> StudyRecord:
     study = store.studies.get(study_id)
-    if study.kind != "morris":
+    if study.kind != SCREENING.name:
         raise HTTPException(
             404, f"sensitivity study {study_id} not found (study {study_id} is a calibration)"
         )
@@ -86,7 +87,8 @@ def list_sensitivity(
     offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
 ) -> SensitivityPage:
     """Sensitivity studies, newest first, with their results."""
-    page = store.studies.list(parse_statuses(status), kind="morris", limit=limit, offset=offset)
+    statuses = parse_statuses(status)
+    page = store.studies.list(statuses, kind=SCREENING.name, limit=limit, offset=offset)
     return page_out(SensitivityPage, page, lambda s: sensitivity_out(store, s))
 
 

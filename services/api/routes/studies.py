@@ -32,7 +32,7 @@ from services.studies import (
     run_specs,
     with_overrides,
 )
-from services.studies.kinds import KINDS
+from services.studies.kinds import KINDS, kind_of
 from services.studies.kinds.update import update_spec
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write, token_ok
@@ -381,11 +381,12 @@ def get_summary(study_id: StudyId, store: StoreDep) -> SummaryOut:
     """Mean, sd, quantiles, 95 % interval, correlations and MAP sample of the last finished
     stage (the posterior when ``is_posterior``: exponent 1), with the log evidence."""
     study = store.studies.get(study_id)
-    if study.kind != "tmcmc":
+    kind = kind_of(study.kind)
+    if not kind.posterior:
         raise HTTPException(
             409,
-            f"study {study_id} is a {study.kind} sensitivity study: its result is at "
-            f"GET /sensitivity/{study_id}",
+            f"study {study_id} is a {kind.title} study, whose stages do not temper to a "
+            f"posterior: its result is at GET {kind.collection}/{study_id}",
         )
     st = resolve_stage(store, study_id, -1)
     a = store.samples.arrays(study_id, st.stage_index)

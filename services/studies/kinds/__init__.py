@@ -2,7 +2,16 @@
 :mod:`.update`, :mod:`.prediction`), the protocol they follow (:mod:`.base`) and the registry
 (:mod:`.registry`)."""
 
-from .base import StudyKind, StudyRun, StudyTerms
-from .registry import KINDS, kind_of, study_terms
+from .base import KindPanel, StudyKind, StudyRun, StudyTerms
+from .registry import KINDS, kind_of, posterior_kinds, study_terms
 
-__all__ = ["KINDS", "StudyKind", "StudyRun", "StudyTerms", "kind_of", "study_terms"]
+__all__ = [
+    "KINDS",
+    "KindPanel",
+    "StudyKind",
+    "StudyRun",
+    "StudyTerms",
+    "kind_of",
+    "posterior_kinds",
+    "study_terms",
+]

@@ -9,7 +9,9 @@ case document and payload (:meth:`StudyKind.terms`: the case is the single sourc
 store sees only blobs and
 :class:`~services.store.ReducedStage` records; the worker sees only this protocol.
 
-A kind may bring its own collection of the HTTP API (:class:`KindHttp`: a path, a request
+A kind says how the dashboard shows it (:class:`KindPanel`: its part of a study page, the
+figures drawn for it, its words for what its stages hold), so the dashboard spells no kind's
+name. A kind may bring its own collection of the HTTP API (:class:`KindHttp`: a path, a request
 model, its validation into a study and the model of its result); the API mounts
 ``POST PATH``, ``GET PATH`` and ``GET PATH/{id}`` for every kind of the registry that has one,
 so a new kind needs its module and a line in the registry, nothing in the API.
@@ -21,6 +23,7 @@ import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -34,6 +37,7 @@ from services.store.codec import encode
 
 __all__ = [
     "KindHttp",
+    "KindPanel",
     "ModelFunction",
     "StudyKind",
     "StudyRun",
@@ -81,6 +85,29 @@ class KindHttp:
 
 
 @dataclass(frozen=True)
+class KindPanel:
+    """How the dashboard shows a study of the kind (``services.api.dashboard``).
+
+    ``template``: the kind's part of a study page's results, a Jinja template by its name in
+    the dashboard's templates or in ``templates`` (a directory of the kind's own); it sees
+    ``study``, ``kind``, ``stage``, ``result`` and the page's other context. ``figures``: the
+    study figures drawn for it (names of ``services.api.dashboard.figures.STUDY_FIGURES``).
+    ``counts``: what the study's ``n_samples`` counts. For a kind with a posterior, ``start``
+    and ``end`` name stage 0's sample and the last stage's in labels ("prior", "posterior"),
+    ``stage_zero`` says what stage 0 is where a figure shows it, ``stage_zero_heading`` heads
+    its summary."""
+
+    template: str
+    figures: tuple[str, ...] = ()
+    counts: str = "samples per stage"
+    start: str = "prior"
+    end: str = "posterior"
+    stage_zero: str = "the prior sample: not a posterior"
+    stage_zero_heading: str = "Prior sample (stage 0: no tempering stage has finished)"
+    templates: Path | None = None
+
+
+@dataclass(frozen=True)
 class StudyTerms:
     """What a stored study is, derived from its case document and payload when read.
 
@@ -116,11 +143,17 @@ def case_terms(case: Mapping[str, Any]) -> StudyTerms:
 class StudyKind(Protocol):
     """A kind of study; ``name`` is what ``studies.kind`` holds; ``title`` what one study of
     the kind is called on pages ("posterior update"); ``http`` its API collection, if it has
-    its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``)."""
+    its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``);
+    ``collection``: the API path its studies are read under, with their results
+    (``GET COLLECTION/{id}``); ``posterior``: its stages temper to a posterior (a summary, log
+    evidence, comparisons and pooling apply); ``panel``: how the dashboard shows it."""
 
     name: str
     title: str
     http: KindHttp | None
+    collection: str
+    posterior: bool
+    panel: KindPanel
 
     def build(self, store: Store, study: StudyRecord) -> StudyRun:
         """The computation of ``study`` (its datasets read from the store)."""

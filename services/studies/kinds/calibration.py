@@ -58,7 +58,7 @@ from services.store.codec import decode, encode, split
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of, work_batches
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import StudyTerms, batch_output, case_terms, one_run_per_item
+from .base import KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item
 from .checks import check_runs, prior_medians
 
 __all__ = [
@@ -316,12 +316,19 @@ class CalibrationRun:
         return reduce
 
 
+#: the study figures of a kind whose stages temper to a posterior (its page's figures)
+POSTERIOR_FIGURES = ("schedule", "prior_posterior", "trace", "pairs", "matrix", "fit")
+
+
 class CalibrationKind:
     """The plug-in of kind "tmcmc" (see :mod:`.base`)."""
 
     name = "tmcmc"
     title = "calibration"
     http = None  # POST /studies
+    collection = "/studies"
+    posterior = True
+    panel = KindPanel(template="kinds/posterior.html", figures=POSTERIOR_FIGURES)
 
     def build(self, store: Store, study: StudyRecord) -> CalibrationRun:
         case = CaseDefinition.from_dict(study.case)

@@ -52,7 +52,7 @@ from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
 from ..request_model import RequestModel
-from .base import KindHttp, StudyTerms, batch_output, case_terms, one_run_per_item
+from .base import KindHttp, KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item
 from .checks import check_runs
 from .update import completed_calibration, old_dataset_ids
 
@@ -293,6 +293,10 @@ class PredictionKind:
 
     name = "prediction"
     title = "prediction"
+    posterior = False
+    panel = KindPanel(
+        template="kinds/prediction.html", figures=("predictions",), counts="posterior draws"
+    )
     http = KindHttp(
         path="/predictions",
         request=PredictionRequest,
@@ -305,6 +309,7 @@ class PredictionKind:
         "inside. Bit-identical to ``scm-calib predict`` for the same seed. Any problem "
         "answers 422 naming the field, and nothing is stored.",
     )
+    collection = http.path
 
     def build(self, store: Store, study: StudyRecord) -> PredictionRun:
         payload = dict(study.payload or {})

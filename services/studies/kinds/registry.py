@@ -11,7 +11,7 @@ from .prediction import KIND as PREDICTION
 from .screening import KIND as SCREENING
 from .update import KIND as UPDATE
 
-__all__ = ["KINDS", "kind_of", "study_terms"]
+__all__ = ["KINDS", "kind_of", "posterior_kinds", "study_terms"]
 
 KINDS: dict[str, StudyKind] = {k.name: k for k in (CALIBRATION, SCREENING, UPDATE, PREDICTION)}
 
@@ -29,3 +29,8 @@ def study_terms(study: StudyRecord) -> StudyTerms:
     case and payload (empty documents for a kind this service does not know)."""
     kind = KINDS.get(study.kind)
     return StudyTerms({}, {}, {}) if kind is None else kind.terms(study)
+
+
+def posterior_kinds() -> list[str]:
+    """The kinds whose stages temper to a posterior (``StudyKind.posterior``)."""
+    return [name for name, kind in KINDS.items() if kind.posterior]

@@ -55,7 +55,7 @@ from services.store.codec import decode
 from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import StudyTerms, batch_output, one_run_per_item
+from .base import KindPanel, StudyTerms, batch_output, one_run_per_item
 from .checks import check_runs, prior_medians
 
 __all__ = [
@@ -244,6 +244,11 @@ class ScreeningKind:
     name = "morris"
     title = "sensitivity"
     http = None  # POST /sensitivity (routes written before kinds had their own)
+    collection = "/sensitivity"
+    posterior = False
+    panel = KindPanel(
+        template="kinds/screening.html", figures=("indices",), counts="design points (model runs)"
+    )
 
     def build(self, store: Store, study: StudyRecord) -> MorrisRun:
         case = CaseDefinition.from_dict(study.case)

@@ -29,7 +29,9 @@ from services.store import NotFoundError, Store, StudyRecord, StudySpec
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
+from .base import KindPanel
 from .calibration import (
+    POSTERIOR_FIGURES,
     CalibrationKind,
     CalibrationRun,
     check_limits,
@@ -161,6 +163,16 @@ class UpdateKind(CalibrationKind):
     name = "update"
     title = "posterior update"
     http = None  # POST /studies with update_of
+    collection = "/studies"
+    posterior = True
+    panel = KindPanel(
+        template="kinds/posterior.html",
+        figures=POSTERIOR_FIGURES,
+        start="earlier posterior",
+        end="updated posterior",
+        stage_zero="the earlier posterior: not yet updated",
+        stage_zero_heading="Earlier posterior (stage 0: the study this one updates)",
+    )
 
     def build(self, store: Store, study: StudyRecord) -> UpdateRun:
         parent = store.studies.get(int((study.payload or {})["update_of"]))

@@ -1,0 +1,128 @@
+"""A study kind is a plug-in: a dummy kind added to the registry in this test (its module is
+this file) gets its API collection, runs through the same leases and stage machinery as every
+kind, and shows its own panel on the dashboard, with nothing else changed (issue 43)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+from test_api_support import AUTH, api_client, fresh_database
+
+from scm_core.inference.tmcmc_stage import PointEvaluation
+from services.store import (
+    BatchLease,
+    BatchOutput,
+    ReducedStage,
+    ReduceInput,
+    SampleArrays,
+    StageAdvance,
+    Store,
+    StudyRecord,
+    StudySpec,
+)
+from services.store.codec import decode
+from services.studies.kinds import KINDS, KindPanel, StudyTerms
+from services.studies.kinds.base import KindHttp, batch_output, one_run_per_item
+from worker.orchestrator import ContextCache, execute_batch
+
+
+class SquaresRequest(BaseModel):
+    """Square the numbers 0 .. n - 1."""
+
+    model_config = ConfigDict(extra="forbid")
+    n: int = Field(ge=1, le=50)
+    name: str = "squares"
+
+
+def squares_spec(store: Store, settings: Any, body: SquaresRequest) -> StudySpec:
+    return StudySpec(
+        name=body.name, case={}, dataset_ids=[], seed=0, n_samples=body.n, kind="squares"
+    )
+
+
+@dataclass
+class SquaresRun:
+    n: int
+
+    @property
+    def model_function(self):
+        return lambda x: x**2
+
+    def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
+        x = np.arange(lease.chain_start, lease.chain_stop, dtype=float)
+        nan = np.full(x.size, np.nan)
+        return batch_output(lease, PointEvaluation(nan, model_function(x)[:, None], 0))
+
+    def reducer(self, workers: int):
+        def reduce(inp: ReduceInput) -> StageAdvance:
+            y = np.concatenate([decode(b, PointEvaluation).responses for b in inp.results])
+            x = np.arange(self.n, dtype=float)[:, None]
+            nan = np.full(self.n, np.nan)
+            reduced = ReducedStage(0, SampleArrays(x, nan, nan, y), self.n, 0)
+            total = float(y.sum())
+            return StageAdvance(reduced, final_status="completed", result={"sum": total})
+
+        return reduce
+
+
+class SquaresKind:
+    name = "squares"
+    title = "sum of squares"
+    http = KindHttp(
+        path="/squares",
+        request=SquaresRequest,
+        spec=squares_spec,
+        result=None,
+        description="Squares and sums the first n integers.",
+    )
+    collection = "/squares"
+    posterior = False
+
+    def __init__(self, templates) -> None:
+        self.panel = KindPanel(template="squares_panel.html", counts="numbers", templates=templates)
+
+    def build(self, store: Store, study: StudyRecord) -> SquaresRun:
+        return SquaresRun(study.n_samples)
+
+    def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
+        return one_run_per_item(batches)
+
+    def terms(self, study: StudyRecord) -> StudyTerms:
+        return StudyTerms({"parameters": [{"name": "x"}]}, {}, {})
+
+
+def test_a_new_kind_mounts_its_routes_runs_and_shows_its_panel(tmp_path, monkeypatch) -> None:
+    panel_dir = tmp_path / "templates"
+    panel_dir.mkdir()
+    (panel_dir / "squares_panel.html").write_text(
+        '<h2>Squares</h2><p id="squares-sum">{% if result %}sum {{ result.sum|num(6) }}'
+        "{% else %}running{% endif %}</p>"
+    )
+    monkeypatch.setitem(KINDS, "squares", SquaresKind(panel_dir))
+    with fresh_database("sqlite", tmp_path) as url, api_client(url) as client:
+        assert "/squares" in client.get("/openapi.json").json()["paths"]
+        r = client.post("/squares", json={"n": 10, "bad": 1}, headers=AUTH)
+        assert r.status_code == 422 and "bad" in r.text  # its own request model
+        r = client.post("/squares", json={"n": 10}, headers=AUTH)
+        assert r.status_code == 201, r.text
+        sid = r.json()["id"]
+        with Store.open(url) as store:
+            cache = ContextCache()
+            while store.studies.get(sid).status == "running":
+                pending = [b for b in store.batches.list(sid, 0) if b.status == "pending"]
+                execute_batch(store, pending[0].key, cache, None)
+        study = client.get(f"/squares/{sid}").json()
+        assert study["status"] == "completed" and study["result"] == {"sum": 285.0}
+        assert client.get(f"/studies/{sid}").json()["kind"] == "squares"
+        listed = client.get("/", params={"kind": "squares"}).text
+        assert "sum of squares" in listed  # the list's filter offers it by its title
+        live = client.get(f"/ui/f/studies/{sid}/live").text
+        assert "sum of squares" in live and "10 numbers" in live
+        results = client.get(f"/ui/f/studies/{sid}/results").text
+        assert '<p id="squares-sum">sum 285</p>' in results, results
+        r = client.get(f"/studies/{sid}/summary")
+        assert r.status_code == 409 and f"GET /squares/{sid}" in r.json()["detail"]

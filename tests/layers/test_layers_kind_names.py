@@ -1,0 +1,45 @@
+"""No study kind's name is spelled outside its kind module and the registry
+(``services/studies/kinds/``) and the tests (issue 43): the API, the dashboard (templates and
+scripts included), the CLI, the worker and the store ask a kind for what they need (its
+title, its collection, whether it has a posterior, its dashboard panel)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from services.studies.kinds import KINDS
+
+ROOT = Path(__file__).resolve().parents[2]
+SCANNED = ("services", "worker")
+SUFFIXES = (".py", ".html", ".js", ".css")
+KIND_MODULES = ROOT / "services" / "studies" / "kinds"
+#: (file, name): why the name stands there
+ALLOWED = {
+    ("services/store/models.py", "tmcmc"): "migration 0002's server default of studies.kind",
+    ("services/cli/calibrate.py", "update"): "the section of a results folder's summary.json",
+    ("services/cli/results.py", "update"): "the section of a results folder's summary.json",
+    ("services/cli/parent.py", "update"): "the section of a results folder's summary.json",
+}
+
+
+def test_no_kind_name_outside_the_kind_modules() -> None:
+    found = []
+    for top in SCANNED:
+        for path in sorted((ROOT / top).rglob("*")):
+            if path.suffix not in SUFFIXES or KIND_MODULES in path.parents:
+                continue
+            text = path.read_text(encoding="utf-8")
+            rel = path.relative_to(ROOT).as_posix()
+            for name in KINDS:
+                quoted = re.compile(rf"""["'=]{re.escape(name)}["'\]\s>]""")
+                for k, line in enumerate(text.splitlines(), 1):
+                    if quoted.search(line) and (rel, name) not in ALLOWED:
+                        found.append(f"{rel}:{k}: {line.strip()}")
+    assert found == [], "\n".join(found)
+
+
+def test_the_check_finds_a_kind_name() -> None:
+    name = next(iter(KINDS))
+    for line in (f'if study.kind == "{name}":', f"kind='{name}'", f"value={name}]"):
+        assert re.search(rf"""["'=]{re.escape(name)}["'\]\s>]""", line), line
