@@ -42,6 +42,7 @@ from services.plots.swt import measured_figure
 from services.store import StageRecord, Store, StudyRecord
 from services.studies.datasets import load_datasets, stored_log
 from services.studies.kinds import KINDS, KindPanel, kind_of, study_terms
+from services.studies.kinds.base import stored_case
 
 __all__ = [
     "STUDY_FIGURES",
@@ -152,7 +153,7 @@ def map_simulations(
     """(datasets, simulations at the stage's MAP sample, measurement offsets), cached."""
 
     def make() -> tuple[list[SWTDataset], list[Any], dict[str, float]]:
-        case = CaseDefinition.from_dict(study.case)
+        case = stored_case(study.case)
         data = _stage_data(store, study, stage)
         theta = _map(data)
         datasets = _plot_datasets(store, case, study.dataset_ids)
@@ -185,7 +186,7 @@ def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: 
 def _trace(
     store: Store, study: StudyRecord, stage: int, stages: Sequence[StageRecord], **_: Any
 ) -> Figure:
-    case = CaseDefinition.from_dict(study.case)
+    case = stored_case(study.case)
     done = [s.stage_index for s in stages if s.status == "done" and s.stage_index <= stage]
     data = [_stage_data(store, study, j) for j in done]
     return stage_trace_figure(
@@ -216,7 +217,7 @@ def _stage_title(study: StudyRecord, stages: Sequence[StageRecord], stage: int) 
 def _prior_posterior(
     store: Store, study: StudyRecord, stage: int, stages: Sequence[StageRecord], **_: Any
 ) -> Figure:
-    case = CaseDefinition.from_dict(study.case)
+    case = stored_case(study.case)
     prior = case.prior()
     data = _stage_data(store, study, stage)
     first = _stage_data(store, study, 0)
@@ -244,7 +245,7 @@ def _pairs(
     pair: tuple[str, str] | None = None,
     **_: Any,
 ) -> Figure:
-    case = CaseDefinition.from_dict(study.case)
+    case = stored_case(study.case)
     data = _stage_data(store, study, stage)
     if pair is not None and not set(pair) <= set(data.names):
         raise FigureError(f"pair {pair[0]}, {pair[1]}: parameters are {', '.join(data.names)}")
@@ -312,7 +313,7 @@ def _matrix(
     params: tuple[str, ...] | None = None,
     **_: Any,
 ) -> Figure:
-    case = CaseDefinition.from_dict(study.case)
+    case = stored_case(study.case)
     data = _stage_data(store, study, stage)
     chosen = list(params) if params else default_matrix(data.names)
     unknown = [n for n in chosen if n not in data.names]
@@ -339,7 +340,7 @@ def _fit(
     stages: Sequence[StageRecord],
     **_: Any,
 ) -> Figure:
-    case = CaseDefinition.from_dict(study.case)
+    case = stored_case(study.case)
     datasets, sims, offsets = map_simulations(store, study, stage, cache)
     return fit_figure(
         datasets,
@@ -507,7 +508,7 @@ def compare(
         }
         n = min(len(x) for x in per.values())
         pooled = pool_samples(list(per.values()), n, seed)
-        case = CaseDefinition.from_dict(studies[0].case)
+        case = stored_case(studies[0].case)
         return render(
             compare_figure(
                 shared,

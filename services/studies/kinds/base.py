@@ -44,6 +44,7 @@ __all__ = [
     "StudyTerms",
     "batch_output",
     "case_terms",
+    "stored_case",
 ]
 
 #: points (m, d) -> what the kind's batches need per point (log-likelihoods, responses ...)
@@ -129,8 +130,19 @@ class StudyTerms:
 
 
 @lru_cache(maxsize=256)
+def _stored_case(text: str) -> CaseDefinition:
+    return CaseDefinition.from_dict(json.loads(text))
+
+
+def stored_case(case: Mapping[str, Any]) -> CaseDefinition:
+    """The validated case of a stored study's case document, parsed once per process and
+    distinct document (the case is immutable: callers share it)."""
+    return _stored_case(json.dumps(case, allow_nan=True))
+
+
+@lru_cache(maxsize=256)
 def _case_terms(text: str) -> StudyTerms:
-    case = CaseDefinition.from_dict(json.loads(text))
+    case = _stored_case(text)
     return StudyTerms(case.prior().to_dict(), case.tmcmc_settings().to_dict(), dict(case.simulator))
 
 

@@ -58,7 +58,7 @@ from services.store.codec import decode, encode, split
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of, work_batches
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item
+from .base import KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item, stored_case
 from .checks import check_runs, prior_medians
 
 __all__ = [
@@ -331,7 +331,7 @@ class CalibrationKind:
     panel = KindPanel(template="kinds/posterior.html", figures=POSTERIOR_FIGURES)
 
     def build(self, store: Store, study: StudyRecord) -> CalibrationRun:
-        case = CaseDefinition.from_dict(study.case)
+        case = stored_case(study.case)
         return CalibrationRun(
             case=case,
             model=StudyModel(case, load_datasets(store, case, study.dataset_ids)),

@@ -52,7 +52,15 @@ from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
 from ..request_model import RequestModel
-from .base import KindHttp, KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item
+from .base import (
+    KindHttp,
+    KindPanel,
+    StudyTerms,
+    batch_output,
+    case_terms,
+    one_run_per_item,
+    stored_case,
+)
 from .checks import check_runs
 from .update import completed_calibration, old_dataset_ids
 
@@ -182,7 +190,7 @@ def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -
     if ids:
         check_dataset_ids(store, ids)
     conditions = _conditions(body.conditions) if body.conditions is not None else None
-    case = CaseDefinition.from_dict(parent.case)
+    case = stored_case(parent.case)
     targets = _targets(store, case, ids, conditions)
     _, population = store.stages.population(parent.id, int(parent.current_stage or 0))
     theta = np.mean(population.samples, axis=0)
@@ -314,7 +322,7 @@ class PredictionKind:
     def build(self, store: Store, study: StudyRecord) -> PredictionRun:
         payload = dict(study.payload or {})
         parent = store.studies.get(int(payload["study_id"]))
-        case = CaseDefinition.from_dict(study.case)
+        case = stored_case(study.case)
         ids = list(study.dataset_ids)
         targets = _targets(store, case, ids, payload.get("conditions"))
         _, population = store.stages.population(parent.id, int(parent.current_stage or 0))

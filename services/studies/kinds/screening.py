@@ -55,7 +55,7 @@ from services.store.codec import decode
 from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import KindPanel, StudyTerms, batch_output, one_run_per_item
+from .base import KindPanel, StudyTerms, batch_output, one_run_per_item, stored_case
 from .checks import check_runs, prior_medians
 
 __all__ = [
@@ -251,7 +251,7 @@ class ScreeningKind:
     )
 
     def build(self, store: Store, study: StudyRecord) -> MorrisRun:
-        case = CaseDefinition.from_dict(study.case)
+        case = stored_case(study.case)
         (dataset,) = load_datasets(store, case, study.dataset_ids)
         design = design_of(study, case)
         return MorrisRun(design, MorrisModel(design.names, case, dataset), study.seed)

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.calibration import CaseDefinition, StudyModel, UpdateLikelihood
+from scm_core.calibration import StudyModel, UpdateLikelihood
 from scm_core.inference.tmcmc_stage import StageState
 from services.config import Settings
 from services.limits import INT64_MAX, seed_error
@@ -29,7 +29,7 @@ from services.store import NotFoundError, Store, StudyRecord, StudySpec
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import KindPanel
+from .base import KindPanel, stored_case
 from .calibration import (
     POSTERIOR_FIGURES,
     CalibrationKind,
@@ -94,7 +94,7 @@ def update_spec(
         raise StudyRequestError(
             f"dataset_ids: dataset {again[0]} is already in the posterior of study {parent.id}"
         )
-    case = CaseDefinition.from_dict(parent.case)
+    case = stored_case(parent.case)
     if seed is None:
         seed = (parent.seed + 1) % (INT64_MAX + 1)
     if why := seed_error(seed):
@@ -177,7 +177,7 @@ class UpdateKind(CalibrationKind):
     def build(self, store: Store, study: StudyRecord) -> UpdateRun:
         parent = store.studies.get(int((study.payload or {})["update_of"]))
         old = old_dataset_ids(store, parent)
-        case = CaseDefinition.from_dict(study.case)
+        case = stored_case(study.case)
         model = StudyModel(case, load_datasets(store, case, old + list(study.dataset_ids)))
         final = load_stage_state(store, parent.id, int(parent.current_stage or 0))
         return UpdateRun(
