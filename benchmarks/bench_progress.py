@@ -20,10 +20,7 @@ polling column's requests.
 from __future__ import annotations
 
 import argparse
-import os
-import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import threading
@@ -31,12 +28,12 @@ import time
 from pathlib import Path
 
 import httpx
+from bench_upload import TOKEN, start_server  # the same served instance
 from rich.console import Console
 from rich.table import Table
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-TOKEN = "bench-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 LOGS = ("wf34_s020.csv", "wf34_s050.csv")
 CASE = {
@@ -51,31 +48,6 @@ CASE = {
     "simulator": {"duration": 8.0, "dx": 0.01, "dt": 0.04, "offset_F": 3.0, "offset_T": 3.0},
     "sampler": {"n_samples": 200, "moves": "leader", "max_stages": 10},
 }
-
-
-def _serve(tmp: Path) -> tuple[subprocess.Popen, str]:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    env = {k: v for k, v in os.environ.items() if not k.startswith("SCM_CALIB_")}
-    env.update(SCM_CALIB_DATA_DIR=str(tmp / "data"), SCM_CALIB_API_TOKENS=TOKEN)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "services.cli", "serve", "--port", str(port), "--workers", "2"],
-        env=env,
-        cwd=tmp,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    base = f"http://127.0.0.1:{port}"
-    for _ in range(600):
-        try:
-            if httpx.get(base + "/health/ready", timeout=2).status_code == 200:
-                return proc, base
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.2)
-    proc.kill()
-    raise SystemExit("the server did not come up")
 
 
 class Watch:
@@ -120,7 +92,7 @@ def one_run(poll_every: float) -> dict[str, dict[str, float]]:
     from services.client import SCMCalibClient
 
     with tempfile.TemporaryDirectory(prefix="bench-progress-") as d:
-        proc, base = _serve(Path(d))
+        proc, base = start_server(Path(d))
         try:
             with SCMCalibClient(base, token=TOKEN) as api:
                 ids = [api.upload_log(ROOT / "examples" / f)["id"] for f in LOGS]
