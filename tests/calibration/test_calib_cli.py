@@ -338,6 +338,53 @@ def test_ctrl_c_then_rerun_resumes_identically(work: Path, reference: Path) -> N
     assert stage_files(work / "intr") == stage_files(reference)
 
 
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (Linux /proc)."""
+    kids: list[int] = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        kids += [int(k) for k in (task / "children").read_text().split()]
+    return kids
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_killed_worker_says_so_in_one_line_and_the_rerun_resumes(
+    work: Path, reference: Path
+) -> None:
+    """A --workers process killed mid-run (a signal, the kernel's out-of-memory killer): one
+    line on stderr naming what happened and what to do, no traceback, exit 1; re-running the
+    same command resumes from the finished stages and gives the same stages bit for bit."""
+    args = ["calibrate", "tiny.toml", "--out", "killed", "--workers", "2", "--quiet", "--no-plots"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "services.cli", *args],
+        cwd=work,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    marker = work / "killed" / "checkpoints" / "stage_001.json"
+    deadline = time.monotonic() + 300
+    while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    workers = [k for k in _children(proc.pid) if "spawn_main" in _cmdline(k)]
+    assert workers, "no worker process found"
+    os.kill(workers[0], signal.SIGKILL)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 1, err
+    assert "Traceback" not in err, err
+    lines = err.strip().splitlines()
+    assert lines == [lines[0]] and lines[0].startswith("error: a worker process died"), err
+    done = run_cli(*args, cwd=work)
+    assert done.returncode == 0, done.stderr
+    assert stage_files(work / "killed") == stage_files(reference)
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""
+
+
 def test_checkpoints_of_another_study_are_refused(work: Path, reference: Path) -> None:
     proc = run_cli("calibrate", "tiny.toml", "--out", "ref", "--samples", "70", cwd=work)
     line = one_line_error(proc)

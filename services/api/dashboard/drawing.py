@@ -57,6 +57,23 @@ def _start_worker(database_url: str) -> None:
 
     numba.set_num_threads(1)
     warm_up()
+    _draw_once()
+
+
+def _draw_once() -> None:
+    """Draw and render a small figure as the page's figures are drawn (SVG and PNG): loads
+    the backends, the fonts and the text layout, which the first real figure paid for."""
+    from matplotlib.figure import Figure
+
+    from services.plots.figures import render
+
+    fig = Figure(figsize=(2, 2), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="warm-up")
+    ax.set_xlabel("x [-]")
+    ax.legend()
+    for fmt in ("svg", "png"):
+        render(fig, fmt)
 
 
 def _draw_study_figure(study_id: int, name: str, fmt: str, options: dict[str, Any]) -> bytes:

@@ -47,14 +47,24 @@
     if (next) next(); else fetching -= 1;
   }
   const shown = new Map();
+  /* a figure whose fragment a newer one replaced (a later stage, the study's end) is not
+     fetched any more: queued ones are skipped, those in flight aborted, so the newest
+     stage's figures never wait behind stale ones */
+  const inflight = new Map();
+  function dropStale() {
+    for (const [img, ctl] of inflight) if (!img.isConnected) ctl.abort();
+  }
   async function loadFigure(img) {
     const src = img.dataset.src;
     if (!src || img.dataset.loaded === src) return;
     img.dataset.loaded = src;
     img.classList.add("loading");
     await figureSlot();
+    const ctl = new AbortController();
     try {
-      const resp = await fetch(src, { headers: authHeaders() });
+      if (!img.isConnected || img.dataset.loaded !== src) return;
+      inflight.set(img, ctl);
+      const resp = await fetch(src, { headers: authHeaders(), signal: ctl.signal });
       if (!resp.ok) {
         img.classList.remove("loading");
         img.replaceWith(Object.assign(document.createElement("p"), {
@@ -70,7 +80,10 @@
       img.src = url;
       shown.set(img, url);
       if (old) URL.revokeObjectURL(old);
+    } catch (err) {
+      if (err.name !== "AbortError") throw err;
     } finally {
+      inflight.delete(img);
       releaseSlot();
       img.classList.remove("loading");
     }
@@ -123,6 +136,7 @@
   });
 
   function loadFigures(root) {
+    dropStale();
     root.querySelectorAll("img[data-src]").forEach(loadFigure);
   }
 
