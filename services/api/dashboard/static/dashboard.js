@@ -404,13 +404,20 @@
     }
   });
 
-  /* a study that has just ended: its results fragment is fetched at once (it would otherwise
-     wait for its own, slower poll and keep showing the running study's figures) */
+  /* a study that has just ended, or moved to its next stage (so one more has finished): its
+     results fragment is fetched at once, not at its own next poll (up to a second later),
+     and the finished stage's figures are asked for as soon as the progress shows it */
+  let liveStage = null;
   document.addEventListener("htmx:afterSwap", (ev) => {
     if (!ev.detail.target || ev.detail.target.id !== "live") return;
     const live = document.getElementById("live-poll");
     const results = document.getElementById("results-poll");
-    if (live && !live.hasAttribute("hx-get") && results && results.hasAttribute("hx-get")) {
+    const stage = document.getElementById("progress-stage");
+    const now = stage ? stage.textContent.trim() : null;
+    const moved = liveStage !== null && now !== liveStage;
+    liveStage = now;
+    const ended = live && !live.hasAttribute("hx-get");
+    if ((ended || moved) && results && results.hasAttribute("hx-get")) {
       htmx.ajax("GET", results.getAttribute("hx-get"), { target: "#results", swap: "innerHTML" });
     }
   });
