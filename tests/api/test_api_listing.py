@@ -300,3 +300,27 @@ def test_an_empty_datasets_page_says_how_to_fill_it(env) -> None:
     # its page gives each condition with its unit
     page = client.get(f"/ui/f/datasets/{ds['id']}").text
     assert '<th scope="row">W [N]</th>' in page and "slip [-]" in page
+
+
+def test_an_updates_posterior_has_a_summary_and_its_figures_say_what_stage_0_is(env) -> None:
+    """An update's stages temper to a posterior, as a calibration's do (its kind says so): its
+    summary answers (it was refused as "a update sensitivity study"), and its stage-0 figures
+    call stage 0 the earlier posterior, in the update's own words."""
+    client, url = env
+    d1 = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    d2 = client.post("/datasets", json=summary_doc(3.0, "second"), headers=AUTH).json()["id"]
+    first = client.post(
+        "/studies", json={"case": tiny_case(seed=3), "dataset_ids": [d1]}, headers=AUTH
+    ).json()["id"]
+    assert run_inline(url, first) == "completed"
+    r = client.post("/studies", json={"update_of": first, "dataset_ids": [d2]}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    update = r.json()["id"]
+    assert run_inline(url, update) == "completed"
+    summary = client.get(f"/studies/{update}/summary")
+    assert summary.status_code == 200, summary.text
+    assert summary.json()["is_posterior"] is True
+    svg = client.get(f"/ui/figures/studies/{update}/prior_posterior.svg", params={"stage": 0})
+    assert "stage 0 (the earlier posterior: not yet updated)" in svg.text
+    pooled = client.post("/pooled", json={"study_ids": [first, update]})
+    assert pooled.status_code == 200, pooled.text
