@@ -19,7 +19,7 @@ from .orchestrator import ContextCache, Dispatcher, execute_batch
 #: niceness added to an embedded pool process: a study's batches take the cores the server's
 #: own work leaves (pages, and the figures a stage's end has drawn), not the other way round;
 #: alone on the machine they get all of it, and the results do not depend on it
-POOL_NICENESS = 5
+POOL_NICENESS = 10
 
 
 @dataclass

@@ -105,7 +105,8 @@ def fit_figure(
     offsets = offsets or {}
     ncols = len(datasets)
     fig = Figure(figsize=(max(5.2 * ncols, 8.0), 2.6 * len(rows) + 0.4), layout="constrained")
-    axes = np.array(fig.subplots(len(rows), ncols, squeeze=False))
+    # a column's panels share their time axis: its tick labels under the bottom one only
+    axes = np.array(fig.subplots(len(rows), ncols, squeeze=False, sharex="col"))
     for c, (ds, sim) in enumerate(zip(datasets, sims, strict=True)):
         t_start, t_end = 0.0, 0.0  # the time axis drawn [s]
         rig = None if sim is None else sim.rig
@@ -142,7 +143,9 @@ def fit_figure(
                 )
                 ax.axhline(stat.mean * scale, color="k", lw=2.0)
             if sim is not None and rig is not None:
-                first, last = _draw_simulated(ax, sim, key, scale, offset_name, offsets, ds, window)
+                first, last = _draw_simulated(
+                    ax, sim, key, scale, offset_name, offsets, ds, window, top=r == 0
+                )
                 t_start, t_end = min(t_start, first), max(t_end, last)
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
@@ -165,13 +168,14 @@ def _draw_simulated(
     offsets: dict[str, float],
     ds: SWTDataset,
     window: tuple[float, float] | None,
+    top: bool = True,
 ) -> tuple[float, float]:
     """The simulated signal of ``key`` on ``ax``, raw and filtered, with its averaging window
     and steady mean. Where the dataset has a measured time axis (``window``: its steady window),
     the simulation's time is mapped linearly so that its averaging window lies over the
-    measured one, and a top axis gives the simulated time: a 12 s simulation of a 180 s log
-    then spans the log's window instead of the first 7 % of the axis. Returns the first and
-    last times drawn, on the measured axis [s]."""
+    measured one, and (``top``: the column's top panel) a top axis gives the simulated time: a
+    12 s simulation of a 180 s log then spans the log's window instead of the first 7 % of the
+    axis. Returns the first and last times drawn, on the measured axis [s]."""
     rig = sim.rig
     off = getattr(rig, offset_name)
     a, b = (0.0, 1.0) if window is None else _window_map(window, (off, rig.duration))
@@ -186,10 +190,10 @@ def _draw_simulated(
     if sim.means is not None:
         m = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale
         ax.hlines(m, w0, w1, colors="tab:red", lw=2.2, label=f"simulated mean {m:.4g}")
-    if window is not None:
-        top = ax.secondary_xaxis("top", functions=(lambda t: (t - a) / b, lambda s: a + b * s))
-        top.set_xlabel("simulated time [s]", fontsize=7)
-        top.tick_params(labelsize=7)
+    if window is not None and top:
+        sim_axis = ax.secondary_xaxis("top", functions=(lambda t: (t - a) / b, lambda s: a + b * s))
+        sim_axis.set_xlabel("simulated time [s]", fontsize=7)
+        sim_axis.tick_params(labelsize=7)
     return a + b * float(ts[0]) if ts.size else w0, w1
 
 

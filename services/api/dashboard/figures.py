@@ -278,10 +278,25 @@ def _pairs(
 MATRIX_MAX = 6
 
 
+#: what each of a stage's page figures takes to draw, roughly [s] (medians of
+#: ``benchmarks/bench_figures.py``, a two-parameter study of two logs, one core): the warmer
+#: draws them longest first and the page asks for them in the same order (``data-cost``), so
+#: that its requests find them being drawn
+DRAW_SECONDS = {
+    "fit": 0.7,
+    "schedule": 0.35,
+    "prior_posterior": 0.2,
+    "matrix": 0.17,
+    "trace": 0.12,
+    "pairs": 0.1,
+}
+
+
 def page_figures(names: Sequence[str], stage: int) -> list[dict[str, Any]]:
     """The figures a calibration's page shows for its last finished ``stage``, as keyword
-    arguments of :func:`study_figure` (the results fragment draws its links from the same
-    defaults; :class:`~services.api.dashboard.warmer.FigureWarmer` draws them ahead of it)."""
+    arguments of :func:`study_figure`, longest to draw first (the results fragment draws its
+    links from the same defaults; :class:`~services.api.dashboard.warmer.FigureWarmer` draws
+    them ahead of it)."""
     out: list[dict[str, Any]] = [
         {"name": "schedule"},
         {"name": "prior_posterior", "stage": stage},
@@ -291,7 +306,7 @@ def page_figures(names: Sequence[str], stage: int) -> list[dict[str, Any]]:
     if len(names) >= 2:
         out.append({"name": "matrix", "stage": stage, "params": tuple(default_matrix(names))})
     out.append({"name": "fit", "stage": stage})
-    return out
+    return sorted(out, key=lambda f: -DRAW_SECONDS[f["name"]])
 
 
 def default_matrix(names: Sequence[str]) -> list[str]:

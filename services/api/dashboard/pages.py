@@ -46,6 +46,7 @@ from ..views import (
     study_progress,
 )
 from .figures import (
+    DRAW_SECONDS,
     MATRIX_MAX,
     FigureError,
     compare,
@@ -79,6 +80,7 @@ def _templates() -> Jinja2Templates:
         POLL_SECONDS=POLL_SECONDS,
         LIST_POLL_SECONDS=LIST_POLL_SECONDS,
         ACTIVE=ACTIVE,
+        DRAW_SECONDS=DRAW_SECONDS,
     )
     return t
 

@@ -29,17 +29,6 @@ from .figures import FigureCache, FigureError, page_figures, study_figure
 
 __all__ = ["FigureWarmer"]
 
-#: what each of a stage's page figures takes to draw, roughly [s] (a small study on one
-#: core: the fit is matplotlib's twelve axes of signals more than its simulation)
-DRAW_SECONDS = {
-    "fit": 1.0,
-    "prior_posterior": 0.55,
-    "matrix": 0.4,
-    "schedule": 0.35,
-    "trace": 0.2,
-    "pairs": 0.1,
-}
-
 log = logging.getLogger(__name__)
 
 
@@ -145,7 +134,7 @@ class FigureWarmer:
 
             # as many at once as the drawing processes draw (the page asks for two at a time),
             # the longest first so that they finish together
-            specs = sorted(page_figures(names, done[-1]), key=lambda f: -DRAW_SECONDS[f["name"]])
+            specs = page_figures(names, done[-1])  # longest first, as the page asks for them
             with ThreadPoolExecutor(DRAWING_PROCESSES, thread_name_prefix="figure") as pool:
                 if not all(list(pool.map(draw, enumerate(specs)))):
                     return False

@@ -135,9 +135,12 @@
     box.style.top = `${ev.clientY + 14}px`;
   });
 
+  /* longest to draw first (data-cost [s]), the order the server's warmer draws them in: a
+     request then finds its figure being drawn instead of queueing behind the others */
   function loadFigures(root) {
     dropStale();
-    root.querySelectorAll("img[data-src]").forEach(loadFigure);
+    const cost = (img) => parseFloat(img.dataset.cost || "0");
+    [...root.querySelectorAll("img[data-src]")].sort((a, b) => cost(b) - cost(a)).forEach(loadFigure);
   }
 
   /* downloads: with a token, fetched and saved from a blob; without, the plain link */
