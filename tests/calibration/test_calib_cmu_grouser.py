@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from scm_core.calibration import load_case
@@ -49,13 +50,16 @@ def test_the_means_are_the_readmes() -> None:
 def test_the_single_wheel_cases_read_the_same_five_lab_slips() -> None:
     """cmu_smooth.toml and cmu_grouser.toml calibrate on the same five lab slips (the grousered
     wheel's: locked to 0.9), with the same model, priors and sampler; the grousered case adds
-    the one parameter only a grousered wheel identifies, its pockets' fill."""
+    the one parameter only a grousered wheel identifies, its pockets' fill, and one it cannot
+    identify but a prediction of a smooth wheel from it needs, the smooth rim's friction on the
+    soil (its prior the literature's)."""
     case = load_case(EXAMPLES / "cmu_grouser.toml")
     smooth = load_case(EXAMPLES / "cmu_smooth.toml")
     for c in (case, smooth):
         slips = [round(load_dataset(p).conditions.slip_symmetric, 1) for p in c.data_paths()]
         assert slips == [-1.0, -0.5, 0.0, 0.5, 0.9]
-    assert set(case.parameter_names) - set(smooth.parameter_names) == {"pocket_fill"}
+    extra = set(case.parameter_names) - set(smooth.parameter_names)
+    assert extra == {"pocket_fill", "interface_friction"}
     assert set(smooth.parameter_names) <= set(case.parameter_names)
     for name in smooth.parameter_names:
         assert case.parameters[name] == smooth.parameters[name], name
@@ -82,3 +86,25 @@ def test_the_joint_case_reads_both_wheels_with_one_soil() -> None:
     assert set(smooth.parameter_names) <= set(case.parameter_names)
     assert "interface_friction" in extra and extra <= {"interface_friction", "pocket_fill"}
     assert case.simulator == smooth.simulator
+
+
+def test_the_grousered_wheel_does_not_see_the_rims_friction() -> None:
+    """Its trapped soil shears soil on soil (at phi): the grousered case's runs are the same bit
+    for bit at either end of interface_friction's prior, so its posterior of it is its prior
+    (what a prediction of a smooth wheel from this soil carries), whatever its tests say."""
+    from scm_core.calibration import StudyModel
+    from services.studies.kinds.checks import prior_medians
+
+    case = load_case(EXAMPLES / "cmu_grouser.toml")
+    smooth = EXAMPLES / "cmu_smooth" / "cmu_smooth_sp050.csv"
+    model = StudyModel(case, [load_dataset(case.data_paths()[3]), load_dataset(smooth)])
+    k = case.parameter_names.index("interface_friction")
+    runs = []
+    for value in (0.5, 1.0):
+        theta = prior_medians(case)
+        theta[k] = value
+        runs.append([model.simulate_at(theta, d) for d in (0, 1)])
+    for key in ("F", "T", "z"):
+        assert np.array_equal(runs[0][0].series[key], runs[1][0].series[key]), key
+    # the smooth rim at slip 0.5 shears on its surface: half the friction, a weaker wheel
+    assert runs[0][1].means.F < runs[1][1].means.F - 1.0
