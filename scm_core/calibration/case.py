@@ -47,6 +47,7 @@ Every problem is reported as :class:`CaseError` with a one-line message that nam
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -61,6 +62,7 @@ from pydantic import (
     Field,
     PrivateAttr,
     ValidationError,
+    create_model,
     model_validator,
 )
 
@@ -72,6 +74,7 @@ from scm_core.inference.priors import (
 )
 from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc_stage import TMCMCSettings
+from scm_core.inference.tmcmc_types import MOVES
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
 from scm_core.validation_text import first_error, one_line
 
@@ -170,7 +173,7 @@ class PriorSpec(_Strict):
 _DEFAULT = TMCMCSettings()
 
 
-class SamplerSettings(_Strict):
+class _SamplerFields(_Strict):
     """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
 
     ``moves``: "waste-free" (the default: the accelerated accurate form), "resample-move" (the
@@ -195,10 +198,17 @@ class SamplerSettings(_Strict):
     trade-offs become straight ridges, :mod:`scm_core.inference.walk_space`). ``resampling``:
     "systematic" (less resampling noise; the evidence's standard error is a lower bound,
     1.3-1.4 times too small) or "multinomial" (a right standard error).
+
+    The sampler's finer tuning (``min_steps``, ``beta0``, ``surrogate_neighbors`` ...: the
+    other fields of TMCMCSettings, :data:`TUNING`) is a field here too, generated from
+    TMCMCSettings with its defaults, so that a case's stored form (:meth:`CaseDefinition.to_dict`)
+    holds every setting its samples depend on: a later change of a default in code changes no
+    stored study. A stored case from before these were stored is read with the values they had
+    then (:data:`TUNING_BEFORE`, :meth:`CaseDefinition.from_stored`).
     """
 
     n_samples: int = Field(2000, ge=10)
-    moves: Literal["resample-move", "leader", "waste-free"] = STUDY_MOVES
+    moves: Literal[MOVES] = STUDY_MOVES
     n_steps: int | None = Field(_DEFAULT.n_steps, ge=1)
     batch_size: int | None = Field(None, ge=1)
     max_stages: int = Field(_DEFAULT.max_stages, ge=1)
@@ -224,9 +234,14 @@ class SamplerSettings(_Strict):
         self._filled = frozenset(filled)
         return self
 
+    @model_validator(mode="after")
+    def _valid_tuning(self) -> _SamplerFields:
+        self.tmcmc_settings()  # TMCMCSettings' own checks (ValueError names the field)
+        return self
+
     def __eq__(self, other: object) -> bool:
         # equal settings are equal whether the case named them or its move scheme filled them
-        if not isinstance(other, SamplerSettings):
+        if not isinstance(other, _SamplerFields):
             return NotImplemented
         return self.model_dump() == other.model_dump()
 
@@ -240,6 +255,7 @@ class SamplerSettings(_Strict):
 
     def tmcmc_settings(self) -> TMCMCSettings:
         return TMCMCSettings(
+            **{name: getattr(self, name) for name in TUNING},
             moves=self.moves,
             n_steps=self.n_steps,
             max_stages=self.max_stages,
@@ -251,6 +267,41 @@ class SamplerSettings(_Strict):
             proposal_scale=str(self.proposal_scale),
             resampling=str(self.resampling),
         )
+
+
+#: TMCMCSettings' fields a case's [sampler] table does not declare above: its finer tuning,
+#: generated into SamplerSettings with TMCMCSettings' defaults
+TUNING = tuple(
+    f.name for f in dataclasses.fields(TMCMCSettings) if f.name not in _SamplerFields.model_fields
+)
+
+#: the tuning's values before stored cases held it (its code defaults until then): what a case
+#: stored without it ran with. A record of the past, like a migration: never edit it when a
+#: default changes (issue 43)
+TUNING_BEFORE: dict[str, int | float] = {
+    "min_steps": 10,
+    "max_steps": 50,
+    "initial_steps": 20,
+    "move_probability": 0.99,
+    "beta0": 0.2,
+    "target_acceptance": 0.234,
+    "beta_gain": 1.0,
+    "beta_min": 0.02,
+    "beta_max": 3.0,
+    "stall_tol": 1e-8,
+    "stall_stages": 3,
+    "surrogate_neighbors": 50,
+    "surrogate_smoothing": 1e-3,
+    "surrogate_memory": 20_000,
+}
+
+SamplerSettings = create_model(
+    "SamplerSettings",
+    __base__=_SamplerFields,
+    __module__=__name__,
+    __doc__=_SamplerFields.__doc__,
+    **{name: (type(getattr(_DEFAULT, name)), getattr(_DEFAULT, name)) for name in TUNING},
+)
 
 
 class DataSettings(_Strict):
@@ -302,6 +353,20 @@ class CaseDefinition(_Strict):
         case._check()
         case._base_dir = None if base_dir is None else Path(base_dir)
         return case
+
+    @classmethod
+    def from_stored(
+        cls, data: Mapping[str, Any], base_dir: str | Path | None = None
+    ) -> CaseDefinition:
+        """A case as stored (:meth:`to_dict`, in the database or a results folder): the
+        tuning a case stored before it was stored takes the values it ran with
+        (:data:`TUNING_BEFORE`), not today's defaults."""
+        if not isinstance(data, Mapping):
+            raise CaseError("case: top level must be a table")
+        sampler = data.get("sampler")
+        if isinstance(sampler, Mapping) and not any(k in sampler for k in TUNING):
+            data = {**data, "sampler": {**TUNING_BEFORE, **sampler}}
+        return cls.from_dict(data, base_dir)
 
     @classmethod
     def from_toml(cls, text: str, base_dir: str | Path | None = None) -> CaseDefinition:
@@ -473,6 +538,10 @@ class CaseDefinition(_Strict):
         doc["sampler"].pop("batch_size", None)
         doc["sampler"].pop("max_stages", None)
         doc["sampler"].pop("early_rejection", None)
+        for name, value in TUNING_BEFORE.items():
+            # cases from before the tuning was stored keep their fingerprint
+            if doc["sampler"].get(name) == value:
+                del doc["sampler"][name]
         if doc["sampler"].get("resampling") == "systematic":
             # cases from before resampling could be chosen keep their fingerprint
             del doc["sampler"]["resampling"]
@@ -512,7 +581,7 @@ def _describe(exc: ValidationError) -> str:
         return f"{where}: required field is missing"
     if kind == "extra_forbidden":
         return f"{where}: unknown field"
-    if "input" in err and kind != "model_type":
+    if "input" in err and kind != "model_type" and not isinstance(err["input"], Mapping):
         return f"{where}: {msg} (got {err['input']!r})"
     return f"{where}: {msg}"
 

@@ -13,6 +13,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from scm_core.inference.tmcmc_types import MOVES
 from services.limits import INT32_MAX, INT64_MAX
 from services.studies.request_model import RequestModel
 
@@ -156,7 +157,7 @@ class StudyCreate(_In):
     name: str | None = Field(None, min_length=1, max_length=200)
     seed: int | None = Field(None, ge=0, le=INT64_MAX)
     n_samples: int | None = Field(None, le=COUNT_MAX, description="Samples per stage (>= 10).")
-    moves: Literal["resample-move", "leader", "waste-free"] | None = Field(
+    moves: Literal[MOVES] | None = Field(
         None,
         description="Move scheme (default: the case's, else waste-free, the accelerated "
         "accurate form; resample-move: unaccelerated; leader: the paper's form).",

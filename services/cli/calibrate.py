@@ -37,6 +37,7 @@ from scm_core.calibration import (
 from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc_moves import stage_chains
+from scm_core.inference.tmcmc_types import MOVES
 from scm_core.signals import SWTDataset
 from services.limits import INT64_MAX, run_seeds
 from services.studies.batching import local_batch_size, work_batches
@@ -156,7 +157,7 @@ class _RunOptions:
 )
 @click.option(
     "--moves",
-    type=click.Choice(["leader", "resample-move", "waste-free"]),
+    type=click.Choice(sorted(MOVES)),
     default=None,
     help="Override the case's TMCMC moves.",
 )

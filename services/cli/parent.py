@@ -60,7 +60,7 @@ def load_parent(results: Path) -> ParentStudy:
         )
     try:
         summary = json.loads(summary_path.read_text(encoding="utf-8"))
-        case = CaseDefinition.from_dict(summary["case"], base_dir=results)
+        case = CaseDefinition.from_stored(summary["case"], base_dir=results)
         status = summary["status"]
         n_stages = int(summary["n_stages"])
         datasets = list(summary["datasets"])

@@ -284,7 +284,7 @@ def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, A
             )
     try:
         summary = json.loads(summary_path.read_text(encoding="utf-8"))
-        case = CaseDefinition.from_dict(summary["case"], base_dir=results)
+        case = CaseDefinition.from_stored(summary["case"], base_dir=results)
     except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
         raise CLIError(f"{summary_path}: unreadable study summary ({exc})") from None
     except CaseError as exc:

@@ -131,7 +131,7 @@ class StudyTerms:
 
 @lru_cache(maxsize=256)
 def _stored_case(text: str) -> CaseDefinition:
-    return CaseDefinition.from_dict(json.loads(text))
+    return CaseDefinition.from_stored(json.loads(text))
 
 
 def stored_case(case: Mapping[str, Any]) -> CaseDefinition:

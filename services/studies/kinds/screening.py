@@ -268,7 +268,7 @@ class ScreeningKind:
 @lru_cache(maxsize=256)
 def _screening_terms(text: str) -> StudyTerms:
     case_doc, cfg, seed = json.loads(text)
-    case = CaseDefinition.from_dict(case_doc)
+    case = CaseDefinition.from_stored(case_doc)
     return StudyTerms(_design(case, cfg, seed).factor_box(), cfg, dict(case.simulator))
 
 
