@@ -207,14 +207,33 @@ class _SamplerFields(_Strict):
     then (:data:`TUNING_BEFORE`, :meth:`CaseDefinition.from_stored`).
     """
 
-    n_samples: int = Field(2000, ge=10)
-    moves: Literal[MOVES] = STUDY_MOVES
-    n_steps: int | None = Field(_DEFAULT.n_steps, ge=1)
+    n_samples: int = Field(2000, ge=10, description="Samples per stage.")
+    moves: Literal[MOVES] = Field(
+        STUDY_MOVES,
+        description="Move scheme: waste-free (the default, the accelerated accurate form), "
+        "resample-move (unaccelerated) or leader (the paper's form).",
+    )
+    n_steps: int | None = Field(
+        _DEFAULT.n_steps,
+        ge=1,
+        description="Moves per chain: waste-free (default 4), resample-move (default adapted).",
+    )
     batch_size: int | None = Field(None, ge=1)
-    max_stages: int = Field(_DEFAULT.max_stages, ge=1)
+    max_stages: int = Field(
+        _DEFAULT.max_stages, ge=1, description="Stop after this many tempering stages."
+    )
     target_cov: float = Field(_DEFAULT.target_cov, gt=0.0)
-    early_rejection: bool = _DEFAULT.early_rejection
-    delayed_acceptance: bool | None = None
+    early_rejection: bool = Field(
+        _DEFAULT.early_rejection,
+        description="Stop simulating a proposal's datasets once they cannot lift it over the "
+        "acceptance threshold (exact: the same samples, fewer runs).",
+    )
+    delayed_acceptance: bool | None = Field(
+        None,
+        description="Screen proposals with a surrogate of the responses before simulating "
+        "them (default: true for waste-free moves, false for resample-move and leader; exact: "
+        "the chain still targets the posterior).",
+    )
     surrogate_steps: int | None = Field(None, ge=1, le=100)
     surrogate_jumps: float | None = Field(None, ge=0.0, lt=1.0)
     proposal_scale: Literal["linear", "log"] | None = None

@@ -8,12 +8,14 @@ Every error response is ``{"detail": "<one line naming the field>"}``.
 
 from __future__ import annotations
 
+import types
+import typing
 from datetime import datetime
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, create_model
 
-from scm_core.inference.tmcmc_types import MOVES
+from scm_core.calibration import SamplerSettings
 from services.limits import INT32_MAX, INT64_MAX
 from services.studies.request_model import RequestModel
 
@@ -132,7 +134,7 @@ class PresetOut(BaseModel):
 # ---------------------------------------------------------------------------- studies
 
 
-class StudyCreate(_In):
+class _StudyFields(_In):
     """A new study: a preset name or a full case document, the stored datasets to fit, and
     optional overrides of the case's settings; or ``update_of`` a completed calibration with
     new datasets (a posterior update, paper section 5.3: the case is the earlier study's)."""
@@ -156,31 +158,6 @@ class StudyCreate(_In):
     )
     name: str | None = Field(None, min_length=1, max_length=200)
     seed: int | None = Field(None, ge=0, le=INT64_MAX)
-    n_samples: int | None = Field(None, le=COUNT_MAX, description="Samples per stage (>= 10).")
-    moves: Literal[MOVES] | None = Field(
-        None,
-        description="Move scheme (default: the case's, else waste-free, the accelerated "
-        "accurate form; resample-move: unaccelerated; leader: the paper's form).",
-    )
-    n_steps: int | None = Field(
-        None,
-        le=COUNT_MAX,
-        description="Moves per chain: waste-free (default 4), resample-move (default adapted).",
-    )
-    max_stages: int | None = Field(
-        None, le=COUNT_MAX, description="Stop after this many tempering stages."
-    )
-    early_rejection: bool | None = Field(
-        None,
-        description="Stop simulating a proposal's datasets once they cannot lift it over the "
-        "acceptance threshold (default true; exact: the same samples, fewer runs).",
-    )
-    delayed_acceptance: bool | None = Field(
-        None,
-        description="Screen proposals with a surrogate of the responses before simulating "
-        "them (default: true for waste-free moves, false for resample-move and leader; exact: "
-        "the chain still targets the posterior).",
-    )
     likelihood: Literal["normalized", "gaussian"] | None = None
     batch_size: int | None = Field(
         None,
@@ -196,6 +173,38 @@ class StudyCreate(_In):
         "run group; the answer is the first, with the group's ids in 'runs'); GET /pooled "
         "on them gives R-hat across the runs and a convergence verdict.",
     )
+
+
+#: the case's [sampler] settings a request may override (null: the case's); their types,
+#: bounds and descriptions are SamplerSettings', counts capped at the service's limit
+SAMPLER_OVERRIDES = (
+    "n_samples",
+    "moves",
+    "n_steps",
+    "max_stages",
+    "early_rejection",
+    "delayed_acceptance",
+)
+
+
+def _override(name: str) -> tuple[Any, Any]:
+    """An optional request field overriding the case's sampler setting ``name``."""
+    field = SamplerSettings.model_fields[name]
+    kind = field.annotation
+    if typing.get_origin(kind) in (typing.Union, types.UnionType):  # X | None: X
+        kind = next(a for a in typing.get_args(kind) if a is not type(None))
+    bounds = [*field.metadata, *([Field(le=COUNT_MAX)] if kind is int else [])]
+    typed = Annotated[(kind, *bounds)] if bounds else kind
+    return typed | None, Field(None, description=field.description)
+
+
+StudyCreate = create_model(
+    "StudyCreate",
+    __base__=_StudyFields,
+    __module__=__name__,
+    __doc__=_StudyFields.__doc__,
+    **{name: _override(name) for name in SAMPLER_OVERRIDES},
+)
 
 
 class CancelRequest(_In):

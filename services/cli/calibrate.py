@@ -28,12 +28,14 @@ from scm_core.calibration import (
     CaseError,
     PopulationStart,
     Resume,
+    SamplerSettings,
     StageHooks,
     StageStart,
     StudyModel,
     UpdateLikelihood,
     run_tmcmc,
 )
+from scm_core.calibration.case import field_range
 from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc_moves import stage_chains
@@ -162,11 +164,14 @@ class _RunOptions:
     help="Override the case's TMCMC moves.",
 )
 @click.option(
-    "--samples", type=click.IntRange(min=10), default=None, help="Override the samples per stage."
+    "--samples",
+    type=click.IntRange(min=int(field_range(SamplerSettings, "n_samples")[0])),
+    default=None,
+    help="Override the samples per stage.",
 )
 @click.option(
     "--max-stages",
-    type=click.IntRange(min=1),
+    type=click.IntRange(min=int(field_range(SamplerSettings, "max_stages")[0])),
     default=None,
     help="Stop after this many tempering stages (re-run with a larger value to go on).",
 )

@@ -39,6 +39,7 @@ from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_w
 from ..etags import etag_of, not_modified, set_etag
 from ..params import StageIndex, StudyId, parse_statuses, status_query
 from ..schemas import (
+    SAMPLER_OVERRIDES,
     CancelRequest,
     EventOut,
     SamplesPage,
@@ -68,15 +69,6 @@ router = APIRouter(prefix="/studies", tags=["studies"], dependencies=[Depends(re
 
 SAMPLE_PAGE_MAX = 5000
 CSV_CHUNK = 2000
-#: overrides that go to the case's [sampler] table
-_SAMPLER_OVERRIDES = (
-    "n_samples",
-    "moves",
-    "n_steps",
-    "max_stages",
-    "early_rejection",
-    "delayed_acceptance",
-)
 _TOP_OVERRIDES = ("name", "seed", "likelihood")
 
 
@@ -85,14 +77,14 @@ _TOP_OVERRIDES = ("name", "seed", "likelihood")
 
 def build_case(body: StudyCreate) -> CaseDefinition:
     """The case of a request: the preset or the case document, with the overrides applied."""
-    sampler = {k: getattr(body, k) for k in _SAMPLER_OVERRIDES if getattr(body, k) is not None}
+    sampler = {k: getattr(body, k) for k in SAMPLER_OVERRIDES if getattr(body, k) is not None}
     top = {k: getattr(body, k) for k in _TOP_OVERRIDES if getattr(body, k) is not None}
     return with_overrides(base_case(body.preset, body.case), top, sampler)
 
 
 def update_request(store: Store, settings: Settings, body: StudyCreate) -> StudySpec:
     """The spec of a posterior update; the case's fields cannot be given with it."""
-    fixed = ("preset", "case", "likelihood", *_SAMPLER_OVERRIDES)
+    fixed = ("preset", "case", "likelihood", *SAMPLER_OVERRIDES)
     given = [k for k in fixed if getattr(body, k) is not None]
     if given:
         raise StudyRequestError(
