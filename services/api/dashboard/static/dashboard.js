@@ -409,7 +409,10 @@
 
   /* a study that has just ended, or moved to its next stage (so one more has finished): its
      results fragment is fetched at once, not at its own next poll (up to a second later),
-     and the finished stage's figures are asked for as soon as the progress shows it */
+     and the finished stage's figures are asked for as soon as the progress shows it. The
+     poll element itself is triggered ("refresh"), so the request carries its ETag and waits
+     for one of its own in flight: a fragment its poll already brought is a 304, not a second
+     swap that would drop the figures being fetched */
   let liveStage = null;
   document.addEventListener("htmx:afterSwap", (ev) => {
     if (!ev.detail.target || ev.detail.target.id !== "live") return;
@@ -421,7 +424,7 @@
     liveStage = now;
     const ended = live && !live.hasAttribute("hx-get");
     if ((ended || moved) && results && results.hasAttribute("hx-get")) {
-      htmx.ajax("GET", results.getAttribute("hx-get"), { target: "#results", swap: "innerHTML" });
+      htmx.trigger(results, "refresh");
     }
   });
 
