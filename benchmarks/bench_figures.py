@@ -7,7 +7,8 @@ stops the server, then draws the last finished stage's page figures
 ``--repeats`` times, and prints the median and spread of each figure's wall time [ms] and
 size [kB], their sum, and the makespan of the two figure processes' longest-first schedule
 (what the page waits for after a stage ends, on top of its poll). The simulator is compiled and
-matplotlib warmed before the first repeat, as the dashboard's figure processes do.
+matplotlib warmed before the first repeat, as the dashboard's figure processes do
+(:func:`~services.api.dashboard.drawing.prepare_drawing`).
 """
 
 from __future__ import annotations
@@ -66,10 +67,7 @@ def main() -> None:
     ap.add_argument("--fmt", default="svg", choices=("svg", "png"))
     args = ap.parse_args()
 
-    import numba
-
-    from scm_core.simulator import warm_up
-    from services.api.dashboard.drawing import DRAWING_PROCESSES, _draw_once
+    from services.api.dashboard.drawing import DRAWING_PROCESSES, prepare_drawing
     from services.api.dashboard.figures import FigureCache, page_figures, study_figure
     from services.api.views import parameter_names
     from services.store import Store
@@ -80,9 +78,7 @@ def main() -> None:
         study = store.studies.get(sid)
         done = [s.stage_index for s in store.stages.list(sid) if s.status == "done"]
         specs = page_figures(parameter_names(study), done[-1])
-        numba.set_num_threads(1)  # as a figure process
-        warm_up()
-        _draw_once()
+        prepare_drawing()  # as a figure process
         times: dict[str, list[float]] = {}
         sizes: dict[str, float] = {}
         for _ in range(args.repeats + 1):  # the first: warm-up, not counted

@@ -47,8 +47,13 @@ def _start_worker(database_url: str) -> None:
 
     _worker["store"] = Store.open(database_url)
     _worker["cache"] = FigureCache(max_entries=64)
-    # what the first figure would otherwise pay for: matplotlib and the plotting modules, and
-    # the simulator's compiled kernel (the fit simulates at the MAP)
+    prepare_drawing()
+
+
+def prepare_drawing() -> None:
+    """Make this process a figure process: one numba thread, and paid now what the first
+    figure would otherwise pay for (matplotlib and the plotting modules, the simulator's
+    compiled kernel: the fit simulates at the MAP; the text layout)."""
     import numba
 
     from scm_core.simulator import warm_up

@@ -133,8 +133,8 @@ class FigureWarmer:
                 return True
 
             # as many at once as the drawing processes draw (the page asks for two at a time),
-            # the longest first so that they finish together
-            specs = page_figures(names, done[-1])  # longest first, as the page asks for them
+            # the longest first (page_figures' order, the page's too) so they finish together
+            specs = page_figures(names, done[-1])
             with ThreadPoolExecutor(DRAWING_PROCESSES, thread_name_prefix="figure") as pool:
                 if not all(list(pool.map(draw, enumerate(specs)))):
                     return False
