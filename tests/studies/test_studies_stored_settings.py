@@ -130,3 +130,37 @@ def test_the_record_of_the_past_tuning_is_todays_defaults_until_one_changes() ->
     assert set(case_module.TUNING_BEFORE) == set(case_module.TUNING)
     defaults = TMCMCSettings()
     assert {n: getattr(defaults, n) for n in case_module.TUNING} == case_module.TUNING_BEFORE
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        ({"min_steps": 100}, ("sampler:", "'min_steps' (100)", "max_steps")),
+        ({"beta0": "x"}, ("sampler.beta0:", "valid number")),
+        ({"surrogate_memory": 1.5}, ("sampler.surrogate_memory:",)),
+        ({"beta00": 0.2}, ("sampler.beta00: unknown field",)),
+    ],
+)
+def test_bad_tuning_is_one_line_naming_the_field(change: dict, words: tuple) -> None:
+    """The tuning a case may now give is checked as TMCMCSettings checks it, in one line that
+    names the field (not the whole table)."""
+    from scm_core.calibration import CaseError
+
+    doc = tiny_case(seed=3, moves="resample-move")
+    doc["sampler"].update(change)
+    with pytest.raises(CaseError) as err:
+        CaseDefinition.from_dict(doc)
+    message = str(err.value)
+    assert "\n" not in message and "n_samples" not in message, message
+    for w in words:
+        assert w in message, message
+
+
+def test_a_study_with_bad_tuning_is_refused_and_stores_nothing(env) -> None:
+    client, _ = env
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    doc = tiny_case(seed=3, moves="resample-move")
+    doc["sampler"]["initial_steps"] = 0
+    r = client.post("/studies", json={"case": doc, "dataset_ids": [ds]}, headers=AUTH)
+    assert r.status_code == 422 and "initial_steps" in r.json()["detail"], r.text
+    assert client.get("/studies").json()["total"] == 0
