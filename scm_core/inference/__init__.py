@@ -1,6 +1,6 @@
 """Bayesian inference core: priors, likelihoods, TMCMC, Morris screening, posterior summaries.
 
-Pure numerics (numpy/scipy), no I/O. See :mod:`scm_core.inference.tmcmc_stage` for the stage
+Pure numerics (numpy/scipy), no I/O. See :mod:`scm_core.inference.tmcmc_loop` for the stage loop
 functions a distributed orchestrator calls step by step.
 """
 

@@ -10,7 +10,7 @@ Results are bit-identical for a given seed whatever the map and batch size.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
@@ -19,19 +19,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.inference.priors import JointPrior
+from scm_core.inference.tmcmc_loop import PopulationStart, Tempering, evaluate_zero
 from scm_core.inference.tmcmc_stage import (
     LogLikelihoodBatch,
     StageState,
     TMCMCSettings,
     chain_batches,
-    evaluate_points,
-    first_occurrences,
-    initial_samples,
-    initial_state,
-    plan_stage,
-    reduce_stage,
     run_chains,
-    stage_status,
 )
 
 __all__ = [
@@ -75,20 +69,6 @@ class Resume:
     """Continue a run from its saved stages (stage 0 onwards; same seed, n_samples, settings)."""
 
     stages: Sequence[StageState]
-
-
-@dataclass(frozen=True, eq=False)
-class PopulationStart:
-    """Stage 0 from an earlier posterior's population (n_samples, d) instead of prior draws: a
-    posterior update, whose likelihood gives log b = log L(earlier data) (see
-    :mod:`.tmcmc_stage`). ``tuning`` (beta, acceptance rate of that population's last stage)
-    starts stage 1 with the proposal scale and step count adapted to it (see
-    :func:`initial_state`); ``known_parts`` {part k: responses (n_samples, r_k)}: parts of a
-    parted likelihood already simulated at those points (the old datasets), not run again."""
-
-    samples: NDArray[np.float64]
-    tuning: tuple[float, float] | None = None
-    known_parts: Mapping[int, NDArray[np.float64]] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -230,62 +210,6 @@ def _check_resume(stages: Sequence[StageState], prior: JointPrior, n: int, seed:
         )
 
 
-def _evaluate_rows(
-    rows: tuple[NDArray[np.float64], dict[int, NDArray[np.float64]], NDArray[np.bool_]],
-    log_likelihood_batch: LogLikelihoodBatch,
-):
-    """Stage 0 of one batch: its points, the responses known at them and which are repeats
-    of earlier points (picklable)."""
-    X, known, copies = rows
-    return evaluate_points(X, log_likelihood_batch, known or None, copies)
-
-
-def _stage_zero(
-    log_likelihood_batch: LogLikelihoodBatch,
-    prior: JointPrior,
-    n_samples: int,
-    seed: int,
-    settings: TMCMCSettings,
-    start: PopulationStart | None,
-    map: MapFn,
-    batches_of: Callable[[int], Sequence[range]],
-    hooks: StageHooks,
-) -> StageState:
-    """Stage 0: prior draws or ``start``'s population, each distinct point run once (an
-    earlier population keeps a state once per rejected move); parts already simulated at those
-    points (``start.known_parts``) are not run again (see :func:`evaluate_points`)."""
-    if start is None:
-        X = initial_samples(prior, n_samples, seed)
-    else:
-        X = np.array(start.samples, dtype=float)
-        if X.shape != (n_samples, prior.dim):
-            raise ValueError(
-                f"the start population has shape {X.shape}, expected ({n_samples}, {prior.dim})"
-            )
-    batches = batches_of(n_samples)
-    if hooks.on_stage_start is not None:
-        hooks.on_stage_start(StageStart(0, 0.0, n_samples, len(batches)))
-    known = dict(start.known_parts or {}) if start is not None else {}
-    source = first_occurrences(X)
-    copies = source != np.arange(n_samples)
-    func = partial(_evaluate_rows, log_likelihood_batch=log_likelihood_batch)
-    rows = [
-        (
-            X[r.start : r.stop],
-            {k: v[r.start : r.stop] for k, v in known.items()},
-            copies[r.start : r.stop],
-        )
-        for r in batches
-    ]
-    evals = []
-    for r, ev in zip(batches, map(func, rows), strict=True):
-        evals.append(ev)
-        if hooks.on_batch is not None:
-            hooks.on_batch(len(r))
-    tuning = start.tuning if start is not None else None
-    return initial_state(prior, X, evals, seed, settings, tuning, source)
-
-
 def run_tmcmc(
     log_likelihood_batch: LogLikelihoodBatch,
     prior: JointPrior,
@@ -319,40 +243,51 @@ def run_tmcmc(
     settings = settings or TMCMCSettings()
     hooks = hooks or StageHooks()
     seed = int(seed)
-    if seed < 0:
-        raise ValueError(f"'seed' must be a non-negative integer, got {seed!r}")
+    tempering = Tempering(
+        prior, settings, n_samples, seed, start if isinstance(start, PopulationStart) else None
+    )
 
     def batches_of(n: int) -> Sequence[range]:
         return split(n) if split else chain_batches(n, batch_size)
 
+    def announce(stage: int, exponent: float, planned: int, n_batches: int) -> None:
+        if hooks.on_stage_start is not None:
+            hooks.on_stage_start(StageStart(stage, exponent, planned, n_batches))
+
+    def finished(state: StageState) -> None:
+        stages.append(state)
+        if hooks.on_stage is not None:
+            hooks.on_stage(state)
+
+    stages: list[StageState] = []
     if isinstance(start, Resume):
         stages = list(start.stages)
         _check_resume(stages, prior, n_samples, seed)
+        step = tempering.next(stages[-1])
     else:
-        stage0 = _stage_zero(
-            log_likelihood_batch, prior, n_samples, seed, settings, start, map, batches_of, hooks
-        )
-        stages = [stage0]
-        if hooks.on_stage is not None:
-            hooks.on_stage(stage0)
+        rows = [tempering.stage_zero_rows(r) for r in batches_of(n_samples)]
+        announce(0, 0.0, n_samples, len(rows))
+        func = partial(evaluate_zero, log_likelihood_batch=log_likelihood_batch)
+        evals = []
+        for (X, _, _), ev in zip(rows, map(func, rows), strict=True):
+            evals.append(ev)
+            if hooks.on_batch is not None:
+                hooks.on_batch(len(X))
+        step = tempering.begin(evals)
+        finished(step.state)
 
-    while (status := stage_status(stages[-1], settings)) is None:
-        plan = plan_stage(stages[-1], prior, settings)
+    while step.plan is not None:
+        plan = step.plan
         batches = batches_of(plan.n_chains)
-        if hooks.on_stage_start is not None:
-            planned = int(np.sum(plan.chain_length))
-            hooks.on_stage_start(
-                StageStart(plan.stage, float(plan.exponent), planned, len(batches))
-            )
+        announce(plan.stage, float(plan.exponent), int(np.sum(plan.chain_length)), len(batches))
         func = partial(run_chains, plan, log_likelihood_batch=log_likelihood_batch)
         results = []
         for res in map(func, batches):  # consumed lazily: on_batch fires batch by batch
             results.append(res)
             if hooks.on_batch is not None:
                 hooks.on_batch(int(np.sum(res.proposed)))
-        stages.append(reduce_stage(plan, results))
-        if hooks.on_stage is not None:
-            hooks.on_stage(stages[-1])
+        step = tempering.advance(plan, results)
+        finished(step.state)
 
     final = stages[-1]
     return TMCMCResult(
@@ -361,5 +296,5 @@ def run_tmcmc(
         log_evidence=float(final.log_evidence),
         log_evidence_se=math.sqrt(final.log_evidence_var),
         stages=tuple(stages),
-        status=status,
+        status=str(step.status),
     )

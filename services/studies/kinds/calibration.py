@@ -17,10 +17,10 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from scm_core.calibration import CaseDefinition, StudyModel
 from scm_core.inference._serial import encode_array
+from scm_core.inference.tmcmc_loop import PopulationStart, Tempering, evaluate_zero
 from scm_core.inference.tmcmc_moves import move_of
 from scm_core.inference.tmcmc_stage import (
     ChainBatchResult,
@@ -28,14 +28,7 @@ from scm_core.inference.tmcmc_stage import (
     StagePlan,
     StageState,
     TMCMCSettings,
-    evaluate_points,
-    first_occurrences,
-    initial_samples,
-    initial_state,
-    plan_stage,
-    reduce_stage,
     run_chains,
-    stage_status,
 )
 from services.config import Settings
 from services.limits import LimitError, check_simulator_settings, check_study_size
@@ -226,25 +219,16 @@ class CalibrationRun:
     def prior(self):
         return self.case.prior()
 
-    @cached_property
-    def initial_points(self):
-        """Stage-0 prior draws (all chains), drawn once per process."""
-        return initial_samples(self.prior, self.n_samples, self.seed)
-
-    @cached_property
-    def initial_source(self) -> NDArray[np.int64]:
-        """Each stage-0 point's first occurrence (a repeated point runs once)."""
-        return first_occurrences(self.initial_points)
-
     @property
-    def initial_tuning(self) -> tuple[float, float] | None:
-        """(beta, acceptance rate) stage 1 starts from (None: the settings' beta0, steps)."""
+    def start(self) -> PopulationStart | None:
+        """Where stage 0 starts (a calibration: the prior's draws)."""
         return None
 
-    def known_parts(self, rows: slice) -> dict[int, Any] | None:
-        """Likelihood parts already simulated at stage-0 points ``rows`` (see
-        ``evaluate_points``; a calibration: none)."""
-        return None
+    @cached_property
+    def tempering(self) -> Tempering:
+        """The run's stage loop (the same as the CLI's): stage-0 points drawn once per
+        process."""
+        return Tempering(self.prior, self.settings, self.n_samples, self.seed, self.start)
 
     @property
     def model_function(self):
@@ -255,10 +239,8 @@ class CalibrationRun:
     def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
         """Run the chains (or stage-0 prior points) of one leased batch; pure computation."""
         if lease.key.stage_index == 0:
-            rows = slice(lease.chain_start, lease.chain_stop)
-            known = self.known_parts(rows)
-            copies = self.initial_source[rows] != np.arange(rows.start, rows.stop)
-            points = evaluate_points(self.initial_points[rows], model_function, known, copies)
+            rows = self.tempering.stage_zero_rows(range(lease.chain_start, lease.chain_stop))
+            points = evaluate_zero(rows, model_function)
             return batch_output(lease, points, points.runs)
         result = run_chains(self.plan(store, lease.key), lease.chains, model_function)
         return batch_output(lease, result, result.model_runs)
@@ -287,30 +269,20 @@ class CalibrationRun:
         def reduce(inp: ReduceInput) -> StageAdvance:
             study = inp.study
             if inp.stage.stage_index == 0:
-                points = [decode(b, PointEvaluation) for b in inp.results]
-                state = initial_state(
-                    self.prior,
-                    self.initial_points,
-                    points,
-                    study.seed,
-                    self.settings,
-                    self.initial_tuning,
-                    self.initial_source,
-                )
+                step = self.tempering.begin([decode(b, PointEvaluation) for b in inp.results])
             else:
                 chains = [decode(b, ChainBatchResult) for b in inp.results]
-                state = reduce_stage(decode(inp.plan or b"", StagePlan), chains)
-            status = stage_status(state, self.settings)
-            if status is None:
-                plan = plan_stage(state, self.prior, self.settings)
-                batches = work_batches(plan.n_chains, study.batch_size, workers)
-                return StageAdvance(reduced_stage(state), planned_stage(plan), batches)
-            if status == "completed":
+                step = self.tempering.advance(decode(inp.plan or b"", StagePlan), chains)
+            state = step.state
+            if step.plan is not None:
+                batches = work_batches(step.plan.n_chains, study.batch_size, workers)
+                return StageAdvance(reduced_stage(state), planned_stage(step.plan), batches)
+            if step.status == "completed":
                 return StageAdvance(
                     reduced_stage(state), final_status="completed", result=self.result(state)
                 )
             return StageAdvance(
-                reduced_stage(state), final_status="stalled", error=f"TMCMC stopped: {status}"
+                reduced_stage(state), final_status="stalled", error=f"TMCMC stopped: {step.status}"
             )
 
         return reduce

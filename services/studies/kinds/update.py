@@ -14,13 +14,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.calibration import StudyModel, UpdateLikelihood
+from scm_core.inference.tmcmc_loop import PopulationStart
 from scm_core.inference.tmcmc_stage import StageState
 from services.config import Settings
 from services.limits import INT64_MAX, seed_error
@@ -126,26 +126,22 @@ class UpdateRun(CalibrationRun):
     parent_id: int = 0
     parent_log_evidence: float = 0.0
 
-    @cached_property
-    def initial_points(self) -> NDArray[np.float64]:
-        return np.asarray(self.parent_samples, dtype=float)
-
     @property
-    def initial_tuning(self) -> tuple[float, float] | None:
-        """The parent's final beta and acceptance rate (see ``initial_state``)."""
-        return self.parent_tuning
+    def start(self) -> PopulationStart:
+        """The parent's final population, with its final beta and acceptance rate (see
+        ``initial_state``); stage 0 runs the new datasets only: the old ones' responses at
+        that population are the parent's (bit-identical to running them again)."""
+        known = None
+        if self.parent_responses is not None:
+            known = self.likelihood.base_parts(self.parent_responses)
+        return PopulationStart(
+            np.asarray(self.parent_samples, dtype=float), self.parent_tuning, known
+        )
 
     @property
     def model_function(self):
         """Points (m, d) -> (log L(new), responses, log L(old))."""
         return self.likelihood
-
-    def known_parts(self, rows: slice) -> dict[int, Any] | None:
-        """Stage 0 runs the new datasets only: the old ones' responses at the parent's
-        population are the parent's (bit-identical to running them again)."""
-        if self.parent_responses is None:
-            return None
-        return self.likelihood.base_parts(self.parent_responses[rows])
 
     def result(self, final: StageState) -> dict[str, Any]:
         increment = float(final.log_evidence)
