@@ -1,7 +1,7 @@
 """Bayesian inference core: priors, likelihoods, TMCMC, Morris screening, posterior summaries.
 
 Pure numerics (numpy/scipy), no I/O. See :mod:`scm_core.inference.tmcmc_loop` for the stage loop
-functions a distributed orchestrator calls step by step.
+every driver runs (``run_tmcmc`` here, the service's leased batches).
 """
 
 from scm_core.inference.likelihood import (
