@@ -14,6 +14,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from scm_core.inference.tmcmc_loop import PopulationStart
+from scm_core.inference.tmcmc_stage import StageState
+
 from .model import StudyModel
 
 __all__ = ["UpdateLikelihood"]
@@ -46,6 +49,14 @@ class UpdateLikelihood:
         old = self.model.log_likelihood_from_means(means, sigma, range(self.n_old))
         new = self.model.log_likelihood_from_means(means, sigma, range(self.n_old, n))
         return new, means.reshape(X.shape[0], -1), old
+
+    def start(self, final: StageState) -> PopulationStart:
+        """Stage 0 of the update: the earlier study's final population ``final``, stage 1
+        tuned from its beta and acceptance rate (see ``initial_state``), the old datasets'
+        parts taken from its responses (not run again; bit-identical to running them)."""
+        known = None if final.responses is None else self.base_parts(final.responses)
+        tuning = (float(final.beta), float(final.acceptance_rate))
+        return PopulationStart(np.asarray(final.samples, dtype=float), tuning, known)
 
     def base_parts(self, responses: ArrayLike) -> dict[int, NDArray[np.float64]]:
         """The old datasets' parts {k: lab-side means (m, 3)} from the responses (m, >= 3 n_old)

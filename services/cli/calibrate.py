@@ -26,7 +26,6 @@ from rich.table import Table
 from scm_core.calibration import (
     CaseDefinition,
     CaseError,
-    PopulationStart,
     Resume,
     SamplerSettings,
     StageHooks,
@@ -355,12 +354,7 @@ def _sample(
         display.batch(k)
 
     likelihood = UpdateLikelihood(study.model, study.n_old) if parent else study.model
-    start = None
-    if parent is not None:
-        known = None
-        if parent.final.responses is not None:
-            known = likelihood.base_parts(parent.final.responses)  # old datasets: not run again
-        start = PopulationStart(parent.final.samples, parent.tuning, known)
+    start = likelihood.start(parent.final) if parent else None
     # in-process, Ctrl-C is noticed before every simulator call (between Metropolis steps);
     # with workers, when a batch comes back
     func = likelihood if workers is not None else CheckedLikelihood(stop, likelihood)

@@ -34,11 +34,6 @@ class ParentStudy:
     log_evidence: float
 
     @property
-    def tuning(self) -> tuple[float, float]:
-        """(beta, acceptance rate) of the final stage: where the update's stage 1 starts."""
-        return float(self.final.beta), float(self.final.acceptance_rate)
-
-    @property
     def identity(self) -> dict[str, Any]:
         """What the update's checkpoints belong to (refused if the parent changes)."""
         return {

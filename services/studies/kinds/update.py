@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from scm_core.calibration import StudyModel, UpdateLikelihood
 from scm_core.inference.tmcmc_loop import PopulationStart
@@ -119,24 +118,15 @@ class UpdateRun(CalibrationRun):
     """A calibration run whose stage 0 is the parent's population and whose likelihood puts
     the old datasets in the base density."""
 
-    parent_samples: NDArray[np.float64] | None = None
-    parent_responses: NDArray[np.float64] | None = None
-    parent_tuning: tuple[float, float] | None = None
     likelihood: UpdateLikelihood | None = None
+    parent_final: StageState | None = None
     parent_id: int = 0
     parent_log_evidence: float = 0.0
 
     @property
     def start(self) -> PopulationStart:
-        """The parent's final population, with its final beta and acceptance rate (see
-        ``initial_state``); stage 0 runs the new datasets only: the old ones' responses at
-        that population are the parent's (bit-identical to running them again)."""
-        known = None
-        if self.parent_responses is not None:
-            known = self.likelihood.base_parts(self.parent_responses)
-        return PopulationStart(
-            np.asarray(self.parent_samples, dtype=float), self.parent_tuning, known
-        )
+        """The parent's final population (see ``UpdateLikelihood.start``)."""
+        return self.likelihood.start(self.parent_final)
 
     @property
     def model_function(self):
@@ -182,10 +172,8 @@ class UpdateKind(CalibrationKind):
             settings=case.tmcmc_settings(),
             n_samples=study.n_samples,
             seed=study.seed,
-            parent_samples=final.samples,
-            parent_responses=final.responses,
-            parent_tuning=(float(final.beta), float(final.acceptance_rate)),
             likelihood=UpdateLikelihood(model, len(old)),
+            parent_final=final,
             parent_id=parent.id,
             parent_log_evidence=_total_log_evidence(store, parent),
         )
