@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 
 __all__ = [
     "QUANTILES",
@@ -140,6 +139,8 @@ def kde_1d(
     bounds so that mass piled against a bound is not smeared outside it, and is 0 outside.
     Returns (grid, density); the density integrates to ~1 over the grid's range.
     """
+    from scipy import stats  # on first use (a second to import)
+
     x = np.asarray(samples, dtype=float).ravel()
     kde = stats.gaussian_kde(x, bw_method=bw_method)
     if grid is None:
@@ -174,6 +175,8 @@ def kde_2d(
     """
     xv = np.asarray(x, dtype=float).ravel()
     yv = np.asarray(y, dtype=float).ravel()
+    from scipy import stats
+
     kde = stats.gaussian_kde(np.vstack([xv, yv]), bw_method=bw_method)
     if limits is None:
         px, py = 3.0 * np.sqrt(np.diag(kde.covariance))

@@ -11,11 +11,11 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
+from functools import cached_property
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 
 __all__ = [
     "LOG_SCALE_KINDS",
@@ -103,8 +103,6 @@ class TruncatedNormal(_Serial):
     lower: float
     upper: float
     kind: ClassVar[str] = "truncated_normal"
-    _dist: Any = field(init=False, repr=False, compare=False)
-    _log_norm: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("mean", "sd", "lower", "upper"):
@@ -115,15 +113,25 @@ class TruncatedNormal(_Serial):
         if not self.sd > 0:
             raise ValueError(f"TruncatedNormal: 'sd' must be > 0, got {self.sd!r}")
         _check_order("TruncatedNormal", self.lower, self.upper)
+
+    @cached_property
+    def _dist(self) -> Any:
+        """scipy's frozen truncnorm, made on first use (scipy.stats takes seconds to import,
+        and a prior built at import, like Table 2's, should not pay for it)."""
+        from scipy import stats
+
         a = (self.lower - self.mean) / self.sd
         b = (self.upper - self.mean) / self.sd
-        dist = stats.truncnorm(a, b, loc=self.mean, scale=self.sd)
-        object.__setattr__(self, "_dist", dist)
-        # log(sd sqrt(2 pi) Z), Z the normal mass in [a, b], taken from scipy's truncnorm at an
-        # interior point so that logpdf below is a cheap closed form equal to truncnorm.logpdf.
+        return stats.truncnorm(a, b, loc=self.mean, scale=self.sd)
+
+    @cached_property
+    def _log_norm(self) -> float:
+        """log(sd sqrt(2 pi) Z), Z the normal mass in [a, b], taken from scipy's truncnorm at
+        an interior point so that logpdf below is a cheap closed form equal to
+        truncnorm.logpdf."""
         x0 = min(max(self.mean, self.lower), self.upper)
         z0 = (x0 - self.mean) / self.sd
-        object.__setattr__(self, "_log_norm", float(-0.5 * z0 * z0 - dist.logpdf(x0)))
+        return float(-0.5 * z0 * z0 - self._dist.logpdf(x0))
 
     def logpdf(self, x: ArrayLike) -> NDArray[np.float64]:
         """Log density; -inf outside [lower, upper]."""

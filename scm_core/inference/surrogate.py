@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = [
     "ResponseLikelihood",
@@ -227,6 +229,8 @@ def fit_surrogate(
     scale = np.where(scale > 0, scale, 1.0)
     y_center, y_scale = R.mean(axis=0), R.std(axis=0)
     y_scale = np.where(y_scale > 0, y_scale, 1.0)
+    from scipy.spatial import cKDTree  # on first use (scipy.spatial: a second to import)
+
     k = int(min(neighbors, X.shape[0]))
     points = (U - center) / scale
     return ResponseSurrogate(

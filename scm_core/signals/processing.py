@@ -7,8 +7,6 @@ the run is steady; the steady means enter the likelihood, eq. (15).
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import fft as sp_fft
-from scipy import signal
 
 #: Default low-pass cutoff (Hz). Grouser passage on an SWT rig is of order 0.1-2 Hz; 1 Hz keeps
 #: the slow response and removes sensor noise. With fewer than 5 Hz sampling the default becomes
@@ -80,6 +78,8 @@ def lowpass(
     nyquist = 0.5 * rate_hz
     if not 0.0 < cutoff < nyquist:
         raise ValueError(f"cutoff {cutoff:g} Hz must lie in (0, {nyquist:g}) Hz (Nyquist)")
+    from scipy import signal  # on first use: scipy.signal takes a second to import
+
     sos = signal.butter(order, cutoff, btype="low", fs=rate_hz, output="sos")
     padlen = min(3 * (2 * len(sos) + 1), x.size - 1)
     return signal.sosfiltfilt(sos, x, padlen=padlen)
@@ -92,6 +92,8 @@ def lag_products(d: np.ndarray, max_lag: int) -> np.ndarray:
     follow (zero padding to B + max_lag points: no circular wrap), so every pair (i, i + k) is
     counted once and the memory is O(B + max_lag) rather than O(2 d.size).
     """
+    from scipy import fft as sp_fft
+
     n = d.size
     lag = min(int(max_lag), n - 1)
     block = max(lag, _BLOCK)

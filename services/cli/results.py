@@ -196,8 +196,9 @@ def write_outputs(
     write_json(out / "summary.json", summary, indent=2)
 
     if plots:
+        from services.plots.choices import mean_b_eff
         from services.plots.fit import plot_fit
-        from services.plots.posterior import mean_b_eff, plot_pairs, plot_prior_posterior
+        from services.plots.posterior import plot_pairs, plot_prior_posterior
 
         fig_dir = out / "figures"
         fig_dir.mkdir(exist_ok=True)

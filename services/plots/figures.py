@@ -7,9 +7,10 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import matplotlib
-from matplotlib.figure import Figure
+if TYPE_CHECKING:  # a figure comes drawn by matplotlib; FORMATS alone needs none of it
+    from matplotlib.figure import Figure
 
 __all__ = ["FORMATS", "axes_geometry", "render", "save"]
 
@@ -43,6 +44,8 @@ def render(fig: Figure, fmt: str, dpi: int = 110) -> bytes:
     buf = io.BytesIO()
     metadata = {"Date": None} if fmt == "svg" else {}
     # SVG text as text (the page's fonts), not glyph paths; element ids from a fixed salt
+    import matplotlib
+
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "scm-calib"}):
         fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata)
     if fmt != "svg":

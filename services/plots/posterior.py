@@ -3,7 +3,6 @@ kernel-density contours of selected parameter pairs."""
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
@@ -15,10 +14,8 @@ from numpy.typing import NDArray
 
 from scm_core.inference.posterior import kde_1d, kde_2d
 
+from .choices import default_pairs
 from .figures import save
-
-#: pairs of the paper's Figures 6 (case 1) and 7-8 (cases 2), in order of preference
-PAPER_PAIRS = (("k_c", "k_phi"), ("n", "phi"), ("phi", "J"), ("n", "R"))
 
 _LABELS = {
     "k_c": "k_c [N/m^(n+1)]",
@@ -51,17 +48,6 @@ def _tx(name: str, x, log_params: Collection[str]):
         return x
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.log10(np.asarray(x, dtype=float))
-
-
-def mean_b_eff(sim: Any) -> float | None:
-    """Mean effective contact width b_eff (m) of a simulated run (an ``SWTResult``) over its
-    second half: the width of the k* = k_c / b_eff + k_phi line (eq. (11)). None without one."""
-    if sim is None:
-        return None
-    b = sim.series["b_eff"]
-    t = sim.series["t"]
-    sel = b[(t >= t[-1] / 2) & (b > 0)]
-    return float(sel.mean()) if sel.size else None
 
 
 def _from_plot_scale(log: bool) -> Any:
@@ -100,21 +86,6 @@ def _per_unit(v: NDArray[np.float64], width: float) -> NDArray[np.float64]:
     """Histogram weights that make bar heights a density per unit of the binning scale
     (per decade for log10 bins), whatever scale the bars are drawn on."""
     return np.full(v.size, 1.0 / (v.size * width))
-
-
-def default_pairs(names: Sequence[str], limit: int = 3) -> list[tuple[str, str]]:
-    """The paper's pairs among ``names`` (k_c-k_phi, n-phi, phi-J or n-R), else consecutive
-    pairs of the non-sigma parameters; at most ``limit``."""
-    pairs = [p for p in PAPER_PAIRS if p[0] in names and p[1] in names]
-    if "J" in names:
-        pairs = [p for p in pairs if p != ("n", "R")] + [p for p in pairs if p == ("n", "R")]
-    physical = [n for n in names if not n.startswith(("sigma_", "z_offset"))]
-    for a, b in itertools.pairwise(physical):
-        if len(pairs) >= limit:
-            break
-        if (a, b) not in pairs and (b, a) not in pairs:
-            pairs.append((a, b))
-    return pairs[:limit]
 
 
 def prior_posterior_figure(

@@ -14,35 +14,24 @@ import threading
 from collections import OrderedDict
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
+import services.plots as plots  # submodules (matplotlib) load when a figure is drawn
 from scm_core.calibration import CaseDefinition, StudyModel
 from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
 from scm_core.inference.posterior import map_sample, pool_samples
 from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import SWTDataset
-from services.plots.figures import render
-from services.plots.fit import fit_figure
-from services.plots.posterior import (
-    compare_figure,
-    default_pairs,
-    mean_b_eff,
-    pair_matrix_figure,
-    pairs_figure,
-    prior_posterior_figure,
-)
-from services.plots.predict import predictions_figure
-from services.plots.ranks import rank_figure
-from services.plots.sensitivity import indices_figure
-from services.plots.stages import schedule_figure, stage_trace_figure
-from services.plots.swt import measured_figure
+from services.plots.choices import default_pairs, mean_b_eff
 from services.store import StageRecord, Store, StudyRecord
 from services.studies.datasets import load_datasets, stored_log
 from services.studies.kinds import KINDS, KindPanel, kind_of, study_terms
 from services.studies.kinds.base import stored_case
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = [
     "STUDY_FIGURES",
@@ -173,7 +162,7 @@ def map_simulations(
 
 
 def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: Any) -> Figure:
-    return schedule_figure(
+    return plots.stages.schedule_figure(
         [s.stage_index for s in stages],
         [s.exponent for s in stages],
         [s.acceptance for s in stages],
@@ -189,7 +178,7 @@ def _trace(
     case = stored_case(study.case)
     done = [s.stage_index for s in stages if s.status == "done" and s.stage_index <= stage]
     data = [_stage_data(store, study, j) for j in done]
-    return stage_trace_figure(
+    return plots.stages.stage_trace_figure(
         data[-1].names,
         done,
         [d.samples for d in data],
@@ -222,7 +211,7 @@ def _prior_posterior(
     data = _stage_data(store, study, stage)
     first = _stage_data(store, study, 0)
     panel = _panel(study)
-    return prior_posterior_figure(
+    return plots.posterior.prior_posterior_figure(
         data.names,
         first.samples,
         data.samples,
@@ -259,7 +248,7 @@ def _pairs(
         _, sims, _ = map_simulations(store, study, stage, cache)
         b_eff = mean_b_eff(sims[0])
         k_star_line = (k_star, b_eff) if b_eff else None
-    fig = pairs_figure(
+    fig = plots.posterior.pairs_figure(
         data.names,
         data.samples,
         pairs=None if pair is None else [pair],
@@ -336,7 +325,7 @@ def _matrix(
         raise FigureError(f"p: {', '.join(unknown)} not among {', '.join(data.names)}")
     if not 2 <= len(chosen) <= MATRIX_MAX or len(set(chosen)) != len(chosen):
         raise FigureError(f"p: choose 2 to {MATRIX_MAX} different parameters")
-    return pair_matrix_figure(
+    return plots.posterior.pair_matrix_figure(
         data.names,
         data.samples,
         chosen,
@@ -357,7 +346,7 @@ def _fit(
 ) -> Figure:
     case = stored_case(study.case)
     datasets, sims, offsets = map_simulations(store, study, stage, cache)
-    return fit_figure(
+    return plots.fit.fit_figure(
         datasets,
         sims,
         title=f"{study.name}: measured vs simulated at the MAP{_stage_title(study, stages, stage)} "
@@ -379,7 +368,7 @@ def _indices(store: Store, study: StudyRecord, **_: Any) -> Figure:
             [[np.nan if t[r][n] is None else t[r][n] for r in RESPONSES] for n in names]
         )
 
-    return indices_figure(
+    return plots.sensitivity.indices_figure(
         names,
         table("linear_index"),
         table("nonlinear_index"),
@@ -418,7 +407,7 @@ def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
     datasets = [c for c in conds if c.role != "sweep"]
     sweep = [c for c in conds if c.role == "sweep"]
     responses = [r for r in RESPONSES if conds and r in conds[0].responses]
-    return predictions_figure(
+    return plots.predict.predictions_figure(
         datasets, sweep, title=f"{study.name}: posterior predictions", responses=responses
     )
 
@@ -486,7 +475,7 @@ def study_figure(
             pair=pair,
             params=params,
         )
-        return render(fig, fmt)
+        return plots.figures.render(fig, fmt)
 
     return cache.get_or_make(key, make)
 
@@ -495,7 +484,7 @@ def dataset_signals(store: Store, dataset_id: int, fmt: str, cache: FigureCache)
     """A stored log's raw and filtered channels with the averaging window (cached)."""
 
     def make() -> bytes:
-        return render(measured_figure(stored_log(store, dataset_id)), fmt)
+        return plots.figures.render(plots.swt.measured_figure(stored_log(store, dataset_id)), fmt)
 
     return cache.get_or_make(("signals", dataset_id, fmt), make)
 
@@ -524,8 +513,8 @@ def compare(
         n = min(len(x) for x in per.values())
         pooled = pool_samples(list(per.values()), n, seed)
         case = stored_case(studies[0].case)
-        return render(
-            compare_figure(
+        return plots.figures.render(
+            plots.posterior.compare_figure(
                 shared,
                 per,
                 pooled,
@@ -576,6 +565,6 @@ def ranks(store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureC
         names, x = chains
         labels = [f"{s.id}: {s.name}"[:24] for s in studies]
         title = f"Rank plots of studies {', '.join(str(s.id) for s in studies)}"
-        return render(rank_figure(names, x, labels, title=title), fmt)
+        return plots.figures.render(plots.ranks.rank_figure(names, x, labels, title=title), fmt)
 
     return cache.get_or_make(("ranks", tuple(s.id for s in studies), fmt), make)

@@ -26,8 +26,8 @@ from scm_core.calibration import PRESETS
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals.conditions import condition_unit
 from services.limits import INT64_MAX
+from services.plots.choices import default_pairs
 from services.plots.figures import FORMATS
-from services.plots.posterior import default_pairs
 from services.store import NotFoundError, Store, StudyRecord
 from services.studies.kinds import KINDS, posterior_kinds
 
