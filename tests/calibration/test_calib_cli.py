@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -59,6 +60,22 @@ def run_cli(*args, cwd: Path) -> subprocess.CompletedProcess:
         timeout=600,
         env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
     )
+
+
+def run_cli_here(*args, cwd: Path) -> subprocess.CompletedProcess:
+    """``scm-calib ARGS`` in this process (click's runner, from ``cwd``): the same command and
+    error handling as :func:`run_cli` without an interpreter's start (seconds of imports), for
+    the input errors that stop a command before it computes anything;
+    :func:`test_the_entry_point_gives_the_in_process_error_lines` checks both agree."""
+    from click.testing import CliRunner
+
+    from services.cli.main import cli
+
+    with contextlib.chdir(cwd):
+        res = CliRunner().invoke(cli, [str(a) for a in args])
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception  # a traceback: the CLI must never give one
+    return subprocess.CompletedProcess(list(args), res.exit_code, res.stdout, res.stderr)
 
 
 def one_line_error(proc: subprocess.CompletedProcess, code: int = 2) -> str:
@@ -232,7 +249,7 @@ def test_predict_at_conditions_nobody_measured(work: Path, reference: Path) -> N
     ],
 )
 def test_predict_bad_inputs_one_line_exit_2(work: Path, reference: Path, args, needle) -> None:
-    assert needle in one_line_error(run_cli(*args, cwd=work))
+    assert needle in one_line_error(run_cli_here(*args, cwd=work))
 
 
 def test_synth_writes_log_and_sidecar(work: Path) -> None:
@@ -430,8 +447,23 @@ def test_bad_inputs_one_line_exit_2(work: Path, args: list[str], needle: str) ->
     (work / "unknown.toml").write_text(CASE.replace("\nn = {", "\nk_phy = {"))
     (work / "nodata.toml").write_text(CASE.replace('files = ["log.csv"]', "files = []"))
     (work / "garbage.csv").write_text("this is not, a log\n1,2\n")
-    line = one_line_error(run_cli(*args, cwd=work))
+    line = one_line_error(run_cli_here(*args, cwd=work))
     assert line.startswith("error: ") and needle in line, line
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["calibrate", "missing.toml"],
+        ["calibrate", "tiny.toml", "--data", "nope.csv"],
+        ["sensitivity", "tiny.toml", "--levels", "3"],
+    ],
+)
+def test_the_entry_point_gives_the_in_process_error_lines(work: Path, args: list[str]) -> None:
+    """``python -m services.cli`` (the installed ``scm-calib``) gives the same one-line error
+    and exit code as the in-process runs of the tests above."""
+    here = one_line_error(run_cli_here(*args, cwd=work))
+    assert one_line_error(run_cli(*args, cwd=work)) == here
 
 
 @pytest.fixture(scope="module")
@@ -537,7 +569,7 @@ def test_update_is_the_in_memory_update_bit_for_bit(
 def test_bad_update_inputs_one_line_exit_2(
     work: Path, reference: Path, second_log: Path, args: list[str], needle: str
 ) -> None:
-    line = one_line_error(run_cli(*args, cwd=work))
+    line = one_line_error(run_cli_here(*args, cwd=work))
     assert line.startswith("error: ") and needle in line, line
 
 
@@ -698,4 +730,4 @@ def test_runs_give_a_verdict_and_a_pooled_posterior(work: Path, reference: Path)
 def test_bad_run_group_inputs_one_line_exit_2(
     work: Path, reference: Path, args: list[str], needle: str
 ) -> None:
-    assert needle in one_line_error(run_cli(*args, cwd=work))
+    assert needle in one_line_error(run_cli_here(*args, cwd=work))
