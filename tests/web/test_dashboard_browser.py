@@ -28,8 +28,10 @@ import pytest
 from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, summary_doc, tiny_case, wait_ended
 
 ROOT = Path(__file__).resolve().parents[2]
-#: where the screenshots go (docs/screenshots.py points it elsewhere)
-SHOTS = Path(os.environ.get("SCM_CALIB_SHOTS_DIR") or ROOT / "test-output" / "dashboard")
+#: where the pages' screenshots go, if anywhere: a full-page screenshot costs about a second of
+#: the suite's CPU, so only a run that asks for them takes them (docs/screenshots.py does;
+#: SCM_CALIB_SHOTS_DIR=test-output/dashboard pytest tests/web to look at the pages)
+SHOTS = Path(os.environ["SCM_CALIB_SHOTS_DIR"]) if os.environ.get("SCM_CALIB_SHOTS_DIR") else None
 CHROMIUM = os.environ.get("SCM_CALIB_TEST_CHROMIUM", "/usr/bin/chromium")
 ARGS = [
     "--no-sandbox",
@@ -128,9 +130,10 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
 def browser():
     from playwright.sync_api import sync_playwright
 
-    if SHOTS.exists():
-        shutil.rmtree(SHOTS)
-    SHOTS.mkdir(parents=True)
+    if SHOTS is not None:
+        if SHOTS.exists():
+            shutil.rmtree(SHOTS)
+        SHOTS.mkdir(parents=True)
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
         yield b
@@ -199,7 +202,8 @@ class Watched:
         return self.page.locator("img[data-src]").count()
 
     def shoot(self, name: str) -> None:
-        self.page.screenshot(path=str(SHOTS / f"{name}.png"), full_page=True)
+        if SHOTS is not None:
+            self.page.screenshot(path=str(SHOTS / f"{name}.png"), full_page=True)
 
     def close(self) -> None:
         self.context.close()
