@@ -5,12 +5,13 @@ Run: ``python benchmarks/bench_startup.py [--repeats 5] [--baseline REF]``.
 Every process of the service imports its entry module first: the API (``services.api.main``),
 an embedded pool process or a Celery worker (``worker.runtime``), the CLI's calibration
 (``services.cli.calibrate``), a figure process (``services.api.dashboard.figures`` plus its
-plots). Each is imported in a fresh interpreter ``--repeats`` times (after one warm-up run that
-fills the bytecode caches); the table gives the median wall time [s] and which heavy libraries
-the import loaded. Then ``scm-calib serve`` (temporary SQLite database, two local workers) is
-started ``--repeats`` times: the median time until ``/health/ready`` answers 200 (database
-migrated, pool processes warmed). With ``--baseline REF`` the same runs are made on a git
-worktree of REF in the same session, alternating, so both share the machine's noise.
+plots). Each is imported in a fresh interpreter ``--repeats`` times, after a warm-up that fills
+the bytecode caches and compiles the simulator into a fresh worktree's numba cache; the table
+gives the median wall time [s] and which heavy libraries the import loaded. Then ``scm-calib
+serve`` (temporary SQLite database, two local workers) is started ``--repeats`` times: the
+median time until ``/health/ready`` answers 200 (database migrated, pool processes warmed).
+With ``--baseline REF`` the same runs are made on a git worktree of REF in the same session,
+alternating, so both share the machine's noise.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ import importlib, sys, time
 t0 = time.perf_counter()
 for m in sys.argv[1].split("; "):
     importlib.import_module(m)
-print(time.perf_counter() - t0, " ".join(h for h in sys.argv[2].split() if h in sys.modules))
+print(time.perf_counter() - t0, ", ".join(h for h in sys.argv[2].split() if h in sys.modules))
 """
 
 
@@ -59,6 +60,16 @@ def import_time(tree: Path, modules: str) -> tuple[float, str]:
         check=True,
     ).stdout.split(maxsplit=1)
     return float(out[0]), (out[1].strip() if len(out) > 1 else "")
+
+
+def compile_simulator(tree: Path) -> None:
+    """Fill ``tree``'s numba cache (a fresh worktree compiles the simulator once, minutes)."""
+    subprocess.run(
+        [sys.executable, "-c", "from scm_core.simulator import warm_up; warm_up()"],
+        cwd=tree,
+        env={**os.environ, "PYTHONPATH": str(tree)},
+        check=True,
+    )
 
 
 def serve_ready(tree: Path) -> float:
@@ -97,7 +108,8 @@ def main() -> None:
     try:
         times: dict[tuple[str, str], list[float]] = {}
         loaded: dict[tuple[str, str], str] = {}
-        for tree in trees.values():  # warm-up: bytecode caches, the OS's file cache
+        for tree in trees.values():  # warm-up: bytecode and numba caches, the file cache
+            compile_simulator(tree)
             for modules in ENTRIES.values():
                 import_time(tree, modules)
         for _ in range(args.repeats):
@@ -130,7 +142,7 @@ def main() -> None:
                 f"{max(ts):.2f}",
                 loaded[(entry, label)],
             )
-    Console().print(table)
+    Console(width=130).print(table)
 
 
 if __name__ == "__main__":
