@@ -177,12 +177,13 @@ class _SamplerFields(_Strict):
     """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
 
     ``moves``: "waste-free" (the default: the accelerated accurate form), "resample-move" (the
-    unaccelerated accurate form) or "leader" (the paper's form). ``delayed_acceptance``,
-    ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale`` and ``resampling`` left out (or
-    null) take the move scheme's defaults (:func:`scm_core.inference.tmcmc_moves.form_defaults`):
-    for "waste-free" surrogate transitions of 40 inner steps with population jumps, the log walk
-    and multinomial resampling; for "resample-move" and "leader" plain steps in the parameters
-    and systematic resampling.
+    unaccelerated accurate form) or "leader" (the paper's form). ``n_steps`` (waste-free),
+    ``delayed_acceptance``, ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale`` and
+    ``resampling`` left out (or null) take the move scheme's defaults, filled in and stored with
+    the case (:func:`scm_core.inference.tmcmc_moves.form_defaults`): for "waste-free" 4 moves per
+    chain, surrogate transitions of 40 inner steps with population jumps, the log walk and
+    multinomial resampling; for "resample-move" and "leader" plain steps in the parameters and
+    systematic resampling (their ``n_steps`` left null adapts per stage).
 
     ``batch_size``: chains per batch handed to the ``map`` (None: chosen by the runner; does
     not change the results). ``max_stages``: stop (status "max_stages") after that many
@@ -314,6 +315,10 @@ TUNING_BEFORE: dict[str, int | float] = {
     "surrogate_memory": 20_000,
 }
 
+#: moves per chain of a waste-free case stored before the form's default was stored with it
+#: (WASTE_FREE_STEPS until then); a record of the past, like TUNING_BEFORE
+WASTE_FREE_STEPS_BEFORE = 4
+
 SamplerSettings = create_model(
     "SamplerSettings",
     __base__=_SamplerFields,
@@ -384,7 +389,15 @@ class CaseDefinition(_Strict):
             raise CaseError("case: top level must be a table")
         sampler = data.get("sampler")
         if isinstance(sampler, Mapping) and not any(k in sampler for k in TUNING):
-            data = {**data, "sampler": {**TUNING_BEFORE, **sampler}}
+            sampler = {**TUNING_BEFORE, **sampler}
+        if (
+            isinstance(sampler, Mapping)
+            and sampler.get("moves") == "waste-free"
+            and sampler.get("n_steps") is None
+        ):  # stored before its form's n_steps was filled in: it ran with the default then
+            sampler = {**sampler, "n_steps": WASTE_FREE_STEPS_BEFORE}
+        if sampler is not data.get("sampler"):
+            data = {**data, "sampler": sampler}
         return cls.from_dict(data, base_dir)
 
     @classmethod
@@ -561,6 +574,11 @@ class CaseDefinition(_Strict):
             # cases from before the tuning was stored keep their fingerprint
             if doc["sampler"].get(name) == value:
                 del doc["sampler"][name]
+        if (
+            doc["sampler"].get("moves") == "waste-free"
+            and doc["sampler"].get("n_steps") == WASTE_FREE_STEPS_BEFORE
+        ):  # and those from before waste-free's n_steps was filled in (null: left out)
+            del doc["sampler"]["n_steps"]
         if doc["sampler"].get("resampling") == "systematic":
             # cases from before resampling could be chosen keep their fingerprint
             del doc["sampler"]["resampling"]

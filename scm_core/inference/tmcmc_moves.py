@@ -197,6 +197,7 @@ _MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove(), Was
 ACCELERATED_STEPS = 40
 ACCELERATED_JUMPS = 0.2
 _ACCELERATED = {
+    "n_steps": WASTE_FREE_STEPS,
     "delayed_acceptance": True,
     "surrogate_steps": ACCELERATED_STEPS,
     "surrogate_jumps": ACCELERATED_JUMPS,
@@ -221,8 +222,10 @@ STUDY_MOVES = "waste-free"
 def form_defaults(moves: str) -> dict[str, bool | int | float | str]:
     """The settings a study leaves to its move scheme: for "waste-free" the accelerated
     accurate form (waste-free chains are only accurate with surrogate transitions as their
-    moves), for "resample-move" and "leader" plain steps. Keys: ``delayed_acceptance``,
-    ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale``, ``resampling``."""
+    moves; :data:`WASTE_FREE_STEPS` moves per chain), for "resample-move" and "leader" plain
+    steps (their ``n_steps`` adapts: not set here). Keys: ``n_steps`` (waste-free only),
+    ``delayed_acceptance``, ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale``,
+    ``resampling``."""
     move_of(moves)  # a known scheme
     return dict(_ACCELERATED if moves == "waste-free" else _PLAIN)
 

@@ -236,7 +236,7 @@ def test_a_study_takes_its_move_schemes_form_unless_it_names_the_settings() -> N
     assert (accurate.proposal_scale, accurate.resampling) == ("linear", "systematic")
     assert accurate == TMCMCSettings()  # the library's defaults
     fast = build(sampler={"moves": "waste-free"}).tmcmc_settings()
-    assert fast.n_steps is None and fast.moves == "waste-free"
+    assert fast.n_steps == 4 and fast.moves == "waste-free"  # filled in (WASTE_FREE_STEPS)
     assert (fast.delayed_acceptance, fast.surrogate_steps) == (True, 40)
     assert fast.surrogate_jumps == 0.2
     assert (fast.proposal_scale, fast.resampling) == ("log", "multinomial")

@@ -70,7 +70,7 @@ def _objects() -> list[Any]:
     """One of each stored TMCMC dataclass, from a real stage of the accelerated form (delayed
     acceptance, population jumps: every optional array is filled) and of a plain one."""
     prior = JointPrior({"a": Uniform(-1.0, 1.0), "b": Uniform(-1.0, 1.0)})
-    settings = TMCMCSettings(moves="waste-free", n_steps=3, **form_defaults("waste-free"))
+    settings = TMCMCSettings(**{**form_defaults("waste-free"), "n_steps": 3}, moves="waste-free")
     X = initial_samples(prior, 60, seed=5)
     ev = evaluate_points(X, _gaussian_batch)
     state0 = initial_state(prior, X, [ev], seed=5, settings=settings)

@@ -14,6 +14,7 @@ import ast
 from pathlib import Path
 
 import pytest
+from layer_support import parse_file
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("scm_core", "services", "worker")
@@ -79,7 +80,7 @@ def _module_name(path: Path) -> str:
 
 def _imports(path: Path, module: str) -> list[tuple[int, str]]:
     """(line, absolute module) of every import in the file of ``module``."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    tree = parse_file(path)
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
     out: list[tuple[int, str]] = []
     for node in ast.walk(tree):

@@ -9,6 +9,7 @@ import ast
 from pathlib import Path
 
 import numpy as np
+from layer_support import parse_file
 
 from scm_core.inference import JointPrior, TruncatedNormal, run_tmcmc
 from scm_core.inference.tmcmc_loop import Tempering
@@ -30,7 +31,7 @@ DEFINED_IN = ("scm_core/inference/tmcmc_stage", "scm_core/inference/tmcmc_steps"
 
 def _calls(path: Path) -> set[str]:
     names = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in ast.walk(parse_file(path)):
         if isinstance(node, ast.Call):
             f = node.func
             names.add(f.id if isinstance(f, ast.Name) else getattr(f, "attr", ""))

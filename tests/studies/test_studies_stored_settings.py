@@ -107,6 +107,28 @@ def test_a_case_stored_before_the_tuning_was_reads_with_what_it_ran_with(new_rel
     assert again.fingerprint() == CaseDefinition.from_stored(again.to_dict()).fingerprint()
 
 
+def test_a_waste_free_case_stores_its_moves_per_chain(monkeypatch) -> None:
+    """Waste-free's moves per chain are filled in and stored like the rest (they were computed
+    at run time from WASTE_FREE_STEPS): a release that changes the default changes no stored
+    case, and a case stored before they were stored reads with the value it ran with."""
+    doc = CaseDefinition.from_dict(tiny_case(seed=3, moves="waste-free")).to_dict()
+    assert doc["sampler"]["n_steps"] == tmcmc_moves.WASTE_FREE_STEPS == 4
+    old = {**doc, "sampler": {k: v for k, v in doc["sampler"].items() if k != "n_steps"}}
+    assert (
+        CaseDefinition.from_stored(old).fingerprint()
+        == CaseDefinition.from_stored(doc).fingerprint()
+    )
+    monkeypatch.setitem(tmcmc_moves._ACCELERATED, "n_steps", 9)  # a new release's default
+    assert CaseDefinition.from_dict(tiny_case(seed=3, moves="waste-free")).sampler.n_steps == 9
+    assert CaseDefinition.from_stored(doc).tmcmc_settings().n_steps == 4
+    assert CaseDefinition.from_stored(old).tmcmc_settings().n_steps == 4
+    # a case that names its moves per chain keeps them; resample-move's still adapt
+    named = CaseDefinition.from_dict(tiny_case(seed=3, moves="waste-free", n_steps=2))
+    assert named.sampler.n_steps == 2
+    adapted = CaseDefinition.from_dict(tiny_case(seed=3, moves="resample-move"))
+    assert adapted.sampler.n_steps is None
+
+
 def test_fingerprints_are_those_of_before_the_tuning_was_stored() -> None:
     """A results folder's checkpoints name their case by its fingerprint (resume checks it): the
     committed quick case's, as the code before this change computed it (literal), so that an
