@@ -15,6 +15,7 @@ import numpy as np
 from fastapi import HTTPException
 
 from scm_core.jsondoc import finite_or_none
+from services.stages import DatabaseStages, StageStoreError, run_population
 from services.store import Store
 from services.studies.kinds.update import UPDATABLE
 
@@ -47,23 +48,14 @@ class NetcdfCache:
 
 def _run(store: Store, study_id: int):
     """(study, its RunPopulation, its last finished stage); 409 as :func:`studies_netcdf`."""
-    from services.exports.inference_data import RunPopulation, StageRow
-
     study = store.studies.get(study_id)
     if study.kind not in UPDATABLE:
         raise HTTPException(409, f"study {study_id} is a {study.kind} study, not a calibration")
-    last = resolve_stage(store, study_id, -1)
-    if last.stage_index == 0:
-        raise HTTPException(409, f"study {study_id}: no tempering stage has finished yet")
-    final = store.samples.arrays(study_id, last.stage_index)
-    prior = store.samples.arrays(study_id, 0)
-    stages = [
-        StageRow.of(s.exponent, s.acceptance, s.log_evidence)
-        for s in store.stages.list(study_id)
-        if s.status == "done"
-    ]
-    run = RunPopulation(final.samples, final.log_likelihood, final.log_prior, prior.samples, stages)
-    return study, run, last
+    try:
+        run = run_population(DatabaseStages(store, study_id))
+    except StageStoreError as exc:
+        raise HTTPException(409, f"study {study_id}: {exc}") from None
+    return study, run, resolve_stage(store, study_id, -1)
 
 
 def studies_netcdf(store: Store, study_ids: Sequence[int]) -> bytes:

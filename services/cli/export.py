@@ -18,8 +18,10 @@ from pathlib import Path
 import click
 import numpy as np
 
+from services.stages import FolderStages, StageStoreError, run_population
+
 from .common import CLIError
-from .results import load_results, read_population, write_json
+from .results import load_results, write_json
 from .runs import RUNS_FILE, diagnose_folders, run_folders
 
 FORMATS = ("netcdf", "chrono")
@@ -27,17 +29,11 @@ FORMATS = ("netcdf", "chrono")
 
 def _run(results: Path):
     """(case, summary, RunPopulation) of one ``calibrate`` results folder."""
-    from services.exports.inference_data import RunPopulation, StageRow
-
     case, _, summary = load_results(results)
-    names = list(case.parameter_names)
-    samples, ll, lp = read_population(results / "posterior.csv", names)
-    prior, _, _ = read_population(results / "samples" / "stage_00.csv", names)
-    stages = [
-        StageRow.of(s.get("exponent"), s.get("acceptance_rate"), s.get("log_evidence"))
-        for s in summary.get("stages") or []
-    ]
-    return case, summary, RunPopulation(samples, ll, lp, prior, stages)
+    try:
+        return case, summary, run_population(FolderStages(results))
+    except StageStoreError as exc:
+        raise CLIError(f"{results}: {exc}") from None
 
 
 def _predicted(results: Path, summary: dict) -> dict[str, dict[str, list]] | None:

@@ -16,6 +16,7 @@ from typing import Any
 
 from scm_core.calibration import CaseDefinition, CaseError
 from scm_core.inference import StageState
+from services.stages import FolderStages, StageStoreError
 
 from .common import CLIError
 
@@ -74,12 +75,10 @@ def load_parent(results: Path) -> ParentStudy:
             f"{summary_path}: the dataset files are not recorded (a summary written before "
             "updates existed); run that calibration again to update it"
         )
-    stage_path = results / "checkpoints" / f"stage_{n_stages:03d}.json"
     try:
-        doc = json.loads(stage_path.read_text(encoding="utf-8"))
-        final = StageState.from_dict(doc["state"])
-    except (OSError, json.JSONDecodeError, KeyError, ValueError, TypeError) as exc:
-        raise CLIError(f"{stage_path}: unreadable final stage ({exc})") from None
+        final = FolderStages(results).state(n_stages)
+    except StageStoreError as exc:
+        raise CLIError(f"--update-of {results}: its final stage: {exc}") from None
     update = summary.get("update") or {}
     log_z = update.get("log_evidence_total", summary.get("log_evidence"))
     return ParentStudy(

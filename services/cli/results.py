@@ -19,7 +19,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -27,11 +26,12 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from scm_core import jsondoc
 from scm_core.calibration import CaseDefinition, CaseError, StudyModel, study_summary
 from scm_core.inference import LOG_SCALE_KINDS, StageState, TMCMCResult
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
+from services.stages import FolderStages, StageStoreError
+from services.stages.folder import write_json
 
 from .common import CLIError
 
@@ -40,17 +40,10 @@ CHECKPOINT_FORMAT = "scm-calib-checkpoints"
 # ---------------------------------------------------------------------- checkpoints
 
 
-def write_json(path: Path, doc: Any, *, indent: int | None = None) -> None:
-    """Write ``doc`` as strict JSON (:func:`scm_core.jsondoc.dumps`), atomically; an indented
-    file ends with a newline."""
-    text = jsondoc.dumps(doc, indent=indent) + ("\n" if indent is not None else "")
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
 class Checkpoints:
-    """Stage states of one study under DIR/checkpoints (atomic writes)."""
+    """The checkpoints of one study under DIR/checkpoints: the stages
+    (:class:`~services.stages.FolderStages`) and the manifest saying what study they belong to
+    (case, datasets, the study updated), which a resume must match."""
 
     def __init__(
         self,
@@ -59,7 +52,8 @@ class Checkpoints:
         datasets: Sequence[SWTDataset],
         update_of: dict[str, Any] | None = None,
     ):
-        self.dir = out / "checkpoints"
+        self.stages = FolderStages(out)
+        self.dir = self.stages.dir
         self.manifest = {
             "format": CHECKPOINT_FORMAT,
             "version": 1,
@@ -96,28 +90,21 @@ class Checkpoints:
                 f"{self.dir} holds checkpoints of another study: {' and '.join(what)} changed "
                 "since; use another --out directory or delete the checkpoints to start over"
             )
-        stages: list[StageState] = []
-        walls: list[float] = []
-        while (p := self.dir / f"stage_{len(stages):03d}.json").is_file():
-            try:
-                doc = json.loads(p.read_text(encoding="utf-8"))
-                stages.append(StageState.from_dict(doc["state"]))
-            except (OSError, json.JSONDecodeError, KeyError, ValueError, TypeError) as exc:
-                raise CLIError(f"{p}: unreadable checkpoint ({exc})") from None
-            walls.append(float(doc.get("wall_time_s", 0.0)))
-        return stages, walls
+        try:
+            saved = [self.stages.saved(i) for i in range(self.stages.count())]
+        except StageStoreError as exc:
+            raise CLIError(str(exc)) from None
+        return [s for s, _ in saved], [w for _, w in saved]
 
     def start(self, fresh: bool) -> None:
         """Write the manifest; a fresh study first drops stage files left without one."""
         self.dir.mkdir(parents=True, exist_ok=True)
         if fresh:
-            for old in self.dir.glob("stage_*.json"):
-                old.unlink()
+            self.stages.clear()
         write_json(self.dir / "manifest.json", self.manifest)
 
     def save(self, state: StageState, wall_time_s: float) -> None:
-        doc = {"state": state.to_dict(), "wall_time_s": wall_time_s}
-        write_json(self.dir / f"stage_{state.stage:03d}.json", doc)
+        self.stages.save(state, wall_time_s)
 
 
 # ---------------------------------------------------------------------- outputs

@@ -1,6 +1,7 @@
 """The layer rules, read from the source (every ``import``, also inside functions):
 
-    scm_core  <-  services.store  <-  services.studies  <-  worker, services.api, services.cli
+    scm_core  <-  services.store  <-  services.stages  <-  services.studies
+              <-  worker, services.api, services.cli
 
 plus ``services.config``/``services.limits`` (settings, usable from the store up) and
 ``services.plots``/``services.client`` (figures and the HTTP client: numerics only). A module
@@ -28,14 +29,30 @@ ALLOWED: dict[str, set[str]] = {
     "services.exports": {"services.exports", "scm_core"},
     "services.client": {"services.client", "services.config"},
     "services.store": {"services.store", "services.config", "services.limits", "scm_core"},
+    "services.stages": {
+        "services.stages",
+        "services.store",
+        "services.exports",
+        "services.config",
+        "services.limits",
+        "scm_core",
+    },
     "services.studies": {
         "services.studies",
+        "services.stages",
         "services.store",
         "services.config",
         "services.limits",
         "scm_core",
     },
-    "worker": {"worker", "services.studies", "services.store", "services.config", "scm_core"},
+    "worker": {
+        "worker",
+        "services.studies",
+        "services.stages",
+        "services.store",
+        "services.config",
+        "scm_core",
+    },
 }
 ALLOWED["services.api"] = ALLOWED["worker"] | {
     "worker",
@@ -56,6 +73,7 @@ ALLOWED["services"] = {"services"}  # the package's own __init__
 FORBIDDEN: dict[str, set[str]] = {
     "scm_core": {"sqlalchemy", "alembic", "celery", "redis", "fastapi", "starlette", "httpx"},
     "services.store": {"celery", "redis", "fastapi", "starlette", "httpx"},
+    "services.stages": {"celery", "redis", "fastapi", "starlette", "httpx", "sqlalchemy"},
     "services.studies": {"celery", "redis", "fastapi", "starlette", "httpx", "sqlalchemy"},
     "worker": {"fastapi", "starlette", "httpx"},
 }

@@ -32,12 +32,12 @@ from scm_core.inference.tmcmc_stage import (
     stage_status,
 )
 from scm_core.signals import load_summary
+from services.stages import DatabaseStages, planned_stage, reduced_stage
 from services.store import BatchKey, BatchOutput, ReduceInput, StageAdvance, Store, StudySpec
 from services.store.codec import decode, encode
 from services.store.engine import make_engine, normalise_url
 from services.store.migrate import upgrade
 from services.store.models import Base
-from services.studies.kinds.calibration import load_stage_state, planned_stage, reduced_stage
 
 PG_ENV = "SCM_CALIB_TEST_PG_URL"
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/postgres"
@@ -271,7 +271,7 @@ class Toy:
 
     @staticmethod
     def state(store: Store, study_id: int, stage_index: int) -> StageState:
-        return load_stage_state(store, study_id, stage_index)
+        return DatabaseStages(store, study_id).state(stage_index)
 
     def reduced_state(self, inp: ReduceInput) -> StageState:
         """The stage's TMCMC state from the reducer's input."""

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from scm_core.inference.tmcmc_stage import evaluate_points
+from services.stages import reduced_stage
 from services.store import BatchKey, InvalidStateError, ReduceInput, StageAdvance, Store
-from services.studies.kinds.calibration import reduced_stage
 
 
 def study_with_stage0_done(store: Store, toy) -> int:
@@ -89,7 +89,7 @@ def test_advance_not_ready_and_reducer_errors_roll_back(store: Store, toy) -> No
     assert store.stages.get(sid, 0).status == "running"  # rolled back, not stuck 'reducing'
     assert store.samples.count(sid, 0) == 0
     with pytest.raises(InvalidStateError):
-        toy.state(store, sid, 0)
+        store.stages.population(sid, 0)  # not done: no population
 
     def no_next(inp: ReduceInput) -> StageAdvance:
         return StageAdvance(toy.reduce(inp).reduced)  # neither a next plan nor a final status

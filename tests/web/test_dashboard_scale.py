@@ -24,10 +24,10 @@ from test_dashboard_browser import ARGS, CHROMIUM, SHOTS, Watched
 from scm_core.calibration import CaseDefinition
 from scm_core.inference.tmcmc_stage import initial_samples, initial_state, plan_stage
 from scm_core.inference.tmcmc_types import PointEvaluation
+from services.stages import planned_stage, reduced_stage
 from services.store import BatchKey, BatchOutput, ReducedStage, SampleArrays, StageAdvance, Store
 from services.store.codec import encode
 from services.studies import calibration_spec
-from services.studies.kinds.calibration import planned_stage, reduced_stage
 
 N_BIG = 16_000
 N_LIST = 20

@@ -10,7 +10,6 @@ sample rows with the scalar fields of its ``StageState`` as ``meta``.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -19,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from scm_core.calibration import CaseDefinition, StudyModel
-from scm_core.inference._serial import encode_array
 from scm_core.inference.tmcmc_loop import PopulationStart, Tempering, evaluate_zero
 from scm_core.inference.tmcmc_moves import move_of
 from scm_core.inference.tmcmc_stage import (
@@ -32,21 +30,19 @@ from scm_core.inference.tmcmc_stage import (
 )
 from services.config import Settings
 from services.limits import LimitError, check_simulator_settings, check_study_size
+from services.stages import planned_stage, reduced_stage
 from services.store import (
     BatchKey,
     BatchLease,
     BatchOutput,
-    PlannedStage,
-    ReducedStage,
     ReduceInput,
     Reducer,
-    SampleArrays,
     StageAdvance,
     Store,
     StudyRecord,
     StudySpec,
 )
-from services.store.codec import decode, encode, split
+from services.store.codec import decode
 
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of, work_batches
 from ..datasets import check_dataset_ids, load_datasets
@@ -54,81 +50,7 @@ from ..errors import StudyRequestError
 from .base import KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item, stored_case
 from .checks import check_runs, prior_medians
 
-__all__ = [
-    "KIND",
-    "CalibrationRun",
-    "calibration_spec",
-    "planned_stage",
-    "reduced_stage",
-    "stage_state",
-]
-
-_ARRAYS = ("samples", "log_likelihood", "log_prior", "responses")
-
-
-# ---------------------------------------------------------------------------- stored forms
-
-
-def planned_stage(plan: StagePlan) -> PlannedStage:
-    """A TMCMC stage plan as the store keeps it (blob and diagnostics)."""
-    return PlannedStage(
-        stage=plan.stage,
-        n_chains=plan.n_chains,
-        blob=encode(plan),
-        exponent=float(plan.exponent),
-        prev_exponent=float(plan.prev_exponent),
-        beta=float(plan.prev_beta),
-        ess=float(plan.ess),
-        log_evidence_increment=float(plan.log_evidence_increment),
-        n_steps=int(plan.chain_length.max()) if plan.n_chains else 0,
-    )
-
-
-#: a stage's count of distinct samples, stored with its scalars (for the stage tables)
-_UNIQUE = "unique_samples"
-
-
-def reduced_stage(state: StageState) -> ReducedStage:
-    """A TMCMC stage's population as the store keeps it (``meta``: the state's scalars and its
-    samples' Eves)."""
-    meta, _ = split(state)
-    meta["eve"] = encode_array(state.eve)
-    return ReducedStage(
-        stage=state.stage,
-        population=SampleArrays(
-            state.samples, state.log_likelihood, state.log_prior, state.responses
-        ),
-        model_runs=int(state.model_runs),
-        failed_runs=int(state.failed_runs),
-        exponent=float(state.exponent),
-        acceptance=float(state.acceptance_rate),
-        ess=float(state.ess),
-        log_evidence=float(state.log_evidence),
-        log_evidence_var=float(state.log_evidence_var),
-        n_steps=int(state.n_steps) if state.stage else None,
-        meta={
-            **{k: v for k, v in meta.items() if k not in _ARRAYS},
-            _UNIQUE: int(state.n_unique) if len(state.samples) else 0,
-        },
-    )
-
-
-def stage_state(meta: dict[str, Any], population: SampleArrays) -> StageState:
-    """The StageState of a done stage from the store's ``population(...)`` (bit-exact)."""
-    scalars = {k: v for k, v in meta.items() if k != _UNIQUE}
-    base = StageState.from_dict(dict(scalars, **dict.fromkeys(_ARRAYS)))
-    return dataclasses.replace(
-        base,
-        samples=population.samples,
-        log_likelihood=population.log_likelihood,
-        log_prior=population.log_prior,
-        responses=population.responses,
-    )
-
-
-def load_stage_state(store: Store, study_id: int, stage_index: int) -> StageState:
-    """The StageState of done stage ``stage_index`` of a stored calibration."""
-    return stage_state(*store.stages.population(study_id, stage_index))
+__all__ = ["KIND", "CalibrationRun", "calibration_spec"]
 
 
 # ---------------------------------------------------------------------------- requests

@@ -23,6 +23,7 @@ from scm_core.inference.tmcmc_loop import PopulationStart
 from scm_core.inference.tmcmc_stage import StageState
 from services.config import Settings
 from services.limits import INT64_MAX, seed_error
+from services.stages import DatabaseStages
 from services.store import NotFoundError, Store, StudyRecord, StudySpec
 
 from ..batching import DEFAULT_BATCH_SIZE, batch_size_of
@@ -34,7 +35,6 @@ from .calibration import (
     CalibrationKind,
     CalibrationRun,
     check_limits,
-    load_stage_state,
     precheck,
 )
 
@@ -165,7 +165,7 @@ class UpdateKind(CalibrationKind):
         old = old_dataset_ids(store, parent)
         case = stored_case(study.case)
         model = StudyModel(case, load_datasets(store, case, old + list(study.dataset_ids)))
-        final = load_stage_state(store, parent.id, int(parent.current_stage or 0))
+        final = DatabaseStages(store, parent.id).state(-1)  # a completed study's posterior
         return UpdateRun(
             case=case,
             model=model,
