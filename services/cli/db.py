@@ -24,6 +24,21 @@ def _fail(exc: Exception) -> click.ClickException:
     return click.ClickException(f"{type(exc).__name__}: {exc}".replace("\n", " "))
 
 
+def _migrate(url: str | None, direction: str, rev: str) -> None:
+    """Run Alembic's ``upgrade`` or ``downgrade`` to ``rev`` and print the revisions."""
+    from services.store import migrate
+    from services.store.engine import safe_url
+
+    target = _resolve(url)
+    try:
+        before = migrate.current_revision(target)
+        getattr(migrate, direction)(target, rev)
+        after = migrate.current_revision(target)
+    except Exception as exc:
+        raise _fail(exc) from None
+    click.echo(f"{safe_url(target)}: {before or 'base'} -> {after or 'base'}")
+
+
 @click.group()
 def db() -> None:
     """Database schema migrations (Alembic)."""
@@ -34,17 +49,7 @@ def db() -> None:
 @click.option("--rev", default="head", show_default=True, help="Target revision.")
 def upgrade(url: str | None, rev: str) -> None:
     """Create the schema or migrate it up to REV (default: the newest)."""
-    from services.store import migrate
-    from services.store.engine import safe_url
-
-    target = _resolve(url)
-    try:
-        before = migrate.current_revision(target)
-        migrate.upgrade(target, rev)
-        after = migrate.current_revision(target)
-    except Exception as exc:
-        raise _fail(exc) from None
-    click.echo(f"{safe_url(target)}: {before or 'base'} -> {after or 'base'}")
+    _migrate(url, "upgrade", rev)
 
 
 @db.command()
@@ -52,17 +57,7 @@ def upgrade(url: str | None, rev: str) -> None:
 @click.option("--url", help=_URL_HELP)
 def downgrade(rev: str, url: str | None) -> None:
     """Migrate the schema down to REV ("base" drops every table, data included)."""
-    from services.store import migrate
-    from services.store.engine import safe_url
-
-    target = _resolve(url)
-    try:
-        before = migrate.current_revision(target)
-        migrate.downgrade(target, rev)
-        after = migrate.current_revision(target)
-    except Exception as exc:
-        raise _fail(exc) from None
-    click.echo(f"{safe_url(target)}: {before or 'base'} -> {after or 'base'}")
+    _migrate(url, "downgrade", rev)
 
 
 @db.command()
