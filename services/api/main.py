@@ -60,7 +60,6 @@ from .routes import (
     health,
     pooled,
     presets,
-    sensitivity,
     studies,
     study_events,
 )
@@ -398,10 +397,7 @@ def create_app(
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     app.add_middleware(TokenFirstMiddleware)  # outermost: runs first
     _install_error_handlers(app)
-    routers = [
-        m.router
-        for m in (health, datasets, presets, cases, studies, study_events, sensitivity, pooled)
-    ]
+    routers = [m.router for m in (health, datasets, presets, cases, studies, study_events, pooled)]
     routers += [kind_router(k) for k in KINDS.values() if k.http is not None]
     if settings.dashboard:
         routers.append(dashboard_router(app.state.figure_warmer))

@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from scm_core.calibration import SamplerSettings
 from services.limits import INT32_MAX, INT64_MAX
-from services.studies.request_model import RequestModel
+from services.studies.request_model import PRESET_OR_CASE, RequestModel
 
 #: ids: what a BIGINT column holds; counts and sizes: what an INTEGER column holds
 ID_MAX = INT64_MAX
@@ -28,17 +28,6 @@ RUNS_MAX = 64
 
 class _In(RequestModel):
     """Request bodies (:class:`services.studies.request_model.RequestModel`)."""
-
-
-#: a study is made from exactly one of a preset name and a case document (the other absent or
-#: null); the server's check, in the OpenAPI document
-PRESET_OR_CASE: dict[str, Any] = {
-    "oneOf": [
-        {"required": ["preset"], "properties": {"preset": {"type": "string"}}},
-        {"required": ["case"], "properties": {"case": {"type": "object"}}},
-        {"required": ["update_of"], "properties": {"update_of": {"type": "integer"}}},
-    ]
-}
 
 
 class ErrorOut(BaseModel):
@@ -330,74 +319,7 @@ class CaseFileOut(BaseModel):
     )
 
 
-# ---------------------------------------------------------------------------- sensitivity
-
-
-class SensitivityCreate(_In):
-    """A Morris screening of the SCM soil parameters (paper section 4.4, Figure 4) under the
-    test conditions of one stored dataset, with a preset's or a case document's nominal
-    values and simulator settings."""
-
-    model_config = ConfigDict(json_schema_extra=PRESET_OR_CASE)
-
-    preset: str | None = Field(None, description="The paper's case: '1', '2a' or '2b'.")
-    case: dict[str, Any] | None = Field(
-        None, description="A case document (the TOML case file as JSON); data.files is ignored."
-    )
-    dataset_id: int = Field(
-        ge=1, le=ID_MAX, description="Stored dataset whose test conditions are simulated."
-    )
-    r: int = Field(20, ge=2, le=1000, description="Morris trajectories.")
-    levels: int = Field(4, ge=2, le=20, description="Grid levels (even).")
-    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the design.")
-    separate_k: bool = Field(
-        False, description="Screen k_c and k_phi apart instead of jointly through k* (eq. 11)."
-    )
-    bounds: dict[str, tuple[float, float]] | None = Field(
-        None, description="Factor bounds {name: [lower, upper]} replacing the defaults."
-    )
-    name: str | None = Field(None, min_length=1, max_length=200)
-    batch_size: int | None = Field(
-        None,
-        ge=1,
-        le=COUNT_MAX,
-        description="Design points per work batch (at most; shorter at the end).",
-    )
-
-
-class FactorOut(BaseModel):
-    name: str
-    lower: float
-    upper: float
-    log_scale: bool
-    unit: str | None
-
-
-class SensitivityOut(BaseModel):
-    id: int
-    name: str
-    status: str
-    error: str | None
-    dataset_id: int
-    seed: int
-    r: int
-    levels: int
-    joint_k: bool
-    factors: list[FactorOut]
-    n_points: int = Field(description="Design points (model runs): r (factors + 1).")
-    batch_size: int | None
-    created_at: datetime
-    started_at: datetime | None
-    finished_at: datetime | None
-    progress: ProgressOut
-    result: dict[str, Any] | None = Field(
-        description="Once completed: mu, mu_star, sigma, linear_index, nonlinear_index and "
-        "n_effects per response (F, T, z) and factor, with run counts."
-    )
-
-
-class SensitivityPage(PageInfo):
-    items: list[SensitivityOut]
+# ---------------------------------------------------------------------------- stages
 
 
 class StageOut(BaseModel):

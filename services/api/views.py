@@ -17,7 +17,6 @@ from numpy.typing import NDArray
 from scm_core.calibration import RESPONSES
 from scm_core.calibration.convergence import RHAT_LIMIT, diagnose_runs
 from scm_core.inference.posterior import credible_interval, summarize
-from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.jsondoc import finite_or_none
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 from services.store.records import Page
@@ -26,11 +25,9 @@ from services.studies.kinds.prediction import KIND as PREDICTION
 
 from .schemas import (
     AgreementOut,
-    FactorOut,
     ParameterAgreementOut,
     ParameterSummary,
     ProgressOut,
-    SensitivityOut,
     StageOut,
     StudyBrief,
     StudyOut,
@@ -132,41 +129,6 @@ def study_out(store: Store, study: StudyRecord) -> StudyOut:
         payload=dict(study.payload or {}),
         result=study.result,
         progress=study_progress(store, study),
-    )
-
-
-def sensitivity_out(store: Store, study: StudyRecord) -> SensitivityOut:
-    """A Morris study (:mod:`services.studies.kinds.screening`) as ``GET /sensitivity/{id}``
-    shows it."""
-    terms = study_terms(study)
-    cfg = terms.sampler
-    return SensitivityOut(
-        id=study.id,
-        name=study.name,
-        status=study.status,
-        error=study.error,
-        dataset_id=study.dataset_ids[0],
-        seed=study.seed,
-        r=int(cfg["r"]),
-        levels=int(cfg["levels"]),
-        joint_k=bool(cfg["joint_k"]),
-        factors=[
-            FactorOut(
-                name=p["name"],
-                lower=p["lower"],
-                upper=p["upper"],
-                log_scale=p["dist"] in LOG_SCALE_KINDS,
-                unit=p.get("unit"),
-            )
-            for p in terms.priors["parameters"]
-        ],
-        n_points=study.n_samples,
-        batch_size=study.batch_size,
-        created_at=study.created_at,
-        started_at=study.started_at,
-        finished_at=study.finished_at,
-        progress=study_progress(store, study),
-        result=study.result,
     )
 
 

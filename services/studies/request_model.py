@@ -17,7 +17,18 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationInfo, field_validator
 
-__all__ = ["RequestModel", "json_type_error"]
+__all__ = ["PRESET_OR_CASE", "RequestModel", "json_type_error"]
+
+#: a study is made from exactly one of a preset name and a case document (the other absent or
+#: null; a calibration's request may name the study it updates instead); the server's check,
+#: in the OpenAPI document
+PRESET_OR_CASE: dict[str, Any] = {
+    "oneOf": [
+        {"required": ["preset"], "properties": {"preset": {"type": "string"}}},
+        {"required": ["case"], "properties": {"case": {"type": "object"}}},
+        {"required": ["update_of"], "properties": {"update_of": {"type": "integer"}}},
+    ]
+}
 
 _JSON_NAMES = {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}
 

@@ -10,6 +10,7 @@ its stages, samples and events under ``/studies/{id}``.
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
+from pydantic import BaseModel, create_model
 
 from services.limits import INT64_MAX
 from services.store import Store, StudyRecord
@@ -19,9 +20,20 @@ from services.studies.kinds.base import StudyKind
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
 from ..etags import etag_of, not_modified, set_etag
 from ..params import StudyId, parse_statuses, status_query
-from ..schemas import KindStudyOut, KindStudyPage
+from ..schemas import KindStudyOut, KindStudyPage, PageInfo
 from ..views import page_out, study_brief, study_progress
 from . import errors
+
+
+def _models(title: str, result: Any, fields: type[BaseModel] | None) -> tuple[Any, Any]:
+    """The models of one study of a kind and of a page of them: the study with the kind's
+    result (and its own ``fields``, named after the kind: "SensitivityOut")."""
+    if fields is None:
+        return KindStudyOut[result], KindStudyPage[result]
+    name = "".join(w.capitalize() for w in title.split())
+    one = create_model(f"{name}Out", __base__=(KindStudyOut[result], fields))
+    page = create_model(f"{name}Page", __base__=PageInfo, items=(list[one], ...))
+    return one, page
 
 
 def kind_router(kind: StudyKind) -> APIRouter:
@@ -30,8 +42,7 @@ def kind_router(kind: StudyKind) -> APIRouter:
     if http is None:
         raise ValueError(f"study kind {kind.name!r} has no collection of its own")
     result_model = http.result if http.result is not None else dict[str, Any]
-    out_model = KindStudyOut[result_model]
-    page_model = KindStudyPage[result_model]
+    out_model, page_model = _models(kind.title, result_model, http.fields)
     request_model = http.request
     plural = f"{kind.title}s"
     router = APIRouter(
@@ -39,8 +50,10 @@ def kind_router(kind: StudyKind) -> APIRouter:
     )
 
     def out(store: Store, study: StudyRecord) -> Any:
+        own = http.fields_of(study).model_dump() if http.fields_of is not None else {}
         return out_model(
             **study_brief(study).model_dump(),
+            **own,
             payload=dict(study.payload or {}),
             progress=study_progress(store, study),
             result=study.result,

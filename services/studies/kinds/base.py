@@ -76,13 +76,18 @@ class KindHttp:
     pydantic model; unknown fields should be refused); ``spec(store, settings, body)``: the
     validated study (StudyRequestError naming the field, nothing stored); ``result``: the model
     of the study's stored ``result`` (None: any JSON object); ``description``: the POST's
-    documentation (the kind's ``title`` names one study of it)."""
+    documentation (the kind's ``title`` names one study of it). ``fields``: the kind's own
+    top-level fields of a study it shows (a pydantic model, e.g. a screening's design), made
+    by ``fields_of(study)`` from the stored study; None: the study, its payload, progress and
+    result only."""
 
     path: str
     request: type[BaseModel]
     spec: Callable[[Store, Settings, Any], StudySpec]
     result: type[BaseModel] | None
     description: str
+    fields: type[BaseModel] | None = None
+    fields_of: Callable[[StudyRecord], BaseModel] | None = None
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from scm_core.calibration import (
     CaseDefinition,
@@ -33,11 +33,18 @@ from scm_core.calibration import (
     build_configs,
     sensitivity_design,
 )
+from scm_core.inference import LOG_SCALE_KINDS
 from scm_core.inference.tmcmc_stage import PointEvaluation
 from scm_core.signals import SWTDataset
 from scm_core.validation_text import first_error, one_line
 from services.config import Settings
-from services.limits import LimitError, check_simulator_settings, check_study_size
+from services.limits import (
+    INT32_MAX,
+    INT64_MAX,
+    LimitError,
+    check_simulator_settings,
+    check_study_size,
+)
 from services.store import (
     BatchLease,
     BatchOutput,
@@ -55,13 +62,17 @@ from services.store.codec import decode
 from ..batching import batch_size_of
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import KindPanel, StudyTerms, batch_output, one_run_per_item, stored_case
+from ..intake import base_case
+from ..request_model import PRESET_OR_CASE, RequestModel
+from .base import KindHttp, KindPanel, StudyTerms, batch_output, one_run_per_item, stored_case
 from .checks import check_runs, prior_medians
 
 __all__ = [
     "DEFAULT_POINTS_PER_BATCH",
     "KIND",
     "MorrisRun",
+    "ScreeningDesign",
+    "SensitivityRequest",
     "design_of",
     "sensitivity_spec",
 ]
@@ -238,13 +249,126 @@ class MorrisRun:
         return reduce
 
 
+# ---------------------------------------------------------------------------- HTTP surface
+
+
+class SensitivityRequest(RequestModel):
+    """A Morris screening of the SCM soil parameters (paper section 4.4, Figure 4) under the
+    test conditions of one stored dataset, with a preset's or a case document's nominal
+    values and simulator settings."""
+
+    model_config = ConfigDict(json_schema_extra=PRESET_OR_CASE)
+
+    preset: str | None = Field(None, description="The paper's case: '1', '2a' or '2b'.")
+    case: dict[str, Any] | None = Field(
+        None, description="A case document (the TOML case file as JSON); data.files is ignored."
+    )
+    dataset_id: int = Field(
+        ge=1, le=INT64_MAX, description="Stored dataset whose test conditions are simulated."
+    )
+    r: int = Field(20, ge=2, le=1000, description="Morris trajectories.")
+    levels: int = Field(4, ge=2, le=20, description="Grid levels (even).")
+    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the design.")
+    separate_k: bool = Field(
+        False, description="Screen k_c and k_phi apart instead of jointly through k* (eq. 11)."
+    )
+    bounds: dict[str, tuple[float, float]] | None = Field(
+        None, description="Factor bounds {name: [lower, upper]} replacing the defaults."
+    )
+    name: str | None = Field(None, min_length=1, max_length=200)
+    batch_size: int | None = Field(
+        None,
+        ge=1,
+        le=INT32_MAX,
+        description="Design points per work batch (at most; shorter at the end).",
+    )
+
+
+def request_spec(store: Store, settings: Settings, body: SensitivityRequest) -> StudySpec:
+    """The screening ``POST /sensitivity`` asks for (see :func:`sensitivity_spec`)."""
+    return sensitivity_spec(
+        store,
+        settings,
+        base_case(body.preset, body.case),
+        body.dataset_id,
+        MorrisSettings(body.r, body.levels, body.seed, not body.separate_k, body.bounds),
+        batch_size=body.batch_size,
+        name=body.name,
+    )
+
+
+class Factor(BaseModel):
+    """One screened factor: its box and scale."""
+
+    name: str
+    lower: float
+    upper: float
+    log_scale: bool
+    unit: str | None
+
+
+class ScreeningDesign(BaseModel):
+    """A screening's design, as its study shows it."""
+
+    dataset_id: int = Field(description="The dataset whose test conditions are simulated.")
+    r: int
+    levels: int
+    joint_k: bool
+    factors: list[Factor]
+    n_points: int = Field(description="Design points (model runs): r (factors + 1).")
+
+
+def design_view(study: StudyRecord) -> ScreeningDesign:
+    """The design of a stored screening (from its terms: the factor box and settings)."""
+    terms = KIND.terms(study)
+    cfg = terms.sampler
+    return ScreeningDesign(
+        dataset_id=study.dataset_ids[0],
+        r=int(cfg["r"]),
+        levels=int(cfg["levels"]),
+        joint_k=bool(cfg["joint_k"]),
+        factors=[
+            Factor(
+                name=p["name"],
+                lower=p["lower"],
+                upper=p["upper"],
+                log_scale=p["dist"] in LOG_SCALE_KINDS,
+                unit=p.get("unit"),
+            )
+            for p in terms.priors["parameters"]
+        ],
+        n_points=study.n_samples,
+    )
+
+
+_DESCRIPTION = (
+    "Screen the 7 soil parameters of Table 1 (k_c and k_phi jointly through k*, eq. 11, unless "
+    "``separate_k``) with r Morris trajectories under the test conditions of ``dataset_id``, "
+    "with the case's nominal values and simulator settings. Bounds: ``bounds``, else the "
+    "case's prior for a calibrated factor, else the defaults (Table 2 for n, phi, J). Once "
+    "completed, the result holds mu, mu*, sigma and the normalised linear (mu* / sum mu*) and "
+    "non-linear (sigma / sum sigma) indices of Figure 4 per response F [N], T [N m], z [m] "
+    "and factor, with run counts; the design points and their F, T, z are the samples of "
+    "stage 0 (``GET /studies/{id}/stages/0/samples.csv``). Any problem answers 422 naming the "
+    "field, and nothing is stored."
+)
+
+
 class ScreeningKind:
     """The plug-in of kind "morris" (see :mod:`.base`)."""
 
     name = "morris"
     title = "sensitivity"
-    http = None  # POST /sensitivity (routes written before kinds had their own)
-    collection = "/sensitivity"
+    http = KindHttp(
+        path="/sensitivity",
+        request=SensitivityRequest,
+        spec=request_spec,
+        result=None,
+        description=_DESCRIPTION,
+        fields=ScreeningDesign,
+        fields_of=design_view,
+    )
+    collection = http.path
     posterior = False
     panel = KindPanel(
         template="kinds/screening.html", figures=("indices",), counts="design points (model runs)"
