@@ -5,12 +5,19 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+import click
 from pydantic import BaseModel, ValidationError
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, resolve_rig
 from scm_core.validation_text import first_error
 
 CONFIG_TYPES: tuple[type[BaseModel], ...] = (SoilParams, WheelGeometry, RigConfig)
+
+
+def set_option(help: str):
+    """The repeatable ``--set KEY=VALUE`` option of the commands that build one simulator
+    configuration (its values reach the command as ``overrides``)."""
+    return click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help=help)
 
 
 class OverrideError(ValueError):

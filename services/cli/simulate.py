@@ -12,17 +12,11 @@ from rich.table import Table
 
 from scm_core.simulator import SWTResult, simulate_swt
 
-from .overrides import OverrideError, build_configs
+from .overrides import OverrideError, build_configs, set_option
 
 
 @click.command()
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="Change one soil, wheel or rig value (SI units, angles in degrees), e.g. --set phi=28.",
-)
+@set_option("Change one soil, wheel or rig value (SI units, angles in degrees), e.g. --set phi=28.")
 @click.option(
     "--out", type=click.Path(dir_okay=False, path_type=Path), help="Write the series (CSV)."
 )

@@ -12,17 +12,11 @@ from scm_core.calibration import NoiseModel, SyntheticError, synthesize_log
 from scm_core.signals import LogFormatError, load_log, write_log
 
 from .common import CLIError
-from .overrides import OverrideError, build_configs
+from .overrides import OverrideError, build_configs, set_option
 
 
 @click.command()
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="True soil / wheel value or rig condition (as `simulate`), e.g. --set phi=27.",
-)
+@set_option("True soil / wheel value or rig condition (as `simulate`), e.g. --set phi=27.")
 @click.option(
     "--out",
     required=True,
