@@ -69,6 +69,12 @@ class SquaresRun:
         return reduce
 
 
+class SquaresFields(BaseModel):
+    """What a study of squares shows beside the common fields."""
+
+    largest: int
+
+
 class SquaresKind:
     name = "squares"
     title = "sum of squares"
@@ -78,6 +84,8 @@ class SquaresKind:
         spec=squares_spec,
         result=None,
         description="Squares and sums the first n integers.",
+        fields=SquaresFields,
+        fields_of=lambda study: SquaresFields(largest=study.n_samples - 1),
     )
     collection = "/squares"
     posterior = False
@@ -117,6 +125,11 @@ def test_a_new_kind_mounts_its_routes_runs_and_shows_its_panel(tmp_path, monkeyp
                 execute_batch(store, pending[0].key, cache, None)
         study = client.get(f"/squares/{sid}").json()
         assert study["status"] == "completed" and study["result"] == {"sum": 285.0}
+        assert study["largest"] == 9 and study["n_samples"] == 10  # its own and the common
+        listing = client.get("/squares").json()
+        assert [s["largest"] for s in listing["items"]] == [9]
+        schemas = client.get("/openapi.json").json()["components"]["schemas"]
+        assert {"largest", "progress", "result"} <= set(schemas["SumOfSquaresOut"]["properties"])
         assert client.get(f"/studies/{sid}").json()["kind"] == "squares"
         listed = client.get("/", params={"kind": "squares"}).text
         assert "sum of squares" in listed  # the list's filter offers it by its title
