@@ -349,7 +349,9 @@ class CaseDefinition(_Strict):
     """
 
     name: str = Field(min_length=1)
-    seed: int = Field(0, ge=0)
+    # a signed 64-bit integer: what a stored study's seed is (the service refuses a larger one,
+    # so a case file the CLI runs can also be submitted)
+    seed: int = Field(0, ge=0, le=2**63 - 1)
     likelihood: Literal["normalized", "gaussian"] = "normalized"
     trials: Literal["mean", "each"] = "mean"
     responses: tuple[Literal["F", "T", "z"], ...] = RESPONSES

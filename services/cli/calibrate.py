@@ -7,8 +7,8 @@ changes the samples), the datasets or the updated study differ.
 ``--update-of DIR --data NEW.csv`` updates the posterior of the finished study in DIR with new
 datasets (paper section 5.3): stage 0 is DIR's final population, the stages temper the new
 datasets' likelihood only (the old ones' is the base density), so the result targets
-prior x L(old) x L(new) at a fraction of a joint study's runs; the seed is DIR's + 1, as the
-service's update kind, which gives the same samples bit for bit.
+prior x L(old) x L(new) at a fraction of a joint study's runs; the seed is the service's
+update kind's (``update_seed``: DIR's + 1), which gives the same samples bit for bit.
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ from scm_core.signals import SWTDataset
 from services.limits import INT64_MAX, run_seeds
 from services.studies.batching import local_batch_size, work_batches
 from services.studies.kinds.checks import prior_medians
+from services.studies.kinds.update import update_seed
 
 from .common import (
     CLIError,
@@ -92,7 +93,7 @@ def _update_inputs(
 ) -> tuple[CaseDefinition, list[Path], list[SWTDataset]]:
     """(the update's case, all dataset paths, all datasets: the parent's, then the new ones);
     the parent's files must still hold what it was calibrated on."""
-    case = parent.case.with_changes(seed=parent.case.seed + 1)
+    case = parent.case.with_changes(seed=update_seed(parent.case.seed))
     case = _with_sampler(case, {} if max_stages is None else {"max_stages": max_stages})
     for path in parent.dataset_paths:
         if not path.is_file():

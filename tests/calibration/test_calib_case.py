@@ -318,3 +318,12 @@ def test_example_case_files_are_the_presets(key: str, stem: str) -> None:
     case = load_case(EXAMPLES / f"{stem}.toml")
     assert case.to_dict() == preset_case(key, ("wf34_s020.csv",)).to_dict()
     assert all(p.is_file() for p in case.data_paths())
+
+
+def test_a_seed_a_study_cannot_store_is_refused_naming_it() -> None:
+    """A seed is a signed 64-bit integer (what the service stores): the CLI refuses a case
+    file the API would refuse, with the field named."""
+    assert CaseDefinition.from_dict({**BASE, "seed": 2**63 - 1}).seed == 2**63 - 1
+    for bad in (2**63, -1):
+        with pytest.raises(CaseError, match=r"^seed: "):
+            CaseDefinition.from_dict({**BASE, "seed": bad})

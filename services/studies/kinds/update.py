@@ -38,7 +38,14 @@ from .calibration import (
     precheck,
 )
 
-__all__ = ["KIND", "UpdateRun", "completed_calibration", "old_dataset_ids", "update_spec"]
+__all__ = [
+    "KIND",
+    "UpdateRun",
+    "completed_calibration",
+    "old_dataset_ids",
+    "update_seed",
+    "update_spec",
+]
 
 #: kinds whose final population an update can start from
 UPDATABLE = ("tmcmc", "update")
@@ -71,6 +78,13 @@ def completed_calibration(store: Store, study_id: int, field: str, what: str) ->
     return study
 
 
+def update_seed(parent_seed: int) -> int:
+    """The seed of an update of a study seeded ``parent_seed`` when none is given: the next
+    one (wrapping to 0 after the largest, 2**63 - 1), so that the update's random numbers are
+    not the parent's (the CLI's ``--update-of`` uses the same, for the same samples)."""
+    return (int(parent_seed) + 1) % (INT64_MAX + 1)
+
+
 def update_spec(
     store: Store,
     settings: Settings,
@@ -95,7 +109,7 @@ def update_spec(
         )
     case = stored_case(parent.case)
     if seed is None:
-        seed = (parent.seed + 1) % (INT64_MAX + 1)
+        seed = update_seed(parent.seed)
     if why := seed_error(seed):
         raise StudyRequestError(f"seed: {why}")
     size = batch_size_of(batch_size, parent.batch_size, DEFAULT_BATCH_SIZE)
