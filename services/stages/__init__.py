@@ -14,7 +14,7 @@ implementations, in the manner of Optuna's storages:
 
 The functions over the interface (:func:`stage_states`, :func:`run_population`) serve both:
 resuming, an update's earlier posterior, the ArviZ export. One test suite
-(``tests/store/test_stage_stores.py``) runs on a folder, SQLite and PostgreSQL.
+(``tests/stages/test_stage_stores.py``) runs on a folder, SQLite and PostgreSQL.
 """
 
 from .base import StageStore, StageStoreError, run_population, stage_states

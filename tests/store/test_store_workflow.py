@@ -4,7 +4,7 @@ bit for bit, as the in-memory TMCMC loop; stage diagnostics, counters and events
 from __future__ import annotations
 
 import numpy as np
-from store_support import in_memory_run, work_one
+from store_fixtures import in_memory_run, work_one
 
 from services.store import Store
 

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from store_support import in_memory_run, work_one
+from store_fixtures import in_memory_run, work_one
 
 from scm_core.inference import Resume, StageHooks, run_tmcmc
 from services.stages import (
