@@ -12,9 +12,10 @@ import re
 from collections.abc import Sequence
 from typing import Any
 
+from scm_core.seeds import SEED_MAX
 from services.config import Settings
 
-#: largest id, count or seed a database integer column (BIGINT) holds
+#: largest id or count a database integer column (BIGINT) holds
 INT64_MAX = 2**63 - 1
 #: largest stage or batch index (INTEGER columns)
 INT32_MAX = 2**31 - 1
@@ -23,8 +24,8 @@ _JSON_TOKENS = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]')
 
 
 def seed_error(seed: int) -> str | None:
-    """Why ``seed`` cannot seed a study (it must fit the BIGINT column), or None."""
-    if not 0 <= int(seed) <= INT64_MAX:
+    """Why ``seed`` cannot seed a study (:data:`scm_core.seeds.SEED_MAX`), or None."""
+    if not 0 <= int(seed) <= SEED_MAX:
         return f"must be 0 <= seed <= 2**63 - 1 (got {seed})"
     return None
 
@@ -33,7 +34,7 @@ def run_seeds(seed: int, runs: int) -> list[int]:
     """The seeds of ``runs`` repeated runs of a study seeded ``seed``: seed, seed + 1, ...;
     ValueError if the last would not fit a BIGINT column (the CLI checks the same, so a run
     group made there can be stored)."""
-    if seed + runs - 1 > INT64_MAX:
+    if seed + runs - 1 > SEED_MAX:
         raise ValueError(f"the seeds from {seed} on pass 2**63 - 1")
     return [seed + k for k in range(runs)]
 

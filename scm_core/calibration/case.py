@@ -75,6 +75,7 @@ from scm_core.inference.priors import (
 from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc_stage import TMCMCSettings
 from scm_core.inference.tmcmc_types import MOVES
+from scm_core.seeds import SEED_MAX
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
 from scm_core.validation_text import first_error, one_line
 
@@ -349,9 +350,7 @@ class CaseDefinition(_Strict):
     """
 
     name: str = Field(min_length=1)
-    # a signed 64-bit integer: what a stored study's seed is (the service refuses a larger one,
-    # so a case file the CLI runs can also be submitted)
-    seed: int = Field(0, ge=0, le=2**63 - 1)
+    seed: int = Field(0, ge=0, le=SEED_MAX)
     likelihood: Literal["normalized", "gaussian"] = "normalized"
     trials: Literal["mean", "each"] = "mean"
     responses: tuple[Literal["F", "T", "z"], ...] = RESPONSES

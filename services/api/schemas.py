@@ -16,6 +16,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from scm_core.calibration import SamplerSettings
+from scm_core.seeds import SEED_MAX
 from services.limits import INT32_MAX, INT64_MAX
 from services.studies.request_model import PRESET_OR_CASE, RequestModel
 
@@ -146,7 +147,7 @@ class _StudyFields(_In):
         default_factory=list, description="Stored datasets (POST /datasets), likelihood order."
     )
     name: str | None = Field(None, min_length=1, max_length=200)
-    seed: int | None = Field(None, ge=0, le=INT64_MAX)
+    seed: int | None = Field(None, ge=0, le=SEED_MAX)
     likelihood: Literal["normalized", "gaussian"] | None = None
     batch_size: int | None = Field(
         None,
@@ -422,7 +423,7 @@ class PooledRequest(_In):
         le=COUNT_MAX,
         description="Samples taken from each study (default: the smallest study's).",
     )
-    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the subsampling.")
+    seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the subsampling.")
     include_samples: bool = Field(False, description="Also return the pooled samples.")
 
 

@@ -39,8 +39,9 @@ from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.inference.tmcmc_types import MOVES
+from scm_core.seeds import SEED_MAX
 from scm_core.signals import SWTDataset
-from services.limits import INT64_MAX, run_seeds
+from services.limits import run_seeds
 from services.studies.batching import local_batch_size, work_batches
 from services.studies.kinds.checks import prior_medians
 from services.studies.kinds.update import update_seed
@@ -177,7 +178,7 @@ class _RunOptions:
 )
 @click.option(
     "--seed",
-    type=click.IntRange(min=0, max=INT64_MAX),
+    type=click.IntRange(min=0, max=SEED_MAX),
     default=None,
     help="Override the case's seed (the same seed gives the same posterior).",
 )

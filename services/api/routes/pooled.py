@@ -17,7 +17,7 @@ from fastapi import APIRouter, Depends, HTTPException, Query
 
 from scm_core.inference.posterior import pool_samples
 from scm_core.jsondoc import finite_or_none
-from services.limits import INT64_MAX
+from scm_core.seeds import SEED_MAX
 from services.store import NotFoundError, Store
 from services.studies.kinds import kind_of
 
@@ -142,7 +142,7 @@ def pooled_get(
         ),
     ],
     n_per_study: Annotated[int | None, Query(ge=2, le=COUNT_MAX)] = None,
-    seed: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
+    seed: Annotated[int, Query(ge=0, le=SEED_MAX)] = 0,
 ) -> PooledOut:
     ids = parse_id_list(study_ids, "query.study_ids")
     return pooled_summary(store, PooledRequest(study_ids=ids, n_per_study=n_per_study, seed=seed))

@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, dataset_terms
 from scm_core.calibration.predict import LEVEL, prediction_draws, summarize_predictions
+from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError
 from scm_core.signals.conditions import make_conditions
 from services.config import Settings
@@ -101,7 +102,7 @@ class PredictionRequest(RequestModel):
         "omega), optionally R, b, n_grousers, grouser_height and a name.",
     )
     draws: int = Field(200, ge=1, le=INT32_MAX, description="Posterior samples to simulate.")
-    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the draws and the noise.")
+    seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the draws and the noise.")
     batch_size: int | None = Field(
         None, ge=1, le=INT32_MAX, description="Draws per work batch (does not change results)."
     )

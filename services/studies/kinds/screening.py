@@ -35,6 +35,7 @@ from scm_core.calibration import (
 )
 from scm_core.inference import LOG_SCALE_KINDS
 from scm_core.inference.tmcmc_stage import PointEvaluation
+from scm_core.seeds import SEED_MAX
 from scm_core.signals import SWTDataset
 from scm_core.validation_text import first_error, one_line
 from services.config import Settings
@@ -268,7 +269,7 @@ class SensitivityRequest(RequestModel):
     )
     r: int = Field(20, ge=2, le=1000, description="Morris trajectories.")
     levels: int = Field(4, ge=2, le=20, description="Grid levels (even).")
-    seed: int = Field(0, ge=0, le=INT64_MAX, description="Seed of the design.")
+    seed: int = Field(0, ge=0, le=SEED_MAX, description="Seed of the design.")
     separate_k: bool = Field(
         False, description="Screen k_c and k_phi apart instead of jointly through k* (eq. 11)."
     )

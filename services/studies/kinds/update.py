@@ -21,8 +21,9 @@ import numpy as np
 from scm_core.calibration import StudyModel, UpdateLikelihood
 from scm_core.inference.tmcmc_loop import PopulationStart
 from scm_core.inference.tmcmc_stage import StageState
+from scm_core.seeds import SEED_MAX
 from services.config import Settings
-from services.limits import INT64_MAX, seed_error
+from services.limits import seed_error
 from services.stages import DatabaseStages
 from services.store import NotFoundError, Store, StudyRecord, StudySpec
 
@@ -82,7 +83,7 @@ def update_seed(parent_seed: int) -> int:
     """The seed of an update of a study seeded ``parent_seed`` when none is given: the next
     one (wrapping to 0 after the largest, 2**63 - 1), so that the update's random numbers are
     not the parent's (the CLI's ``--update-of`` uses the same, for the same samples)."""
-    return (int(parent_seed) + 1) % (INT64_MAX + 1)
+    return (int(parent_seed) + 1) % (SEED_MAX + 1)
 
 
 def update_spec(
