@@ -19,7 +19,7 @@ from services.stages import DatabaseStages, StageStoreError, run_population
 from services.store import Store
 from services.studies.kinds.update import UPDATABLE
 
-from .views import agreement_of, parameter_names, parameter_units, resolve_stage
+from .views import agreement_of, parameter_names, parameter_units
 
 
 class NetcdfCache:
@@ -47,7 +47,7 @@ class NetcdfCache:
 
 
 def _run(store: Store, study_id: int):
-    """(study, its RunPopulation, its last finished stage); 409 as :func:`studies_netcdf`."""
+    """(study, its RunPopulation); 409 as :func:`studies_netcdf`."""
     study = store.studies.get(study_id)
     if study.kind not in UPDATABLE:
         raise HTTPException(409, f"study {study_id} is a {study.kind} study, not a calibration")
@@ -55,7 +55,7 @@ def _run(store: Store, study_id: int):
         run = run_population(DatabaseStages(store, study_id))
     except StageStoreError as exc:
         raise HTTPException(409, f"study {study_id}: {exc}") from None
-    return study, run, resolve_stage(store, study_id, -1)
+    return study, run
 
 
 def studies_netcdf(store: Store, study_ids: Sequence[int]) -> bytes:
@@ -66,9 +66,11 @@ def studies_netcdf(store: Store, study_ids: Sequence[int]) -> bytes:
     from services.exports.inference_data import inference_data
 
     loaded = [_run(store, sid) for sid in study_ids]
-    study, _, last = loaded[0]
+    study, _ = loaded[0]
+    lasts = [run.stages[-1] for _, run in loaded]  # each run's last finished stage
+    last = lasts[0]
     names = parameter_names(study)
-    if any(parameter_names(s) != names for s, _, _ in loaded):
+    if any(parameter_names(s) != names for s, _ in loaded):
         raise HTTPException(409, f"studies {list(study_ids)} calibrate different parameters")
     observed = {}
     for dataset_id in study.dataset_ids:
@@ -83,7 +85,7 @@ def studies_netcdf(store: Store, study_ids: Sequence[int]) -> bytes:
         "log_evidence": finite_or_none(last.log_evidence),
         "seed": study.seed,
     }
-    runs = [run for _, run, _ in loaded]
+    runs = [run for _, run in loaded]
     with warnings.catch_warnings():  # ArviZ announces its refactor on import
         warnings.simplefilter("ignore", FutureWarning)
         if len(loaded) > 1:
@@ -91,15 +93,15 @@ def studies_netcdf(store: Store, study_ids: Sequence[int]) -> bytes:
             if len(sizes) > 1:
                 raise HTTPException(409, f"the runs differ in size {sorted(sizes)}")
             chains = np.stack([r.samples for r in runs])
-            agreement = agreement_of(chains, names, [s for s, _, _ in loaded])
+            agreement = agreement_of(chains, names, [s for s, _ in loaded])
             attrs.update(
-                study_id=[s.id for s, _, _ in loaded],
-                seed=[s.seed for s, _, _ in loaded],
-                status=[s.status for s, _, _ in loaded],
+                study_id=[s.id for s, _ in loaded],
+                seed=[s.seed for s, _ in loaded],
+                status=[s.status for s, _ in loaded],
                 is_posterior=all(
-                    (finite_or_none(st.exponent) or 0.0) >= 1.0 - 1e-12 for _, _, st in loaded
+                    (finite_or_none(st.exponent) or 0.0) >= 1.0 - 1e-12 for st in lasts
                 ),
-                log_evidence=[finite_or_none(st.log_evidence) for _, _, st in loaded],
+                log_evidence=[finite_or_none(st.log_evidence) for st in lasts],
                 verdict=None if agreement is None else agreement.verdict,
                 converged=None if agreement is None else agreement.converged,
             )

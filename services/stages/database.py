@@ -5,13 +5,14 @@ population's ``meta``) and sample rows, written by the exactly-once stage advanc
 from __future__ import annotations
 
 import dataclasses
+from functools import cached_property
 from typing import Any
 
 from scm_core.inference import StageState
 from scm_core.inference._serial import encode_array
 from scm_core.inference.tmcmc_stage import StagePlan
 from services.exports.inference_data import StageRow
-from services.store import PlannedStage, ReducedStage, SampleArrays, Store
+from services.store import PlannedStage, ReducedStage, SampleArrays, StageRecord, Store
 from services.store.codec import encode, split
 
 from .base import resolve_index
@@ -78,21 +79,24 @@ def stage_state(meta: dict[str, Any], population: SampleArrays) -> StageState:
 
 
 class DatabaseStages:
-    """The :class:`~services.stages.StageStore` of stored study ``study_id``."""
+    """The :class:`~services.stages.StageStore` of stored study ``study_id``: a view of its done
+    stages as first read (one query), so that ``count``, ``state`` and ``rows`` agree while the
+    study goes on; make a new one to see later stages."""
 
     def __init__(self, store: Store, study_id: int) -> None:
         self.store = store
         self.study_id = int(study_id)
 
-    def _done(self):
+    @cached_property
+    def _done(self) -> list[StageRecord]:
         return [r for r in self.store.stages.list(self.study_id) if r.status == "done"]
 
     def count(self) -> int:
-        return len(self._done())
+        return len(self._done)
 
     def state(self, index: int) -> StageState:
         i = resolve_index(index, self.count(), f"study {self.study_id}")
         return stage_state(*self.store.stages.population(self.study_id, i))
 
     def rows(self) -> list[StageRow]:
-        return [StageRow.of(r.exponent, r.acceptance, r.log_evidence) for r in self._done()]
+        return [StageRow.of(r.exponent, r.acceptance, r.log_evidence) for r in self._done]
