@@ -117,6 +117,11 @@ class LocalRuntime:
             return Health(False, f"the local runtime's loop has not run for {age:.0f} s")
         return self._health
 
+    @property
+    def alive(self) -> bool:
+        """The loop thread runs (it stops on :meth:`stop` or on an error it cannot pass)."""
+        return self._thread.is_alive()
+
     def pids(self) -> list[int]:
         """Pids of the pool's processes (tests, diagnostics)."""
         pool = self._pool

@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import click
 from rich.console import Console
 from rich.table import Table
 
-from scm_core.calibration import MorrisSettings, run_sensitivity, screening_factors
+from scm_core.calibration import MorrisSettings
+from services.studies import StudyRequestError, sensitivity_spec
+from worker.here import run_here
 
 from .common import CLIError, compile_simulator_once, data_paths, read_case, read_datasets
-from .pool import batch_map
+from .folder_store import open_folder_store
 from .results import write_json
 
 
@@ -85,62 +88,94 @@ def sensitivity(
     workers: int | None,
 ) -> None:
     """Morris screening of the 7 SCM soil parameters (Table 1) on the steady F, T, z under the
-    test conditions of one dataset, with the case's nominal values and simulator settings."""
+    test conditions of one dataset, with the case's nominal values and simulator settings.
+
+    The screening is a study of OUT's database (OUT/study.db), run by the service's
+    screening kind: interrupt it with Ctrl-C and re-run the same command to go on with the
+    design points not yet run."""
     case = read_case(case_file)
     if levels % 2:
         raise CLIError(f"--levels must be even, got {levels}")
     paths = [data] if data is not None else data_paths(case, ())[:1]
-    dataset = read_datasets(case, paths)[0]
-    given = _parse_bounds(bounds)
-    try:
-        names, _, _ = screening_factors(case, joint_k=not separate_k, bounds=given)
-    except ValueError as exc:
-        raise CLIError(str(exc)) from None
-    n_runs = r * (len(names) + 1)
-    compile_simulator_once()
-    with batch_map(workers) as mapper:
-        batch = None if workers is None else max(1, math.ceil(n_runs / (4 * workers)))
-        try:
-            result = run_sensitivity(
-                dataset,
-                case,
-                MorrisSettings(r, levels, seed, not separate_k, given),
-                map=mapper,
-                batch_size=batch,
-            )
-        except KeyboardInterrupt:
-            click.echo("interrupted", err=True)
-            raise SystemExit(130) from None
+    datasets = read_datasets(case, paths)
+    morris = MorrisSettings(r, levels, seed, not separate_k, _parse_bounds(bounds))
     out = out or Path(f"{case_file.stem}_sensitivity")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
+    with open_folder_store(out, workers) as folder:
+        (dataset_id,) = folder.add_datasets(datasets, paths)
+        try:
+            spec = sensitivity_spec(
+                folder.store,
+                folder.settings,
+                case,
+                dataset_id,
+                morris,
+            )
+        except StudyRequestError as exc:
+            raise CLIError(_as_option(str(exc))) from None
+        spec = replace(spec, batch_size=_batch_size(spec.n_samples, workers))
+        study = folder.study_for(spec, "a sensitivity study")
+        compile_simulator_once()
+        try:
+            study = run_here(folder.store, study.id, folder.settings, workers)
+        except KeyboardInterrupt:
+            click.echo(
+                f"interrupted: the design points run so far are kept in {out}; re-run the "
+                "same command to go on",
+                err=True,
+            )
+            raise SystemExit(130) from None
+    if study.status != "completed" or not study.result:
+        raise CLIError(f"the screening ended {study.status}: {study.error}")
+    res = study.result
     doc = {
         "case": case.name,
         "joint_k": not separate_k,
-        "dataset_hash": dataset.content_hash,
-        "conditions": dataset.conditions.to_sim_config(),
-        **result.to_dict(),
+        "dataset_hash": datasets[0].content_hash,
+        "conditions": datasets[0].conditions.to_sim_config(),
+        **res,
     }
     write_json(out / "sensitivity.json", doc, indent=2)
-    from services.plots.sensitivity import plot_morris
+    from services.plots.sensitivity import plot_indices
 
-    plot_morris(result, out / "sensitivity.png")
+    plot_indices(res, out / "sensitivity.png")
+    _print_indices(res, out)
 
+
+def _batch_size(n_points: int, workers: int | None) -> int:
+    """Design points per batch: four batches in this process (progress and Ctrl-C between
+    them), else about four per worker process."""
+    return max(1, math.ceil(n_points / (4 * (workers or 1))))
+
+
+#: the screening kind's request fields, as this command's options
+_OPTIONS = {"bounds": "--bounds", "r": "--r", "levels": "--levels", "dataset_id": "--data"}
+
+
+def _as_option(message: str) -> str:
+    """A screening's one-line error (naming a request field) naming the option instead."""
+    head, sep, rest = message.partition(":")
+    field, dot, factor = head.partition(".")
+    if sep and field in _OPTIONS:
+        return f"{_OPTIONS[field]}{' ' + factor if dot else ''}:{rest}"
+    return message
+
+
+def _print_indices(res: dict, out: Path) -> None:
     table = Table(
-        title=f"Morris screening, {result.n_runs} runs ({result.n_failed} failed): "
+        title=f"Morris screening, {res['n_runs']} runs ({res['n_failed_runs']} failed): "
         "linear / non-linear index"
     )
     table.add_column("factor")
     for resp in ("F", "T", "z"):
         table.add_column(resp, justify="right")
-    for i, name in enumerate(result.names):
-        cells = [
-            f"{result.linear_index[i, k]:.2f} / {result.nonlinear_index[i, k]:.2f}"
-            for k in range(3)
-        ]
-        table.add_row(name, *cells)
+
+    def g(v: float | None) -> str:
+        return "-" if v is None else f"{v:.2f}"
+
+    lin, non = res["linear_index"], res["nonlinear_index"]
+    for f in res["factors"]:
+        name = f["name"]
+        table.add_row(name, *(f"{g(lin[k][name])} / {g(non[k][name])}" for k in ("F", "T", "z")))
     console = Console()
     console.print(table)
     console.print(f"results in {out}")

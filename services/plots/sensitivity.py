@@ -2,31 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from scm_core.calibration import SensitivityResult
-
 from .figures import save
 
 _RESPONSES = (("F", "drawbar pull F"), ("T", "torque T"), ("z", "sinkage z"))
-
-
-def morris_figure(result: SensitivityResult, title: str | None = None) -> Figure:
-    """Grouped bars per factor: normalised linear index mu* / sum mu* and non-linear index
-    sigma / sum sigma, one panel per response."""
-    return indices_figure(
-        result.names,
-        result.linear_index,
-        result.nonlinear_index,
-        title
-        or f"Morris screening (r = {result.r}, {result.levels} levels, "
-        f"{result.n_runs} runs, {result.n_failed} failed)",
-    )
 
 
 def indices_figure(
@@ -35,7 +21,8 @@ def indices_figure(
     nonlinear_index: NDArray[np.float64],
     title: str,
 ) -> Figure:
-    """The bars of :func:`morris_figure` from the index tables (factor x response F, T, z)."""
+    """Grouped bars per factor: normalised linear index mu* / sum mu* and non-linear index
+    sigma / sum sigma (tables factor x response F, T, z), one panel per response."""
     names = list(names)
     linear_index = np.asarray(linear_index, dtype=float)
     nonlinear_index = np.asarray(nonlinear_index, dtype=float)
@@ -57,6 +44,28 @@ def indices_figure(
     return fig
 
 
-def plot_morris(result: SensitivityResult, path: str | Path, title: str | None = None) -> Path:
-    """:func:`morris_figure` saved to ``path``."""
-    return save(morris_figure(result, title), path)
+def stored_indices_figure(doc: Mapping[str, Any], title: str) -> Figure:
+    """The bars of :func:`indices_figure` from a stored result document
+    (:meth:`SensitivityResult.to_dict`: tables response -> factor -> index, null for NaN);
+    ``title`` is prefixed to its settings and run counts."""
+    names = [f["name"] for f in doc["factors"]]
+
+    def table(key: str) -> NDArray[np.float64]:
+        t = doc[key]
+        return np.array(
+            [[np.nan if t[r][n] is None else t[r][n] for r, _ in _RESPONSES] for n in names],
+            dtype=float,
+        )
+
+    return indices_figure(
+        names,
+        table("linear_index"),
+        table("nonlinear_index"),
+        f"{title} (r = {doc['r']}, {doc['levels']} levels, {doc['n_runs']} runs, "
+        f"{doc['n_failed_runs']} failed)",
+    )
+
+
+def plot_indices(doc: Mapping[str, Any], path: str | Path, title: str = "Morris screening") -> Path:
+    """:func:`stored_indices_figure` saved to ``path``."""
+    return save(stored_indices_figure(doc, title), path)

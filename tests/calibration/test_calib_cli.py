@@ -236,6 +236,51 @@ def test_predict_at_conditions_nobody_measured(work: Path, reference: Path) -> N
     )
 
 
+def test_sensitivity_stopped_and_resumed_gives_the_same_screening(work: Path, monkeypatch) -> None:
+    """The screening is a study of OUT/study.db run by the service's kind: stopped (Ctrl-C)
+    after its first batch, it exits 130 keeping that batch; the same command again runs only
+    the other batches and writes the same sensitivity.json as a run never stopped."""
+    import worker.here
+    from services.cli.folder_store import DB_FILE
+    from services.store import Store
+
+    args = ("sensitivity", "tiny.toml", "--r", "2")
+    assert run_cli_here(*args, "--out", "sens_ref", cwd=work).returncode == 0
+    execute, calls = worker.here.execute_batch, []
+
+    def stopped_after_one(*a, **k):
+        if calls:
+            raise KeyboardInterrupt
+        calls.append(a[1])
+        return execute(*a, **k)
+
+    monkeypatch.setattr(worker.here, "execute_batch", stopped_after_one)
+    proc = run_cli_here(*args, "--out", "sens_cut", cwd=work)
+    assert proc.returncode == 130 and "re-run the same command" in proc.stderr
+    assert not (work / "sens_cut" / "sensitivity.json").exists()
+    monkeypatch.setattr(worker.here, "execute_batch", execute)
+    assert run_cli_here(*args, "--out", "sens_cut", cwd=work).returncode == 0
+    ref = json.loads((work / "sens_ref" / "sensitivity.json").read_text())
+    assert json.loads((work / "sens_cut" / "sensitivity.json").read_text()) == ref
+    with Store.open(f"sqlite:///{work / 'sens_cut' / DB_FILE}") as store:
+        (study,) = store.studies.list().items
+        done = [e for e in store.events.list(study.id) if e.kind == "batch_done"]
+        batches = store.batches.list(study.id, 0)
+    assert len(batches) > 1 and len(done) == len(batches)  # none ran twice
+    assert all(b.attempts == 1 for b in batches)  # the stop counted no attempt
+    # another screening into the same folder is refused, naming the folder
+    line = one_line_error(run_cli_here(*args, "--seed", "9", "--out", "sens_cut", cwd=work))
+    assert "sens_cut holds a sensitivity study of other inputs" in line
+
+
+def test_a_refused_screening_leaves_no_folder(work: Path) -> None:
+    line = one_line_error(
+        run_cli_here("sensitivity", "tiny.toml", "--bounds", "K=1:2", "--out", "no/sens", cwd=work)
+    )
+    assert line.startswith("error: --bounds") and "not screened" in line
+    assert not (work / "no").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [

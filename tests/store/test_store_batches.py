@@ -363,3 +363,26 @@ def test_reaper_starts_or_fails_studies_left_queued(store: Store, toy, clock) ->
     failed = store.studies.get(bad)
     assert failed.status == "failed" and "could not start" in failed.error
     assert start_stuck_studies(store, Collect()) == []
+
+
+def test_give_back_puts_an_interrupted_owners_leases_back_uncounted(
+    store: Store, toy, clock
+) -> None:
+    """A stopped command's leases go back pending with the attempt not counted, so stopping
+    and resuming a run any number of times never fails a batch at the attempt cap; other
+    owners' leases (a prefix of the text only) stay."""
+    sid = started_study(store, toy, n_batches=3)
+    with pytest.raises(ValueError, match="owner"):
+        store.batches.give_back("//")
+    for _ in range(store.db.max_attempts + 2):
+        lease = store.batches.lease("here/h/1")
+        assert lease is not None and lease.attempt == 1
+        assert store.batches.give_back("here/h") == [lease.key]
+        assert store.batches.get(lease.key).status == "pending"
+        assert not store.batches.heartbeat(lease)  # the stopped holder lost it
+    other = store.batches.lease("here/h2/5")
+    assert store.batches.give_back("here/h") == []
+    assert store.batches.get(other.key).status == "leased"
+    assert store.studies.get(sid).status == "running"
+    kinds = [e.kind for e in store.events.list(sid)]
+    assert kinds.count("lease_given_back") == store.db.max_attempts + 2

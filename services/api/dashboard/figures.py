@@ -360,21 +360,8 @@ def _indices(store: Store, study: StudyRecord, **_: Any) -> Figure:
     res = study.result or {}
     if "linear_index" not in res:
         raise FigureError(f"study {study.id} has no Morris result yet ({study.status})")
-    names = [f["name"] for f in res["factors"]]
-
-    def table(key: str) -> np.ndarray:
-        t = res[key]
-        return np.array(
-            [[np.nan if t[r][n] is None else t[r][n] for r in RESPONSES] for n in names]
-        )
-
-    return plots.sensitivity.indices_figure(
-        names,
-        table("linear_index"),
-        table("nonlinear_index"),
-        f"{study.name}: Morris screening (r = {res['r']}, {res['levels']} levels, "
-        f"{res['n_runs']} runs, {res['n_failed_runs']} failed) (Figure 4)",
-    )
+    title = f"{study.name}: Morris screening"
+    return plots.sensitivity.stored_indices_figure(res, title)
 
 
 def _band(b: dict[str, Any] | None) -> Band | None:

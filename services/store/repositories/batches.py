@@ -497,6 +497,37 @@ class BatchRepository:
                 )
         return ReapReport(requeued, failed, failed_studies, sorted(requeued), [])
 
+    def give_back(self, owner: str) -> list[BatchKey]:
+        """Put back the leases held by ``owner`` or below it as if never granted: pending
+        again, the attempt not counted ("lease_given_back" event). For a command that ran a
+        study here and was stopped (Ctrl-C) or killed: its batches were interrupted, not
+        failed, so stopping a run never brings a batch nearer the attempt cap. Only for an
+        owner known to be gone (a results folder's lock is held by the caller); returns the
+        batches put back."""
+        if not owner.strip("/"):
+            raise ValueError("owner must not be empty (it would give back every lease)")
+        now = self.db.now()
+        back: list[BatchKey] = []
+        with self.db.write() as s:
+            rows = s.execute(
+                sa.update(WorkBatch)
+                .where(WorkBatch.status == "leased", _held_by(owner), WorkBatch.attempts > 0)
+                .values(
+                    status="pending",
+                    attempts=WorkBatch.attempts - 1,
+                    worker_id=None,
+                    lease_expires_at=None,
+                )
+                .returning(WorkBatch.study_id, WorkBatch.stage_index, WorkBatch.batch_index)
+                .execution_options(synchronize_session=False)
+            ).all()
+            for row in rows:
+                key = _key(row)
+                back.append(key)
+                info = {"stage": key.stage_index, "batch": key.batch_index}
+                append_event(s, key.study_id, "lease_given_back", info, now)
+        return sorted(back)
+
     def mark_dispatched(self, keys: Iterable[BatchKey]) -> None:
         """Record that tasks for these batches were sent to the broker (now)."""
         keys = list(keys)
