@@ -34,6 +34,7 @@ __all__ = [
     "StageHooks",
     "StageStart",
     "TMCMCResult",
+    "result_of",
     "rowwise",
     "run_tmcmc",
 ]
@@ -289,12 +290,18 @@ def run_tmcmc(
         step = tempering.advance(plan, results)
         finished(step.state)
 
+    return result_of(stages, prior.names, str(step.status))
+
+
+def result_of(stages: Sequence[StageState], names: Sequence[str], status: str) -> TMCMCResult:
+    """The :class:`TMCMCResult` of a run's stages (from stage 0, wherever they were kept) that
+    ended ``status`` ("completed", "stalled", "max_stages")."""
     final = stages[-1]
     return TMCMCResult(
         samples=final.samples,
-        names=prior.names,
+        names=tuple(names),
         log_evidence=float(final.log_evidence),
         log_evidence_se=math.sqrt(final.log_evidence_var),
         stages=tuple(stages),
-        status=str(step.status),
+        status=str(status),
     )

@@ -8,7 +8,7 @@ errors; summary datasets carry reported means and standard deviations.
 from .conditions import TestConditions
 from .dataset import SWTDataset, SWTSeries, from_dict, to_dict
 from .errors import LogFormatError
-from .loaders import load_dataset, load_log, load_summary, write_log
+from .loaders import load_dataset, load_log, load_summary, read_sidecar, write_log
 from .logformat import COLUMNS, format_log, parse_log_text
 from .metadata import Metadata, merge_metadata
 from .processing import (
@@ -48,6 +48,7 @@ __all__ = [
     "parse_log_text",
     "parse_summary_csv",
     "parse_summary_json",
+    "read_sidecar",
     "standard_error",
     "steady_response",
     "steady_stat",

@@ -57,8 +57,11 @@ def _label(path: Path | None, name: str | None, default: str) -> str:
     return path.name if path is not None else (name or default)
 
 
-def _read_sidecar(path: Path) -> dict[str, Any]:
-    sidecar = path.with_suffix(".json")
+def read_sidecar(path: Path) -> dict[str, Any]:
+    """The metadata of a log's JSON sidecar (same stem, ``.json``; {} if there is none)."""
+    sidecar = Path(path).with_suffix(".json")
+    if sidecar == Path(path):
+        return {}
     if not sidecar.is_file():
         return {}
     try:
@@ -100,7 +103,7 @@ def load_log(
         digest = log_digest()
         try:
             table = parse_log_stream(stream, digest)
-            side = _read_sidecar(path) if (path is not None and sidecar) else {}
+            side = read_sidecar(path) if (path is not None and sidecar) else {}
             meta = merge_metadata(
                 [("file header", table.metadata), ("sidecar", side), ("metadata", metadata or {})]
             )

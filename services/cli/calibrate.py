@@ -1,8 +1,11 @@
-"""``scm-calib calibrate``: run a calibration study on this machine, with checkpoints.
+"""``scm-calib calibrate``: run a calibration study on this machine, the service's way.
 
-The results folder is described in :mod:`services.cli.results`. Re-running the same command
-resumes from the last finished stage; the checkpoints are refused if the case (anything that
-changes the samples), the datasets or the updated study differ.
+The study is one of the results folder's database (:mod:`services.cli.folder_store`), made by
+the calibration (or update) kind's spec and run by the service's batches and stage advance
+(:func:`worker.here.run_here`); each finished stage is also saved to the folder's checkpoints
+and, at the end, the outputs are written (:mod:`services.cli.results`). Re-running the same
+command resumes; a folder holding another study (the case, anything that changes the samples,
+the datasets or the updated study differ) is refused.
 
 ``--update-of DIR --data NEW.csv`` updates the posterior of the finished study in DIR with new
 datasets (paper section 5.3): stage 0 is DIR's final population, the stages temper the new
@@ -15,7 +18,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -23,31 +25,29 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from scm_core.calibration import (
-    CaseDefinition,
-    CaseError,
-    Resume,
-    SamplerSettings,
-    StageHooks,
-    StageStart,
-    StudyModel,
-    UpdateLikelihood,
-    run_tmcmc,
-)
+from scm_core.calibration import CaseDefinition, CaseError, SamplerSettings, StudyModel
 from scm_core.calibration.case import field_range
 from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
+from scm_core.inference.tmcmc import result_of
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.inference.tmcmc_types import MOVES
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import SWTDataset
 from services.limits import run_seeds
-from services.studies.batching import local_batch_size, work_batches
-from services.studies.kinds.checks import prior_medians
-from services.studies.kinds.update import update_seed
+from services.stages import DatabaseStages, FolderStages, StageStoreError, stage_states
+from services.store import StudyRecord
+from services.studies import StudyRequestError, calibration_spec
+from services.studies.batching import local_batch_size
+from services.studies.kinds import kind_of
+from services.studies.kinds.base import stored_case
+from services.studies.kinds.calibration import KIND
+from services.studies.kinds.update import update_seed, update_spec
+from worker.here import run_here
 
 from .common import (
     CLIError,
+    as_option,
     compile_simulator_once,
     data_option,
     data_paths,
@@ -55,9 +55,9 @@ from .common import (
     read_case,
     read_datasets,
 )
+from .folder_store import FolderStore, open_folder_store
 from .parent import ParentStudy, load_parent
-from .pool import batch_map
-from .progress import CheckedLikelihood, StageDisplay, StopRequest, is_interrupt
+from .progress import StageDisplay, StageWatch
 from .results import Checkpoints, write_outputs
 from .runs import (
     POOLED_FILE,
@@ -70,14 +70,6 @@ from .runs import (
 
 #: most runs of one ``--runs`` group
 MAX_RUNS = 64
-
-
-def _precheck(case: CaseDefinition, model: StudyModel) -> None:
-    """Refuse a study whose configuration cannot be built at the prior medians."""
-    problem = model.config_problem(prior_medians(case))
-    if problem is not None:
-        k, why = problem
-        raise CLIError(f"dataset {model.datasets[k].name}: {why}")
 
 
 def _with_sampler(case: CaseDefinition, sampler: dict[str, Any]) -> CaseDefinition:
@@ -246,7 +238,6 @@ def calibrate(
         datasets = read_datasets(case, paths)
         n_old = 0
     model = StudyModel(case, datasets)
-    _precheck(case, model)
     if out is None:
         out = Path(f"{update_of.name}_update" if update_of else f"{case_file.stem}_results")
     if runs == 1:
@@ -278,43 +269,134 @@ def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
     """Run (or resume) one study into the results folder ``out``; returns its status."""
     case, parent = study.case, study.parent
     settings = case.tmcmc_settings()
-    n = case.sampler.n_samples
     bs = (
         options.batch_size
         or case.sampler.batch_size
-        or local_batch_size(stage_chains(n, settings), options.workers)
+        or local_batch_size(stage_chains(case.sampler.n_samples, settings), options.workers)
     )
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
-    ckpt = Checkpoints(out, case, study.datasets, update_of=parent.identity if parent else None)
-    stages, walls = ckpt.load()
-    ckpt.start(fresh=not stages)
     console = Console(stderr=True)
-    if not options.quiet:
-        _announce(console, study, stages, ckpt, options.workers)
-    compile_simulator_once(options.quiet)
-    t0 = time.perf_counter()
-    result, wall_times = _sample(study, bs, ckpt, stages, walls, console, options)
+    with open_folder_store(out, options.workers) as folder:
+        ckpt = Checkpoints(out, case, study.datasets, update_of=parent.identity if parent else None)
+        earlier, _ = ckpt.load()
+        record = _folder_study(folder, study, bs, earlier, console, options.quiet)
+        stages = DatabaseStages(folder.store, record.id)
+        ckpt.start(fresh=stages.count() == 0)
+        if not options.quiet:
+            _announce(console, study, stages.count(), ckpt, options.workers)
+        compile_simulator_once(options.quiet)
+        t0 = time.perf_counter()
+        record = _sample(folder, record, ckpt, console, options)
+        if record.status == "failed":
+            raise CLIError(f"the study failed: {record.error}")
+        states = stage_states(DatabaseStages(folder.store, record.id))
+        run = kind_of(record.kind).build(folder.store, record)
+        status = run.tempering.next(states[-1]).status or ""
+    result = result_of(states, case.parameter_names, status)
+    walls = [ckpt.stages.saved(i)[1] for i in range(len(states))]
     extra = {
         "batch_size": bs,
         "workers": options.workers,
         "session_wall_time_s": time.perf_counter() - t0,
     }
-    return _finish(study, out, result, wall_times, extra, options)
+    return _finish(study, out, result, walls, extra, options)
+
+
+def _folder_study(
+    folder: FolderStore,
+    study: _Study,
+    batch_size: int,
+    earlier: list[StageState],
+    console: Console,
+    quiet: bool,
+) -> StudyRecord:
+    """The study of the results folder: the one it holds (to resume, or done), else a new
+    one, which takes over the stages of the folder's checkpoints (written before the folder
+    had a database) or of the folder's study stopped at a smaller ``max_stages`` (a larger
+    one goes on from there)."""
+    store, n_old = folder.store, study.n_old
+    ids = folder.add_datasets(study.datasets[n_old:], study.paths[n_old:])
+    try:
+        if study.parent is not None:
+            parent = _parent_copy(folder, study)
+            spec = update_spec(
+                store,
+                folder.settings,
+                parent.id,
+                ids,
+                batch_size=batch_size,
+                max_stages=study.case.sampler.max_stages,
+            )
+        else:
+            spec = calibration_spec(store, folder.settings, study.case, ids, batch_size)
+    except StudyRequestError as exc:
+        raise CLIError(as_option(str(exc), _OPTIONS)) from None
+    what = "an update" if study.parent is not None else "a calibration"
+    folder.refuse_others(spec, what)
+    found = folder.find(spec)
+    if found is not None and not _goes_on(found, study.case):
+        return found
+    record = store.studies.create(spec)
+    if found is not None:
+        earlier = stage_states(DatabaseStages(store, found.id))
+    if earlier:
+        if not quiet:
+            console.print(f"taking over stages 0-{earlier[-1].stage} of {folder.out}")
+        kind_of(record.kind).build(store, record).adopt(store, record, earlier)
+    return store.studies.get(record.id)
+
+
+def _goes_on(found: StudyRecord, case: CaseDefinition) -> bool:
+    """Whether the folder's study ``found`` is taken over by a new one: it failed (its
+    stages are kept), or stopped at a ``max_stages`` smaller than the case's."""
+    if found.status == "failed":
+        return True
+    stopped = found.status == "stalled" and "max_stages" in (found.error or "")
+    return stopped and stored_case(found.case).sampler.max_stages < case.sampler.max_stages
+
+
+def _parent_copy(folder: FolderStore, study: _Study) -> StudyRecord:
+    """The earlier study an update starts from, in the update's folder: a completed
+    calibration on all the datasets behind its posterior whose stages are those of the
+    earlier folder's checkpoints, bit for bit, and whose result holds the total log
+    evidence of its data."""
+    parent, store, n_old = study.parent, folder.store, study.n_old
+    assert parent is not None
+    ids = folder.add_datasets(study.datasets[:n_old], study.paths[:n_old])
+    spec = calibration_spec(store, folder.settings, parent.case, ids)
+    spec = replace(spec, name=f"{parent.case.name} ({parent.results.resolve()})"[:200])
+    found = folder.find(spec)
+    if found is not None and found.status == "completed":
+        return found
+    record = store.studies.create(spec)
+    try:
+        states = stage_states(FolderStages(parent.results))
+        total = {"log_evidence_total": parent.log_evidence, "results": str(parent.results)}
+        KIND.build(store, record).adopt(store, record, states, result=total)
+    except (StageStoreError, ValueError) as exc:
+        raise CLIError(f"--update-of {parent.results}: {exc}") from None
+    record = store.studies.get(record.id)
+    if record.status != "completed":
+        raise CLIError(f"--update-of {parent.results}: its stages do not end the calibration")
+    return record
+
+
+#: the study service's request fields, as this command's options
+_OPTIONS = {
+    "dataset_ids": "--data",
+    "n_samples": "--samples",
+    "max_stages": "--max-stages",
+    "batch_size": "--batch-size",
+    "seed": "--seed",
+    "update_of": "--update-of",
+}
 
 
 def _announce(
-    console: Console,
-    study: _Study,
-    stages: list[StageState],
-    ckpt: Checkpoints,
-    workers: int | None,
+    console: Console, study: _Study, done: int, ckpt: Checkpoints, workers: int | None
 ) -> None:
     case, parent = study.case, study.parent
-    if stages:
-        console.print(f"resuming {case.name} from stage {stages[-1].stage} ({ckpt.dir})")
+    if done:
+        console.print(f"resuming {case.name} from stage {done - 1} ({ckpt.dir})")
         return
     what = f"update of {parent.results} with" if parent else f"{len(case.parameters)} parameters,"
     console.print(
@@ -325,64 +407,27 @@ def _announce(
 
 
 def _sample(
-    study: _Study,
-    batch_size: int,
+    folder: FolderStore,
+    record: StudyRecord,
     ckpt: Checkpoints,
-    stages: list[StageState],
-    walls: list[float],
     console: Console,
     options: _RunOptions,
-) -> tuple[Any, list[float]]:
-    """The TMCMC run with its checkpoints and progress display: (result, stage wall times).
-    Ctrl-C stops it after saving the finished stages (exit 130)."""
-    case, parent, workers, quiet = study.case, study.parent, options.workers, options.quiet
-    wall_times = list(walls)
-    t_start = [time.perf_counter()]
-    display = StageDisplay(quiet, console)
-    stop = StopRequest(console if not quiet else None)
-
-    def on_stage_start(s: StageStart) -> None:
-        t_start[0] = time.perf_counter()
-        display.stage_start(s)
-
-    def on_stage(state: StageState) -> None:
-        wall = time.perf_counter() - t_start[0]
-        ckpt.save(state, wall)
-        wall_times.append(wall)
-        display.stage_done(state, wall)
-
-    def on_batch(k: int) -> None:
-        stop.check()
-        display.batch(k)
-
-    likelihood = UpdateLikelihood(study.model, study.n_old) if parent else study.model
-    start = likelihood.start(parent.final) if parent else None
-    # in-process, Ctrl-C is noticed before every simulator call (between Metropolis steps);
-    # with workers, when a batch comes back
-    func = likelihood if workers is not None else CheckedLikelihood(stop, likelihood)
+) -> StudyRecord:
+    """Run the folder's study to its end with the progress display, saving each finished
+    stage to the checkpoints; Ctrl-C stops it (exit 130) keeping every stage and batch run."""
+    display = StageDisplay(options.quiet, console)
+    watch = StageWatch(display, ckpt.save, ckpt.stages.count())
     try:
-        with stop, display, batch_map(workers) as mapper:
-            result = run_tmcmc(
-                func,
-                case.prior(),
-                case.sampler.n_samples,
-                case.seed,
-                case.tmcmc_settings(),
-                map=mapper,
-                split=partial(work_batches, batch_size=batch_size, workers=workers or 1),
-                start=Resume(stages) if stages else start,
-                hooks=StageHooks(on_stage_start, on_batch, on_stage),
-            )
-    except BaseException as exc:
-        if not is_interrupt(exc):
-            raise
-        saved = f"stages 0-{len(wall_times) - 1}" if wall_times else "no finished stage"
+        with display:
+            return run_here(folder.store, record.id, folder.settings, options.workers, watch)
+    except KeyboardInterrupt:
+        n = ckpt.stages.count()
+        saved = f"stages 0-{n - 1}" if n else "no finished stage"
         click.echo(
             f"interrupted: {saved} saved in {ckpt.dir}; re-run the same command to resume",
             err=True,
         )
         raise SystemExit(130) from None
-    return result, wall_times
 
 
 def _finish(

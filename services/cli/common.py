@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -48,6 +48,16 @@ class CLIError(click.ClickException):
     """A bad input (case file, dataset, option): one line on stderr, exit code 2."""
 
     exit_code = 2
+
+
+def as_option(message: str, options: Mapping[str, str]) -> str:
+    """A study service's one-line error, which names a request field ("r: ...",
+    "bounds.c: ..."), naming the command's option instead (``options``: field -> option)."""
+    head, sep, rest = message.partition(":")
+    field, dot, part = head.partition(".")
+    if sep and field in options:
+        return f"{options[field]}{' ' + part if dot else ''}:{rest}"
+    return message
 
 
 def read_case(path: Path) -> CaseDefinition:

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from scm_core.signals import SWTDataset
+from scm_core.calibration import CaseDefinition
+from scm_core.signals import SWTDataset, read_sidecar
 from services.config import Settings
 from services.store import Store, StudyRecord, StudySpec
 
@@ -48,33 +49,47 @@ class FolderStore:
         same content) keeps its id."""
         ids = []
         for dataset, path in zip(datasets, paths, strict=True):
+            meta = read_sidecar(Path(path))
             with open(path, "rb") as raw:
-                rec, _ = self.store.datasets.add(dataset, raw, filename=Path(path).name)
+                rec, _ = self.store.datasets.add(dataset, raw, meta=meta, filename=Path(path).name)
             ids.append(rec.id)
         return ids
 
+    def find(self, spec: StudySpec) -> StudyRecord | None:
+        """The newest study of the folder with ``spec``'s inputs (see :func:`_identity`)."""
+        mine = _identity(self.store, spec)
+        for study in self.store.studies.list(kind=spec.kind, limit=1000).items:
+            if _identity(self.store, study, study.kind) == mine:
+                return study
+        return None
+
+    def refuse_others(self, spec: StudySpec, what: str) -> None:
+        """A one-line error if the folder holds a study of ``spec``'s kind with other inputs
+        (``what`` names it: "a sensitivity study"): a results folder never mixes inputs."""
+        mine = _identity(self.store, spec)
+        for study in self.store.studies.list(kind=spec.kind, limit=1000).items:
+            if _identity(self.store, study, study.kind) != mine:
+                raise CLIError(
+                    f"--out {self.out} holds {what} of other inputs (case, datasets, seed or "
+                    f"settings); give another --out, or remove {self.out / DB_FILE} to start "
+                    "over"
+                )
+
     def study_for(self, spec: StudySpec, what: str) -> StudyRecord:
         """The folder's study of ``spec``: the one stored (a run to resume or already done)
-        or a new one. A folder holding another study of the kind refuses (``what`` names the
-        command's output: "a sensitivity study"), so a results folder never mixes inputs."""
-        mine = _identity(self.store, spec.kind, spec)
-        for study in self.store.studies.list(kind=spec.kind, limit=1000).items:
-            if _identity(self.store, study.kind, study) == mine:
-                return study
-            raise CLIError(
-                f"--out {self.out} holds {what} of other inputs (case, datasets, seed or "
-                f"settings); give another --out, or remove {self.out / DB_FILE} to start over"
-            )
-        return self.store.studies.create(spec)
+        or a new one; refuses a folder holding another (:meth:`refuse_others`)."""
+        self.refuse_others(spec, what)
+        return self.find(spec) or self.store.studies.create(spec)
 
 
-def _identity(store: Store, kind: str, study: StudySpec | StudyRecord) -> str:
-    """What decides a study's results: kind, case, the datasets' contents, seed, size and the
-    kind's settings (not the name or the batch size)."""
+def _identity(store: Store, study: StudySpec | StudyRecord, kind: str | None = None) -> str:
+    """What decides a study's results: kind, the case's fingerprint (not its name, data file
+    names, batch size or ``max_stages``: a stopped run can go on), the datasets' contents,
+    seed, size and the kind's settings."""
     hashes = [store.datasets.get(int(d)).content_hash for d in study.dataset_ids]
     doc: dict[str, Any] = {
-        "kind": kind,
-        "case": study.case,
+        "kind": kind or study.kind,
+        "case": CaseDefinition.from_stored(dict(study.case)).fingerprint(),
         "datasets": hashes,
         "seed": int(study.seed),
         "n_samples": int(study.n_samples),

@@ -1,10 +1,8 @@
-"""Progress and Ctrl-C of a ``scm-calib calibrate`` run."""
+"""Progress of a ``scm-calib calibrate`` run: its display and what follows the study's stages."""
 
 from __future__ import annotations
 
 import math
-import signal
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -21,7 +19,6 @@ from rich.progress import (
 
 from scm_core.calibration import StageStart
 from scm_core.inference import StageState
-from scm_core.inference.wrapped import WrappedLikelihood
 
 # ---------------------------------------------------------------------- progress
 
@@ -124,60 +121,64 @@ class StageDisplay:
                 self.progress.console.print(text)
 
 
-# ---------------------------------------------------------------------- Ctrl-C
+# ---------------------------------------------------------------------- a study's stages
 
 
-class StopRequest:
-    """SIGINT handler for the run: the first Ctrl-C asks to stop at the next safe point (the
-    next simulator call or returned batch, see :meth:`check`); a second one raises at once."""
+class StageWatch:
+    """Follows a study run here (:data:`worker.here.Watch`: called after each batch, or at
+    each look while a pool runs them): the display's stage starts, batches and finished
+    stages, and each finished stage saved to the results folder's checkpoints as soon as
+    the store holds it (stages finished before this session first, with the wall time the
+    store recorded)."""
 
-    def __init__(self, console: Console | None):
-        self.console = console
-        self.requested = False
-        self._previous: Any = None
+    def __init__(
+        self, display: StageDisplay, save: Callable[[StageState, float], None], saved: int
+    ):
+        self.display = display
+        self.save = save
+        self.saved = saved
+        self.stage: int | None = None
+        self.planned: list[int] = []
+        self.counted: set[int] = set()
+        self.t_stage = time.perf_counter()
+        self.session = True
 
-    def _handler(self, signum, frame) -> None:
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-        if self.console is not None:
-            self.console.print("stopping at the next safe point (Ctrl-C again to abort now)")
+    def __call__(self, store: Any, study: Any) -> None:
+        from services.stages import DatabaseStages
+        from services.studies.kinds import kind_of
 
-    def check(self) -> None:
-        if self.requested:
-            raise KeyboardInterrupt
+        stages = DatabaseStages(store, study.id)
+        while self.saved < stages.count():
+            state = stages.state(self.saved)
+            wall = self._wall(store, study, self.saved)
+            self.save(state, wall)
+            self.display.stage_done(state, wall)
+            self.saved += 1
+        if study.status not in ("queued", "running") or study.current_stage is None:
+            return
+        batches = store.batches.list(study.id, study.current_stage)
+        if study.current_stage != self.stage:
+            self.stage = int(study.current_stage)
+            plan = store.stages.plan(study.id, self.stage)
+            ranges = [range(b.chain_start, b.chain_stop) for b in batches]
+            self.planned = kind_of(study.kind).planned_runs(plan, ranges)
+            self.counted = set()
+            self.t_stage = time.perf_counter()
+            exponent = store.stages.get(study.id, self.stage).exponent or 0.0
+            self.display.stage_start(
+                StageStart(self.stage, float(exponent), sum(self.planned), len(batches))
+            )
+        for b in batches:
+            if b.status == "done" and b.key.batch_index not in self.counted:
+                self.counted.add(b.key.batch_index)
+                self.display.batch(self.planned[b.key.batch_index])
 
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
-
-
-class CheckedLikelihood(WrappedLikelihood):
-    """A batch likelihood that refuses to start an evaluation (a batch, or one dataset's runs)
-    while a stop is requested; its other members are the likelihood's."""
-
-    def __init__(self, stop: StopRequest, likelihood: Callable[[Any], Any]):
-        super().__init__(likelihood)
-        self.stop = stop
-
-    def around(self, evaluate: Callable[[], Any]) -> Any:
-        self.stop.check()
-        return evaluate()
-
-
-def is_interrupt(exc: BaseException | None) -> bool:
-    """KeyboardInterrupt, possibly wrapped (numba turns one raised while it unpickles a result
-    into a SystemError whose cause is the KeyboardInterrupt)."""
-    seen = 0
-    while exc is not None and seen < 10:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        exc = exc.__cause__ or exc.__context__
-        seen += 1
-    return False
+    def _wall(self, store: Any, study: Any, index: int) -> float:
+        """Seconds stage ``index`` took: timed here if it ran in this session, else from
+        the store's times (its end less the previous stage's, or the study's start)."""
+        if index == self.stage:
+            return time.perf_counter() - self.t_stage
+        rows = store.stages.list(study.id)
+        end = rows[index].finished_at
+        begin = rows[index - 1].finished_at if index else study.started_at
+        return max(0.0, (end - begin).total_seconds()) if end and begin else 0.0

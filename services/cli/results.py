@@ -3,6 +3,7 @@ reading them back (``predict``, ``export``).
 
 Layout::
 
+    DIR/study.db                       the study's database (services.cli.folder_store)
     DIR/checkpoints/manifest.json      what the checkpoints belong to (case and data hashes)
     DIR/checkpoints/stage_NNN.json     StageState.to_dict() of each finished stage + wall time
     DIR/samples/stage_NN.csv           samples of every stage: parameters, log_likelihood,

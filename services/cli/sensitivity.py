@@ -14,7 +14,14 @@ from scm_core.calibration import MorrisSettings
 from services.studies import StudyRequestError, sensitivity_spec
 from worker.here import run_here
 
-from .common import CLIError, compile_simulator_once, data_paths, read_case, read_datasets
+from .common import (
+    CLIError,
+    as_option,
+    compile_simulator_once,
+    data_paths,
+    read_case,
+    read_datasets,
+)
 from .folder_store import open_folder_store
 from .results import write_json
 
@@ -111,7 +118,7 @@ def sensitivity(
                 morris,
             )
         except StudyRequestError as exc:
-            raise CLIError(_as_option(str(exc))) from None
+            raise CLIError(as_option(str(exc), _OPTIONS)) from None
         spec = replace(spec, batch_size=_batch_size(spec.n_samples, workers))
         study = folder.study_for(spec, "a sensitivity study")
         compile_simulator_once()
@@ -149,15 +156,6 @@ def _batch_size(n_points: int, workers: int | None) -> int:
 
 #: the screening kind's request fields, as this command's options
 _OPTIONS = {"bounds": "--bounds", "r": "--r", "levels": "--levels", "dataset_id": "--data"}
-
-
-def _as_option(message: str) -> str:
-    """A screening's one-line error (naming a request field) naming the option instead."""
-    head, sep, rest = message.partition(":")
-    field, dot, factor = head.partition(".")
-    if sep and field in _OPTIONS:
-        return f"{_OPTIONS[field]}{' ' + factor if dot else ''}:{rest}"
-    return message
 
 
 def _print_indices(res: dict, out: Path) -> None:

@@ -1,7 +1,10 @@
-"""One stage loop (issue 43): the CLI's driver (``run_tmcmc``) and the service's (the
-calibration kind's batches and reducer) both go through :class:`Tempering`, and nothing else
-outside the inference core steps a TMCMC stage itself (stage-0 points, the stopping rule,
-the next plan, a stage's reduction), so the two cannot drift apart."""
+"""One stage loop (issue 43): the library's in-memory driver (``run_tmcmc``) and the
+service's (the calibration kind's batches and reducer) both go through :class:`Tempering`, and
+nothing else outside the inference core steps a TMCMC stage itself (stage-0 points, the
+stopping rule, the next plan, a stage's reduction), so the two cannot drift apart. The
+command line runs its studies through the service's kinds and batch function
+(``worker.here.run_here`` -> ``execute_batch``, which the Celery task and the embedded pool
+call too), not a driver of its own."""
 
 from __future__ import annotations
 
@@ -80,3 +83,24 @@ def test_run_tmcmc_takes_every_stage_from_the_loop(monkeypatch) -> None:
     assert res.status == "completed"
     assert [id(s) for s in res.stages] == [id(s) for s in made]
     assert np.isfinite(res.log_evidence)
+
+
+#: the service's one batch function, and who calls it
+BATCH = "execute_batch"
+BATCH_CALLERS = ("worker/runtime.py", "worker/here.py")
+#: the CLI's commands that run a study, through worker.here.run_here
+STUDY_COMMANDS = ("services/cli/calibrate.py", "services/cli/sensitivity.py")
+#: drivers or numerics of a study the CLI must not call itself
+OWN_DRIVERS = {"run_tmcmc", "run_sensitivity", "Tempering", "run_chains", "evaluate_points"}
+
+
+def test_the_cli_runs_studies_through_the_services_batches() -> None:
+    for rel in BATCH_CALLERS:
+        assert BATCH in _calls(ROOT / rel), rel
+    for rel in STUDY_COMMANDS:
+        assert "run_here" in _calls(ROOT / rel), rel
+    found = []
+    for path in sorted((ROOT / "services" / "cli").rglob("*.py")):
+        rel = path.relative_to(ROOT).as_posix()
+        found += [f"{rel} calls {name}" for name in sorted(_calls(path) & OWN_DRIVERS)]
+    assert found == [], "\n".join(found)

@@ -4,11 +4,13 @@ storage (with -inf, NaN, -0.0) and sample pagination."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import threading
 import time
 
 import numpy as np
 import pytest
+from store_fixtures import in_memory_run, work_one
 
 from scm_core.inference.tmcmc_stage import evaluate_points
 from services.stages import reduced_stage
@@ -193,3 +195,77 @@ def test_samples_pagination(store: Store, toy) -> None:
     plan = toy.plan(store, sid, 1)
     assert plan is not None and plan.stage == 1 and plan.n_chains == toy.n_samples
     assert store.stages.plan(sid, 0) is None
+
+
+def _adoption(toy, states):
+    """(plan, reduced) of each stage of an in-memory run, and what follows the last."""
+    from scm_core.inference.tmcmc_stage import plan_stage, stage_status
+    from services.stages import planned_stage
+
+    pairs = [(None, reduced_stage(states[0]))]
+    for prev, state in itertools.pairwise(states):
+        plan = planned_stage(plan_stage(prev, toy.prior, toy.settings))
+        pairs.append((plan, reduced_stage(state)))
+    last = states[-1]
+    if stage_status(last, toy.settings) is None:
+        plan = plan_stage(last, toy.prior, toy.settings)
+        tail = StageAdvance(pairs[-1][1], planned_stage(plan), toy.batches(plan.n_chains))
+    else:
+        tail = StageAdvance(pairs[-1][1], final_status="completed", result={"total": 1.5})
+    return pairs, tail
+
+
+def test_a_new_study_adopts_stages_run_elsewhere_and_goes_on_bit_for_bit(store: Store, toy) -> None:
+    """Stages 0-2 of the toy run, kept elsewhere, given to a new study in one transaction:
+    they read back bit for bit with the study's counters and events as if they had run
+    here, stage 3 is planned with pending batches, and working the study to its end gives
+    the in-memory run's final population."""
+    from services.stages import DatabaseStages, stage_states
+
+    states = in_memory_run(toy)
+    assert len(states) > 4
+    pairs, tail = _adoption(toy, states[:3])
+    sid = store.studies.create(toy.spec()).id
+    out = store.stages.adopt(sid, pairs, tail)
+    assert (out.status, out.study_status, out.next_stage) == ("advanced", "running", 3)
+    study = store.studies.get(sid)
+    assert study.current_stage == 3 and study.started_at is not None
+    assert study.model_runs == sum(s.model_runs for s in states[:3])
+    assert [b.status for b in store.batches.list(sid, 3)] == ["pending"] * len(
+        toy.batches(states[2].n_samples)
+    )
+    rows = store.stages.list(sid)
+    assert [r.status for r in rows] == ["done"] * 3 + ["planned"]
+    assert rows[1].beta == pairs[1][0].beta and rows[2].n_batches == 0
+    kinds = [e.kind for e in store.events.list(sid)]
+    assert kinds.count("stage_done") == 3 and "study_started" in kinds
+    while work_one(store, toy, "w"):
+        pass
+    got = stage_states(DatabaseStages(store, sid))
+    assert len(got) == len(states)
+    for a, b in zip(got, states, strict=True):
+        assert a.samples.tobytes() == b.samples.tobytes()
+        assert a.log_likelihood.tobytes() == b.log_likelihood.tobytes()
+    assert store.studies.get(sid).status == "completed"
+
+
+def test_adopting_a_whole_run_completes_the_study_and_only_a_new_study_adopts(
+    store: Store, toy
+) -> None:
+    states = in_memory_run(toy)
+    pairs, tail = _adoption(toy, states)
+    sid = store.studies.create(toy.spec()).id
+    out = store.stages.adopt(sid, pairs, tail)
+    assert (out.status, out.study_status) == ("advanced", "completed")
+    study = store.studies.get(sid)
+    assert study.result == {"total": 1.5} and study.log_evidence == states[-1].log_evidence
+    assert store.batches.list(sid) == []
+    with pytest.raises(InvalidStateError, match="cannot adopt"):
+        store.stages.adopt(sid, pairs, tail)
+    other = store.studies.create(toy.spec(name="other")).id
+    with pytest.raises(ValueError, match="stage 0 of the adopted run"):
+        store.stages.adopt(other, pairs[1:], tail)
+    with pytest.raises(ValueError, match="at least one stage"):
+        store.stages.adopt(other, [], tail)
+    assert store.studies.get(other).status == "queued"  # nothing written
+    assert store.stages.list(other) == []

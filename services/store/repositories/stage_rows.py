@@ -14,7 +14,7 @@ from ..models import Stage, WorkBatch
 from ..records import PlannedStage, StageRecord
 from .events import append_event
 
-__all__ = ["STAGE_COUNTS", "create_stage", "optional_float", "stage_record"]
+__all__ = ["STAGE_COUNTS", "create_done_stage", "create_stage", "optional_float", "stage_record"]
 
 
 def optional_float(x: float | None) -> float | None:
@@ -76,6 +76,37 @@ def _check_batches(batches: Sequence[range], n_chains: int | None) -> int:
     return pos
 
 
+def _with_plan(stage: Stage, plan: PlannedStage) -> None:
+    stage.plan = plan.blob
+    stage.exponent = optional_float(plan.exponent)
+    stage.prev_exponent = optional_float(plan.prev_exponent)
+    stage.beta = optional_float(plan.beta)
+    stage.ess = optional_float(plan.ess)
+    stage.log_evidence_increment = optional_float(plan.log_evidence_increment)
+    stage.n_steps = plan.n_steps
+
+
+def create_done_stage(
+    session: Session, study_id: int, plan: PlannedStage | None, n_chains: int, now: datetime
+) -> Stage:
+    """Insert a stage (status done) that ran elsewhere, with the plan it ran (None: stage 0)
+    and no work batches; its population and done columns are the caller's to write."""
+    stage = Stage(
+        study_id=study_id,
+        stage_index=0 if plan is None else plan.stage,
+        status="done",
+        n_chains=int(plan.n_chains if plan is not None else n_chains),
+        n_batches=0,
+        created_at=now,
+        updated_at=now,
+    )
+    if plan is not None:
+        _with_plan(stage, plan)
+    session.add(stage)
+    session.flush()
+    return stage
+
+
 def create_stage(
     session: Session,
     study_id: int,
@@ -100,13 +131,7 @@ def create_stage(
     if plan is not None:
         if plan.stage != stage_index:
             raise ValueError(f"plan is for stage {plan.stage}, not {stage_index}")
-        stage.plan = plan.blob
-        stage.exponent = optional_float(plan.exponent)
-        stage.prev_exponent = optional_float(plan.prev_exponent)
-        stage.beta = optional_float(plan.beta)
-        stage.ess = optional_float(plan.ess)
-        stage.log_evidence_increment = optional_float(plan.log_evidence_increment)
-        stage.n_steps = plan.n_steps
+        _with_plan(stage, plan)
     else:
         stage.exponent = exponent
     session.add(stage)

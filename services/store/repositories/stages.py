@@ -23,6 +23,7 @@ transaction.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from datetime import datetime
 from typing import Any
 
@@ -33,6 +34,7 @@ from ..errors import InvalidStateError, NotFoundError
 from ..models import Stage, Study, WorkBatch
 from ..records import (
     AdvanceOutcome,
+    PlannedStage,
     ReducedStage,
     ReduceInput,
     Reducer,
@@ -43,7 +45,7 @@ from ..records import (
 from .base import Database
 from .events import append_event
 from .samples import fetch_arrays, insert_samples
-from .stage_rows import create_stage, optional_float, stage_record
+from .stage_rows import create_done_stage, create_stage, optional_float, stage_record
 from .studies import load_study, set_study_status
 
 __all__ = ["StageRepository", "ready_stages"]
@@ -77,6 +79,14 @@ def ready_stages(session: Session) -> list[tuple[int, int]]:
         .order_by(Stage.study_id, Stage.stage_index)
     )
     return [(int(a), int(b)) for a, b in session.execute(q)]
+
+
+def _check_tail(adv: StageAdvance) -> None:
+    if adv.next_plan is None and adv.final_status not in FINAL_STUDY:
+        raise ValueError(
+            f"with no next plan, final_status must be one of {FINAL_STUDY}, "
+            f"got {adv.final_status!r}"
+        )
 
 
 def _get(session: Session, study_id: int, stage_index: int) -> Stage:
@@ -201,75 +211,144 @@ class StageRepository:
             raise TypeError(f"reducer returned {type(red).__name__}, expected ReducedStage")
         if red.stage != stage_index:
             raise ValueError(f"reducer returned the state of stage {red.stage}")
-        if adv.next_plan is None and adv.final_status not in FINAL_STUDY:
-            raise ValueError(
-                f"with no next plan, final_status must be one of {FINAL_STUDY}, "
-                f"got {adv.final_status!r}"
-            )
+        _check_tail(adv)
 
         insert_samples(s, st.id, red.population)
         s.execute(
             sa.update(Stage)
             .where(Stage.id == st.id)
-            .values(
-                status="done",
-                exponent=optional_float(red.exponent),
-                acceptance=optional_float(red.acceptance),
-                ess=optional_float(red.ess),
-                log_evidence=optional_float(red.log_evidence),
-                model_runs=int(red.model_runs),
-                failed_runs=int(red.failed_runs),
-                n_steps=red.n_steps,
-                state_meta=dict(red.meta),
-                updated_at=now,
-                finished_at=now,
-            )
+            .values(status="done", **_done_values(red, now))
             .execution_options(synchronize_session=False)
         )
-        append_event(
-            s,
-            study_id,
-            "stage_done",
-            {
-                "stage": stage_index,
-                "exponent": optional_float(red.exponent),
-                "acceptance": optional_float(red.acceptance),
-                "ess": optional_float(red.ess),
-                "log_evidence": optional_float(red.log_evidence),
-                "model_runs": int(red.model_runs),
-                "failed_runs": int(red.failed_runs),
-                **dict(adv.payload or {}),
-            },
-            now,
-        )
-        counters = {
-            "log_evidence": optional_float(red.log_evidence),
-            "log_evidence_var": optional_float(red.log_evidence_var),
-            "model_runs": Study.model_runs + int(red.model_runs),
-            "failed_runs": Study.failed_runs + int(red.failed_runs),
-        }
-        if adv.next_plan is not None:
-            nxt = stage_index + 1
-            if adv.next_plan.stage != nxt:
-                raise ValueError(f"next plan is for stage {adv.next_plan.stage}, not {nxt}")
+        _stage_done_event(s, study_id, stage_index, red, adv.payload, now)
+        return _follow(s, study_id, stage_index, red, adv, (red.model_runs, red.failed_runs), now)
+
+    def adopt(
+        self,
+        study_id: int,
+        stages: Sequence[tuple[PlannedStage | None, ReducedStage]],
+        tail: StageAdvance,
+    ) -> AdvanceOutcome:
+        """Give a queued study the done stages 0..k of the same run kept elsewhere (a results
+        folder's checkpoints, another store): each (the plan it ran, None for stage 0; its
+        reduced population), then what follows stage k (``tail``: the next plan and its
+        batches, or the end and the result; its ``reduced`` is not used), in one
+        transaction, as if the stages had run and been advanced here. The caller vouches
+        that the stages are this study's run (kind, case, seed, datasets); the reducers of
+        the later stages then continue it bit for bit. InvalidStateError if the study is not
+        queued (a study adopts stages once, before it starts)."""
+        if not stages:
+            raise ValueError("adopt needs at least one stage")
+        _check_tail(tail)
+        now = self.db.now()
+        k = len(stages) - 1
+        with self.db.write() as s:
             if not set_study_status(
-                s, study_id, "running", now, from_=("running",), current_stage=nxt, **counters
+                s, study_id, "running", now, from_=("queued",), started_at=now, current_stage=k
             ):
-                raise _InactiveError
-            create_stage(s, study_id, nxt, adv.next_plan, adv.next_batches, now)
-            return AdvanceOutcome("advanced", "running", nxt)
-        final = str(adv.final_status)
-        if adv.result is not None:
-            counters["result"] = dict(adv.result)
+                load_study(s, study_id)  # NotFoundError for an unknown study
+                raise InvalidStateError(f"study {study_id} is not queued: it cannot adopt stages")
+            append_event(s, study_id, "study_started", {"stage": 0, "adopted": len(stages)}, now)
+            for i, (plan, red) in enumerate(stages):
+                if red.stage != i or (plan is not None and plan.stage != i):
+                    raise ValueError(f"stage {i} of the adopted run is labelled {red.stage}")
+                st = create_done_stage(s, study_id, plan, red.population.samples.shape[0], now)
+                insert_samples(s, st.id, red.population)
+                s.execute(
+                    sa.update(Stage)
+                    .where(Stage.id == st.id)
+                    .values(**_done_values(red, now))
+                    .execution_options(synchronize_session=False)
+                )
+                _stage_done_event(s, study_id, i, red, None, now)
+            runs = sum(int(red.model_runs) for _, red in stages)
+            failed = sum(int(red.failed_runs) for _, red in stages)
+            return _follow(s, study_id, k, stages[-1][1], tail, (runs, failed), now)
+
+
+def _done_values(red: ReducedStage, now: datetime) -> dict[str, Any]:
+    """A done stage's columns from its reduced population."""
+    return {
+        "exponent": optional_float(red.exponent),
+        "acceptance": optional_float(red.acceptance),
+        "ess": optional_float(red.ess),
+        "log_evidence": optional_float(red.log_evidence),
+        "model_runs": int(red.model_runs),
+        "failed_runs": int(red.failed_runs),
+        "n_steps": red.n_steps,
+        "state_meta": dict(red.meta),
+        "updated_at": now,
+        "finished_at": now,
+    }
+
+
+def _stage_done_event(
+    s: Session,
+    study_id: int,
+    stage_index: int,
+    red: ReducedStage,
+    payload: Mapping[str, Any] | None,
+    now: datetime,
+) -> None:
+    append_event(
+        s,
+        study_id,
+        "stage_done",
+        {
+            "stage": stage_index,
+            "exponent": optional_float(red.exponent),
+            "acceptance": optional_float(red.acceptance),
+            "ess": optional_float(red.ess),
+            "log_evidence": optional_float(red.log_evidence),
+            "model_runs": int(red.model_runs),
+            "failed_runs": int(red.failed_runs),
+            **dict(payload or {}),
+        },
+        now,
+    )
+
+
+def _follow(
+    s: Session,
+    study_id: int,
+    stage_index: int,
+    red: ReducedStage,
+    adv: StageAdvance,
+    runs: tuple[int, int],
+    now: datetime,
+) -> AdvanceOutcome:
+    """After done stage ``stage_index`` (``red``; ``runs``: the model runs and failed runs
+    to add to the study's): open the next stage of ``adv`` or end the study."""
+    model_runs, failed_runs = runs
+    counters = {
+        "log_evidence": optional_float(red.log_evidence),
+        "log_evidence_var": optional_float(red.log_evidence_var),
+        "model_runs": Study.model_runs + int(model_runs),
+        "failed_runs": Study.failed_runs + int(failed_runs),
+    }
+    if adv.next_plan is not None:
+        nxt = stage_index + 1
+        if adv.next_plan.stage != nxt:
+            raise ValueError(f"next plan is for stage {adv.next_plan.stage}, not {nxt}")
         if not set_study_status(
-            s, study_id, final, now, from_=("running",), error=adv.error, **counters
+            s, study_id, "running", now, from_=("running",), current_stage=nxt, **counters
         ):
             raise _InactiveError
-        append_event(
-            s,
-            study_id,
-            f"study_{final}",
-            {"stage": stage_index, "log_evidence": red.log_evidence, "error": adv.error},
-            now,
-        )
-        return AdvanceOutcome("advanced", final, None)
+        create_stage(s, study_id, nxt, adv.next_plan, adv.next_batches, now)
+        return AdvanceOutcome("advanced", "running", nxt)
+    final = str(adv.final_status)
+    if adv.result is not None:
+        counters["result"] = dict(adv.result)
+    ended = set_study_status(
+        s, study_id, final, now, from_=("running",), error=adv.error, **counters
+    )
+    if not ended:
+        raise _InactiveError
+    append_event(
+        s,
+        study_id,
+        f"study_{final}",
+        {"stage": stage_index, "log_evidence": red.log_evidence, "error": adv.error},
+        now,
+    )
+    return AdvanceOutcome("advanced", final, None)

@@ -10,6 +10,7 @@ sample rows with the scalar fields of its ``StageState`` as ``meta``.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -18,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from scm_core.calibration import CaseDefinition, StudyModel
-from scm_core.inference.tmcmc_loop import PopulationStart, Tempering, evaluate_zero
+from scm_core.inference.tmcmc_loop import PopulationStart, StageStep, Tempering, evaluate_zero
 from scm_core.inference.tmcmc_moves import move_of
 from scm_core.inference.tmcmc_stage import (
     ChainBatchResult,
@@ -35,6 +36,8 @@ from services.store import (
     BatchKey,
     BatchLease,
     BatchOutput,
+    PlannedStage,
+    ReducedStage,
     ReduceInput,
     Reducer,
     StageAdvance,
@@ -44,7 +47,7 @@ from services.store import (
 )
 from services.store.codec import decode
 
-from ..batching import DEFAULT_BATCH_SIZE, batch_size_of, work_batches
+from ..batching import DEFAULT_BATCH_SIZE, DEFAULT_WORKERS, batch_size_of, work_batches
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
 from .base import KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item, stored_case
@@ -189,25 +192,57 @@ class CalibrationRun:
         see :func:`~services.studies.batching.work_batches`) or the end of the study."""
 
         def reduce(inp: ReduceInput) -> StageAdvance:
-            study = inp.study
             if inp.stage.stage_index == 0:
                 step = self.tempering.begin([decode(b, PointEvaluation) for b in inp.results])
             else:
                 chains = [decode(b, ChainBatchResult) for b in inp.results]
                 step = self.tempering.advance(decode(inp.plan or b"", StagePlan), chains)
-            state = step.state
-            if step.plan is not None:
-                batches = work_batches(step.plan.n_chains, study.batch_size, workers)
-                return StageAdvance(reduced_stage(state), planned_stage(step.plan), batches)
-            if step.status == "completed":
-                return StageAdvance(
-                    reduced_stage(state), final_status="completed", result=self.result(state)
-                )
-            return StageAdvance(
-                reduced_stage(state), final_status="stalled", error=f"TMCMC stopped: {step.status}"
-            )
+            return self.advance_of(step, inp.study.batch_size, workers)
 
         return reduce
+
+    def advance_of(
+        self, step: StageStep, batch_size: int | None, workers: int, result: Any = None
+    ) -> StageAdvance:
+        """What the store writes for a finished stage: its population, then the next plan
+        and its batches, or the end of the study (``result``: what it stores if it completes;
+        default :meth:`result`)."""
+        state = step.state
+        if step.plan is not None:
+            batches = work_batches(step.plan.n_chains, batch_size, workers)
+            return StageAdvance(reduced_stage(state), planned_stage(step.plan), batches)
+        if step.status == "completed":
+            done = self.result(state) if result is None else result
+            return StageAdvance(reduced_stage(state), final_status="completed", result=done)
+        return StageAdvance(
+            reduced_stage(state), final_status="stalled", error=f"TMCMC stopped: {step.status}"
+        )
+
+    def adopt(
+        self,
+        store: Store,
+        study: StudyRecord,
+        states: Sequence[StageState],
+        workers: int = DEFAULT_WORKERS,
+        result: Any = None,
+    ) -> None:
+        """Give the new (queued) ``study`` the done stages ``states`` (0..k) of its run kept
+        elsewhere (a results folder's checkpoints, an earlier study stopped at its
+        ``max_stages``): each stage's plan is made again from the stage before it (planning
+        is pure, so it is the plan that stage ran), and what follows stage k by this study's
+        settings; the next stages then continue the run bit for bit. ValueError if a stage
+        does not follow from the one before under these settings (another run's stages)."""
+        pairs: list[tuple[PlannedStage | None, ReducedStage]] = [(None, reduced_stage(states[0]))]
+        for prev, state in itertools.pairwise(states):
+            step = self.tempering.next(prev)
+            if step.plan is None or step.plan.exponent != state.exponent:
+                raise ValueError(
+                    f"stage {state.stage} does not follow from stage {prev.stage} under this "
+                    "study's settings"
+                )
+            pairs.append((planned_stage(step.plan), reduced_stage(state)))
+        tail = self.advance_of(self.tempering.next(states[-1]), study.batch_size, workers, result)
+        store.stages.adopt(study.id, pairs, tail)
 
 
 #: the study figures of a kind whose stages temper to a posterior (its page's figures)

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from scm_core.calibration import StudyModel, UpdateLikelihood
+from scm_core.calibration import CaseError, StudyModel, UpdateLikelihood
 from scm_core.inference.tmcmc_loop import PopulationStart
 from scm_core.inference.tmcmc_stage import StageState
 from scm_core.seeds import SEED_MAX
@@ -95,10 +95,13 @@ def update_spec(
     seed: int | None = None,
     batch_size: int | None = None,
     name: str | None = None,
+    max_stages: int | None = None,
 ) -> StudySpec:
     """An update of the completed study ``update_of`` with the stored ``dataset_ids``, checked
     like a calibration (limits, configuration at the prior medians); nothing is stored.
-    StudyRequestError names the field (``update_of``, ``dataset_ids``, ``seed``)."""
+    The case is the parent's, with ``max_stages`` if given (when to stop does not change the
+    samples). StudyRequestError names the field (``update_of``, ``dataset_ids``, ``seed``,
+    ``max_stages``)."""
     parent = completed_calibration(store, update_of, "update_of", "can be updated")
     ids = [int(d) for d in dataset_ids]
     check_dataset_ids(store, ids)
@@ -109,6 +112,13 @@ def update_spec(
             f"dataset_ids: dataset {again[0]} is already in the posterior of study {parent.id}"
         )
     case = stored_case(parent.case)
+    document = parent.case
+    if max_stages is not None and max_stages != case.sampler.max_stages:
+        try:
+            case = case.with_changes(sampler={"max_stages": int(max_stages)})
+        except CaseError as exc:
+            raise StudyRequestError(str(exc).removeprefix("sampler.")) from None
+        document = case.to_dict()
     if seed is None:
         seed = update_seed(parent.seed)
     if why := seed_error(seed):
@@ -118,7 +128,7 @@ def update_spec(
     precheck(store, settings, case, ids)
     return StudySpec(
         name=name or f"{parent.name} + update",
-        case=parent.case,
+        case=document,
         dataset_ids=ids,
         seed=int(seed),
         n_samples=parent.n_samples,
@@ -195,8 +205,10 @@ class UpdateKind(CalibrationKind):
 
 
 def _total_log_evidence(store: Store, study: StudyRecord) -> float:
-    """log Z of all the data behind ``study``'s posterior."""
-    if study.kind == "update" and study.result:
+    """log Z of all the data behind ``study``'s posterior: the total its result holds (an
+    update's, or that of an update's stages adopted from a results folder), else its log
+    evidence."""
+    if study.result and "log_evidence_total" in study.result:
         return float(study.result["log_evidence_total"])
     return float(study.log_evidence if study.log_evidence is not None else np.nan)
 
