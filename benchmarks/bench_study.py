@@ -70,8 +70,8 @@ from scm_core.calibration import CaseDefinition, StudyModel, load_case, run_tmcm
 from scm_core.inference.tmcmc_moves import WasteFreeMove, stage_chains
 from scm_core.inference.tmcmc_types import RESAMPLING
 from scm_core.signals import load_dataset
-from services.cli.pool import batch_map
 from services.studies.batching import local_batch_size
+from worker.batch_map import batch_map
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "case1.toml"

@@ -47,8 +47,8 @@ from scm_core.calibration import (
 )
 from scm_core.inference.tmcmc_moves import stage_chains
 from scm_core.signals import load_dataset
-from services.cli.pool import batch_map
 from services.studies.batching import local_batch_size
+from worker.batch_map import batch_map
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "quick.toml"

@@ -35,13 +35,12 @@ from scm_core.inference.tmcmc_types import MOVES
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import SWTDataset
 from services.limits import run_seeds
-from services.stages import DatabaseStages, FolderStages, StageStoreError, stage_states
+from services.stages import DatabaseStages, stage_states
 from services.store import StudyRecord
 from services.studies import StudyRequestError, calibration_spec
 from services.studies.batching import local_batch_size
 from services.studies.kinds import kind_of
 from services.studies.kinds.base import stored_case
-from services.studies.kinds.calibration import KIND
 from services.studies.kinds.update import update_seed, update_spec
 from worker.here import run_here
 
@@ -55,8 +54,8 @@ from .common import (
     read_case,
     read_datasets,
 )
-from .folder_store import FolderStore, open_folder_store
-from .parent import ParentStudy, load_parent
+from .folder_store import DB_FILE, FolderStore, open_folder_store
+from .parent import ParentStudy, load_parent, stored_posterior
 from .progress import StageDisplay, StageWatch
 from .results import Checkpoints, write_outputs
 from .runs import (
@@ -88,18 +87,7 @@ def _update_inputs(
     the parent's files must still hold what it was calibrated on."""
     case = parent.case.with_changes(seed=update_seed(parent.case.seed))
     case = _with_sampler(case, {} if max_stages is None else {"max_stages": max_stages})
-    for path in parent.dataset_paths:
-        if not path.is_file():
-            raise CLIError(
-                f"--update-of {parent.results}: its dataset {path} is gone; the update needs "
-                "the data behind the earlier posterior"
-            )
-    old = read_datasets(case, parent.dataset_paths)
-    for d, path, digest in zip(old, parent.dataset_paths, parent.dataset_hashes, strict=True):
-        if d.content_hash != digest:
-            raise CLIError(
-                f"--update-of {parent.results}: {path} changed since that study was calibrated"
-            )
+    old = parent.datasets()
     new = read_datasets(case, new_paths)
     for d, path in zip(new, new_paths, strict=True):
         if d.content_hash in parent.dataset_hashes:
@@ -298,7 +286,7 @@ def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
         "workers": options.workers,
         "session_wall_time_s": time.perf_counter() - t0,
     }
-    return _finish(study, out, result, walls, extra, options)
+    return _finish(study, out, result, walls, extra, options, record.id)
 
 
 def _folder_study(
@@ -317,7 +305,7 @@ def _folder_study(
     ids = folder.add_datasets(study.datasets[n_old:], study.paths[n_old:])
     try:
         if study.parent is not None:
-            parent = _parent_copy(folder, study)
+            parent = stored_posterior(folder, study.parent)
             spec = update_spec(
                 store,
                 folder.settings,
@@ -352,32 +340,6 @@ def _goes_on(found: StudyRecord, case: CaseDefinition) -> bool:
         return True
     stopped = found.status == "stalled" and "max_stages" in (found.error or "")
     return stopped and stored_case(found.case).sampler.max_stages < case.sampler.max_stages
-
-
-def _parent_copy(folder: FolderStore, study: _Study) -> StudyRecord:
-    """The earlier study an update starts from, in the update's folder: a completed
-    calibration on all the datasets behind its posterior whose stages are those of the
-    earlier folder's checkpoints, bit for bit, and whose result holds the total log
-    evidence of its data."""
-    parent, store, n_old = study.parent, folder.store, study.n_old
-    assert parent is not None
-    ids = folder.add_datasets(study.datasets[:n_old], study.paths[:n_old])
-    spec = calibration_spec(store, folder.settings, parent.case, ids)
-    spec = replace(spec, name=f"{parent.case.name} ({parent.results.resolve()})"[:200])
-    found = folder.find(spec)
-    if found is not None and found.status == "completed":
-        return found
-    record = store.studies.create(spec)
-    try:
-        states = stage_states(FolderStages(parent.results))
-        total = {"log_evidence_total": parent.log_evidence, "results": str(parent.results)}
-        KIND.build(store, record).adopt(store, record, states, result=total)
-    except (StageStoreError, ValueError) as exc:
-        raise CLIError(f"--update-of {parent.results}: {exc}") from None
-    record = store.studies.get(record.id)
-    if record.status != "completed":
-        raise CLIError(f"--update-of {parent.results}: its stages do not end the calibration")
-    return record
 
 
 #: the study service's request fields, as this command's options
@@ -437,10 +399,11 @@ def _finish(
     wall_times: list[float],
     extra: dict[str, Any],
     options: _RunOptions,
+    study_id: int,
 ) -> str:
     """Write the results folder, print the summary and any warning; returns the status."""
     parent = study.parent
-    sections = {}
+    sections: dict[str, Any] = {"study": {"database": DB_FILE, "id": study_id}}
     if parent is not None:
         increment = float(result.log_evidence)
         sections["update"] = {

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import importlib
 import sys
-from concurrent.futures.process import BrokenProcessPool
 
 import click
 
@@ -53,15 +52,6 @@ class _Group(click.Group):
             sys.exit(exc.exit_code)
         except click.exceptions.Exit as exc:
             sys.exit(exc.exit_code)
-        except BrokenProcessPool:
-            # a --workers process was killed (by a signal, or for memory): what finished is
-            # kept (calibrate's stages, sensitivity's and predict's nothing partial)
-            click.echo(
-                "error: a worker process died (killed, or out of memory); re-run the same "
-                "command: a calibration resumes from its last finished stage",
-                err=True,
-            )
-            sys.exit(1)
 
 
 @click.group(cls=_Group)

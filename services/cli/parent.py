@@ -1,24 +1,32 @@
-"""The earlier study a ``scm-calib calibrate --update-of DIR`` run starts from.
+"""A finished ``calibrate`` results folder's posterior: what ``--update-of DIR`` starts from and
+what ``scm-calib predict DIR`` simulates.
 
-A ``calibrate`` results folder holds what an update needs: the case (``summary.json``), the final
-population bit for bit (the last ``checkpoints/stage_NNN.json``), the datasets behind the
-posterior (their files, recorded in ``summary.json`` with their content hashes) and the log
-evidence (the total one if the folder is itself an update).
+A results folder holds what they need: the case (``summary.json``), the final population bit for
+bit (the last ``checkpoints/stage_NNN.json``), the datasets behind the posterior (their files,
+recorded in ``summary.json`` with their content hashes), the log evidence (the total one if the
+folder is itself an update) and, when the folder holds its study's database, the study's id.
+:func:`stored_posterior` gives the posterior as a completed study of a folder's database.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from scm_core.calibration import CaseDefinition, CaseError
 from scm_core.inference import StageState
-from services.stages import FolderStages, StageStoreError
+from scm_core.signals import SWTDataset
+from services.stages import FolderStages, StageStoreError, stage_states
+from services.store import NotFoundError, StudyRecord
+from services.studies import calibration_spec
+from services.studies.kinds.calibration import KIND as CALIBRATION
 
-from .common import CLIError
+from .common import CLIError, read_datasets
+from .folder_store import FolderStore
 
 
 @dataclass(frozen=True)
@@ -33,6 +41,25 @@ class ParentStudy:
     dataset_paths: list[Path]
     dataset_hashes: list[str]
     log_evidence: float
+    study_id: int | None = None
+    summary: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    def datasets(self, option: str = "--update-of") -> list[SWTDataset]:
+        """The datasets behind the posterior, read again from their files with the case's
+        data settings; a one-line error (naming ``option``) if a file is gone or changed."""
+        for path in self.dataset_paths:
+            if not path.is_file():
+                raise CLIError(
+                    f"{option} {self.results}: its dataset {path} is gone; this needs the data "
+                    "behind the earlier posterior"
+                )
+        found = read_datasets(self.case, self.dataset_paths)
+        for d, path, digest in zip(found, self.dataset_paths, self.dataset_hashes, strict=True):
+            if d.content_hash != digest:
+                raise CLIError(
+                    f"{option} {self.results}: {path} changed since that study was calibrated"
+                )
+        return found
 
     @property
     def identity(self) -> dict[str, Any]:
@@ -45,13 +72,13 @@ class ParentStudy:
         }
 
 
-def load_parent(results: Path) -> ParentStudy:
+def load_parent(results: Path, option: str = "--update-of") -> ParentStudy:
     """The completed study in the ``calibrate`` results folder ``results``; CLIError naming
-    the file for anything missing or unfinished."""
+    the file (and ``option``) for anything missing or unfinished."""
     summary_path = results / "summary.json"
     if not summary_path.is_file():
         raise CLIError(
-            f"--update-of {results}: no summary.json; give the output folder of a finished "
+            f"{option} {results}: no summary.json; give the output folder of a finished "
             "`scm-calib calibrate`"
         )
     try:
@@ -66,8 +93,8 @@ def load_parent(results: Path) -> ParentStudy:
         raise CLIError(f"{summary_path}: {exc}") from None
     if status != "completed":
         raise CLIError(
-            f"--update-of {results}: the study is {status}; only a completed calibration can "
-            "be updated"
+            f"{option} {results}: the study is {status}; only a completed calibration has a "
+            "posterior"
         )
     paths = [d.get("path") for d in datasets]
     if not paths or any(p is None for p in paths):
@@ -78,7 +105,7 @@ def load_parent(results: Path) -> ParentStudy:
     try:
         final = FolderStages(results).state(n_stages)
     except StageStoreError as exc:
-        raise CLIError(f"--update-of {results}: its final stage: {exc}") from None
+        raise CLIError(f"{option} {results}: its final stage: {exc}") from None
     update = summary.get("update") or {}
     log_z = update.get("log_evidence_total", summary.get("log_evidence"))
     return ParentStudy(
@@ -88,4 +115,40 @@ def load_parent(results: Path) -> ParentStudy:
         dataset_paths=[Path(p) for p in paths],
         dataset_hashes=[str(d.get("content_hash")) for d in datasets],
         log_evidence=float("nan") if log_z is None else float(log_z),
+        study_id=(summary.get("study") or {}).get("id"),
+        summary=summary,
     )
+
+
+def stored_posterior(
+    folder: FolderStore, parent: ParentStudy, option: str = "--update-of"
+) -> StudyRecord:
+    """``parent``'s posterior as a completed study of ``folder``'s database: the folder's own
+    study when ``parent`` is the folder and its summary names it; else a calibration on all
+    the datasets behind the posterior (read again from their files, likelihood order) whose
+    stages are ``parent``'s checkpoints, bit for bit, and whose result holds the total log
+    evidence of its data (an update's parent, a folder written before folders held a
+    database)."""
+    store = folder.store
+    if parent.study_id is not None and folder.out.resolve() == parent.results.resolve():
+        with contextlib.suppress(NotFoundError):
+            own = store.studies.get(int(parent.study_id))
+            if own.status == "completed":
+                return own
+    ids = folder.add_datasets(parent.datasets(option), parent.dataset_paths)
+    spec = calibration_spec(store, folder.settings, parent.case, ids)
+    spec = replace(spec, name=f"{parent.case.name} ({parent.results.resolve()})"[:200])
+    found = folder.find(spec)
+    if found is not None and found.status == "completed":
+        return found
+    record = store.studies.create(spec)
+    try:
+        states = stage_states(FolderStages(parent.results))
+        total = {"log_evidence_total": parent.log_evidence, "results": str(parent.results)}
+        CALIBRATION.build(store, record).adopt(store, record, states, result=total)
+    except (StageStoreError, ValueError) as exc:
+        raise CLIError(f"{parent.results}: {exc}") from None
+    record = store.studies.get(record.id)
+    if record.status != "completed":
+        raise CLIError(f"{parent.results}: its stages do not end the calibration")
+    return record

@@ -11,6 +11,7 @@ with whether it falls inside. Writes ``predictions.json`` and ``predictions.png`
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import dataclass, replace
@@ -24,18 +25,25 @@ from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import CaseDefinition, DatasetTerms
-from scm_core.calibration.predict import (
-    ConditionPrediction,
-    predict,
-    sweep_loads,
-    sweep_targets,
-)
+from scm_core.calibration.predict import ConditionPrediction, sweep_loads, sweep_targets
 from scm_core.signals import LogFormatError, SWTDataset
 from scm_core.signals.metadata import merge_metadata
+from services.studies import StudyRequestError
+from services.studies.kinds import kind_of
+from services.studies.kinds.prediction import PredictionRequest, prediction_spec
+from worker.here import run_here
 
-from .common import CLIError, compile_simulator_once, data_option, option_group, read_datasets
-from .pool import batch_map
-from .results import load_results, write_json
+from .common import (
+    CLIError,
+    as_option,
+    compile_simulator_once,
+    data_option,
+    option_group,
+    read_datasets,
+)
+from .folder_store import FolderStore, open_folder_store
+from .parent import load_parent, stored_posterior
+from .results import write_json
 
 _SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
 
@@ -193,19 +201,22 @@ def predict_cmd(
     no_plots: bool,
 ) -> None:
     """Predict F, T, z of the study in RESULTS (a `calibrate` output folder) under the test
-    conditions of other datasets, with 95 % posterior bands."""
-    case, samples, summary = load_results(results)
+    conditions of other datasets, with 95 % posterior bands.
+
+    The predictions are studies of RESULTS's database made by the service's prediction kind
+    (one per kind of target: datasets, --at conditions, the sweep) and run by its batches."""
+    parent = load_parent(results, "predict")
+    case, summary = parent.case, parent.summary
     targets = replace(targets, data=(*targets.data, *more_data))
-    datasets, roles, at_terms, sweep_terms = _conditions(case, summary, targets)
+    datasets, _, at_terms, sweep_terms = _conditions(case, summary, targets)
     compile_simulator_once(as_json)
-    with batch_map(workers) as mapper:
-        run = partial(predict, case, samples, draws=draws, seed=seed, map=mapper)
-        try:
-            preds = run(datasets, roles=roles)
-            untested = run(at_terms, roles=["untested"] * len(at_terms))
-            swept = run(sweep_terms, roles=["sweep"] * len(sweep_terms))
-        except ValueError as exc:
-            raise CLIError(str(exc)) from None
+    with open_folder_store(results, workers) as folder:
+        posterior = stored_posterior(folder, parent, "predict")
+        ids = folder.add_datasets(datasets, list(targets.data))
+        run = partial(_predict, folder, posterior.id, draws, seed, workers)
+        preds = run(ids, None, "") if ids else []
+        untested = run(None, at_terms, "untested") if at_terms else []
+        swept = run(None, sweep_terms, "sweep") if sweep_terms else []
     doc = {
         "format": "scm-calib-predictions",
         "version": 1,
@@ -241,6 +252,50 @@ def predict_cmd(
         click.echo(json.dumps(doc, indent=2))
     else:
         _print_table(preds + untested, out)
+
+
+#: the prediction kind's request fields, as this command's options
+_OPTIONS = {"draws": "--draws", "seed": "--seed", "dataset_ids": "--data", "conditions": "--at"}
+
+
+def _predict(
+    folder: FolderStore,
+    study_id: int,
+    draws: int,
+    seed: int,
+    workers: int | None,
+    dataset_ids: list[int] | None,
+    conditions: list[DatasetTerms] | None,
+    role: str,
+) -> list[ConditionPrediction]:
+    """The predictions of the folder's study ``study_id`` under ``dataset_ids`` or
+    ``conditions`` (a prediction study of the folder, run here or found done); ``role``
+    labels those of conditions ("untested", "sweep")."""
+    body = PredictionRequest(
+        study_id=study_id,
+        dataset_ids=dataset_ids,
+        conditions=None
+        if conditions is None
+        else [{"name": t.name, **t.conditions} for t in conditions],
+        draws=draws,
+        seed=seed,
+        batch_size=max(1, math.ceil(draws / (4 * (workers or 1)))),
+    )
+    try:
+        spec = prediction_spec(folder.store, folder.settings, body)
+    except StudyRequestError as exc:
+        where = {**_OPTIONS, "conditions": "--sweep" if role == "sweep" else "--at"}
+        raise CLIError(as_option(str(exc), where)) from None
+    record = folder.find(spec) or folder.store.studies.create(spec)
+    try:
+        record = run_here(folder.store, record.id, folder.settings, workers)
+    except KeyboardInterrupt:
+        click.echo("interrupted: re-run the same command to go on", err=True)
+        raise SystemExit(130) from None
+    if record.status != "completed":
+        raise CLIError(f"the prediction ended {record.status}: {record.error}")
+    preds = kind_of(record.kind).build(folder.store, record).stored(folder.store, record)
+    return [p if not role else dataclasses.replace(p, role=role) for p in preds]
 
 
 def _shown_responses(case: CaseDefinition, preds: list[ConditionPrediction]) -> tuple[str, ...]:

@@ -212,6 +212,36 @@ def test_predict_bands_sweep_and_reproducible(work: Path, reference: Path) -> No
         assert np.array_equal(ppc[r].values[0, :, 0], np.array(p["responses"][r]["draws"]))
 
 
+def test_predict_is_the_librarys_predict_bit_for_bit_also_from_an_older_folder(
+    work: Path, reference: Path
+) -> None:
+    """``scm-calib predict`` runs prediction studies of the results folder's database (the
+    service's kind): its bands and draws are ``scm_core``'s ``predict`` on the folder's
+    posterior bit for bit; a folder without a database (written before folders held one)
+    gets its posterior taken over from its checkpoints and predicts the same numbers."""
+    import shutil
+
+    from scm_core.calibration import load_case
+    from scm_core.calibration.predict import predict
+    from scm_core.signals import load_dataset
+    from services.cli.folder_store import DB_FILE
+    from services.cli.results import load_results
+
+    args = ("--data", "log.csv", "--draws", "9", "--seed", "4", "--json", "--no-plots")
+    proc = run_cli("predict", "ref", *args, "--out", "p_new", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    case, samples, _ = load_results(reference)
+    data = [load_dataset(work / "log.csv", offset=load_case(work / "tiny.toml").data.offset)]
+    (expected,) = predict(case, samples, data, draws=9, seed=4, roles=["calibration"])
+    assert doc["datasets"] == [json.loads(json.dumps(expected.to_dict(draws=True)))]
+    older = work / "ref_older"
+    shutil.copytree(reference, older, ignore=shutil.ignore_patterns(DB_FILE, "predictions"))
+    again = run_cli("predict", older, *args, cwd=work)
+    assert again.returncode == 0, again.stderr
+    assert json.loads(again.stdout)["datasets"] == doc["datasets"]
+
+
 def test_predict_at_conditions_nobody_measured(work: Path, reference: Path) -> None:
     """--at gives bands with no measurement, the same numbers as a dataset with those
     conditions would get; units as in lab metadata."""

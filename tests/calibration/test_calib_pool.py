@@ -1,4 +1,5 @@
-"""The CLI's worker pool (services/cli/pool.py) leaves no orphan when its parent is killed."""
+"""The in-memory drivers' process pool (worker/batch_map.py) leaves no orphan when its parent is
+killed."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 PARENT = """
 import os, sys, time
-from services.cli.pool import batch_map
+from worker.batch_map import batch_map
 
 def pid_then_sleep(i):
     os.write(1, f"{os.getpid()}\\n".encode())  # one write: the two workers' lines cannot mix

@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, dataset_terms
 from scm_core.calibration.predict import LEVEL, prediction_draws, summarize_predictions
+from scm_core.inference._serial import decode_array, encode_array
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError
 from scm_core.signals.conditions import make_conditions
@@ -266,6 +267,23 @@ class PredictionRun:
         means, ok = model_function(self.draws[lease.chain_start : lease.chain_stop])
         return batch_output(lease, SimulatedDraws(np.asarray(means), np.asarray(ok)))
 
+    def summarize(self, means: NDArray[np.float64], ok: NDArray[np.bool_]) -> list[Any]:
+        """The predictions (:class:`~scm_core.calibration.predict.ConditionPrediction`, with
+        each draw's values) from the draws' steady means (draws, targets, 3) and ok mask."""
+        return summarize_predictions(
+            self.case, self.targets, self.draws, means, ok, self.seed, self.roles
+        )
+
+    def stored(self, store: Store, study: StudyRecord) -> list[Any]:
+        """The predictions of the completed study ``study`` from its stored stage, the same
+        bit for bit as its result's (and with each draw's values, which the result leaves
+        out)."""
+        meta, population = store.stages.population(study.id, 0)
+        n = self.draws.shape[0]
+        means = np.asarray(population.responses, dtype=float).reshape(n, len(self.targets), 3)
+        ok = decode_array(meta["ok"]) if "ok" in meta else np.isfinite(means).all(axis=2)
+        return self.summarize(means, np.asarray(ok, dtype=bool))
+
     def reducer(self, workers: int) -> Reducer:
         """The bands of the study's only stage (``workers`` is not needed)."""
 
@@ -273,9 +291,7 @@ class PredictionRun:
             parts = [decode(b, SimulatedDraws) for b in inp.results]
             means = np.concatenate([p.means for p in parts], axis=0)
             ok = np.concatenate([p.ok for p in parts], axis=0)
-            preds = summarize_predictions(
-                self.case, self.targets, self.draws, means, ok, self.seed, self.roles
-            )
+            preds = self.summarize(means, ok)
             n = self.draws.shape[0]
             nan = np.full(n, np.nan)
             reduced = ReducedStage(
@@ -283,7 +299,7 @@ class PredictionRun:
                 population=SampleArrays(self.draws, nan, nan, means.reshape(n, -1)),
                 model_runs=n,
                 failed_runs=int(np.count_nonzero(~ok.all(axis=1))),
-                meta={"seed": self.seed},
+                meta={"seed": self.seed, "ok": encode_array(ok)},
             )
             result = {
                 "study_id": self.study_id,

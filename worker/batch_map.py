@@ -1,4 +1,5 @@
-"""Where batches run: in this process (numba threads on all cores) or in a process pool.
+"""A process pool for the library's in-memory drivers (scripts and benchmarks; the command
+line runs its studies through the service's batches instead, :mod:`worker.here`).
 
 ``batch_map(workers)`` is a context manager yielding a ``map(func, iterable)`` for
 :func:`scm_core.calibration.run_tmcmc` / :func:`scm_core.calibration.run_sensitivity`:
