@@ -8,13 +8,14 @@ import sys
 import click
 
 # command name -> "module:attribute", imported only when the command runs (numba, scipy and the
-# web stack are slow to import; `scm-calib upload` should not pay for them)
-COMMANDS = {
+# web stack are slow to import; `scm-calib upload` should not pay for them). The commands that
+# run a kind of study are the kinds' own (``StudyKind.cli``), mounted from the registry between
+# these two groups.
+TOOLS_BEFORE = {
     "simulate": "services.cli.simulate:simulate",
     "synth": "services.cli.synth:synth",
-    "calibrate": "services.cli.calibrate:calibrate",
-    "sensitivity": "services.cli.sensitivity:sensitivity",
-    "predict": "services.cli.predict:predict_cmd",
+}
+TOOLS_AFTER = {
     "check": "services.cli.check:check",
     "diagnose": "services.cli.runs:diagnose",
     "export": "services.cli.export:export",
@@ -26,15 +27,27 @@ COMMANDS = {
 }
 
 
+def kind_commands() -> dict[str, str]:
+    """The commands of the registry's kinds (name -> "module:attribute")."""
+    from services.studies.kinds import KINDS
+
+    return {k.cli.name: k.cli.command for k in KINDS.values() if k.cli is not None}
+
+
+def commands() -> dict[str, str]:
+    """Every command of ``scm-calib``, in the order ``--help`` lists them."""
+    return {**TOOLS_BEFORE, **kind_commands(), **TOOLS_AFTER}
+
+
 class _Group(click.Group):
     """Click group with lazily imported commands whose usage errors are one line on stderr
     with exit code 2."""
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return list(COMMANDS)
+        return list(commands())
 
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
-        target = COMMANDS.get(name)
+        target = TOOLS_BEFORE.get(name) or TOOLS_AFTER.get(name) or kind_commands().get(name)
         if target is None:
             return None
         module, attr = target.split(":")

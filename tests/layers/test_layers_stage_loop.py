@@ -89,9 +89,20 @@ def test_run_tmcmc_takes_every_stage_from_the_loop(monkeypatch) -> None:
 BATCH = "execute_batch"
 BATCH_CALLERS = ("worker/runtime.py", "worker/here.py")
 #: the CLI's commands that run a study, through worker.here.run_here
-STUDY_COMMANDS = ("services/cli/calibrate.py", "services/cli/sensitivity.py")
+STUDY_COMMANDS = (
+    "services/cli/calibrate.py",
+    "services/cli/sensitivity.py",
+    "services/cli/predict.py",
+)
 #: drivers or numerics of a study the CLI must not call itself
-OWN_DRIVERS = {"run_tmcmc", "run_sensitivity", "Tempering", "run_chains", "evaluate_points"}
+OWN_DRIVERS = {
+    "run_tmcmc",
+    "run_sensitivity",
+    "predict",
+    "Tempering",
+    "run_chains",
+    "evaluate_points",
+}
 
 
 def test_the_cli_runs_studies_through_the_services_batches() -> None:

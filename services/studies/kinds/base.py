@@ -14,7 +14,9 @@ figures drawn for it, its words for what its stages hold), so the dashboard spel
 name. A kind may bring its own collection of the HTTP API (:class:`KindHttp`: a path, a request
 model, its validation into a study and the model of its result); the API mounts
 ``POST PATH``, ``GET PATH`` and ``GET PATH/{id}`` for every kind of the registry that has one,
-so a new kind needs its module and a line in the registry, nothing in the API.
+so a new kind needs its module and a line in the registry, nothing in the API. A kind may bring
+a command of the ``scm-calib`` command line (:class:`KindCli`), which the CLI mounts from the
+registry likewise.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from services.store import BatchLease, BatchOutput, Reducer, Store, StudyRecord,
 from services.store.codec import encode
 
 __all__ = [
+    "KindCli",
     "KindHttp",
     "KindPanel",
     "ModelFunction",
@@ -88,6 +91,17 @@ class KindHttp:
     description: str
     fields: type[BaseModel] | None = None
     fields_of: Callable[[StudyRecord], BaseModel] | None = None
+
+
+@dataclass(frozen=True)
+class KindCli:
+    """A kind's command of the ``scm-calib`` command line (mounted by ``services.cli``):
+    ``name`` (``scm-calib NAME``) and ``command``, the click command as ``"module:attribute"``,
+    imported only when the command runs (the command line starts without the kinds' heavy
+    imports)."""
+
+    name: str
+    command: str
 
 
 @dataclass(frozen=True)
@@ -163,11 +177,13 @@ class StudyKind(Protocol):
     its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``);
     ``collection``: the API path its studies are read under, with their results
     (``GET COLLECTION/{id}``); ``posterior``: its stages temper to a posterior (a summary, log
-    evidence, comparisons and pooling apply); ``panel``: how the dashboard shows it."""
+    evidence, comparisons and pooling apply); ``panel``: how the dashboard shows it; ``cli``:
+    its command line command, if it has one of its own."""
 
     name: str
     title: str
     http: KindHttp | None
+    cli: KindCli | None
     collection: str
     posterior: bool
     panel: KindPanel

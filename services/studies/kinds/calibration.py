@@ -50,7 +50,15 @@ from services.store.codec import decode
 from ..batching import DEFAULT_BATCH_SIZE, DEFAULT_WORKERS, batch_size_of, work_batches
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
-from .base import KindPanel, StudyTerms, batch_output, case_terms, one_run_per_item, stored_case
+from .base import (
+    KindCli,
+    KindPanel,
+    StudyTerms,
+    batch_output,
+    case_terms,
+    one_run_per_item,
+    stored_case,
+)
 from .checks import check_runs, prior_medians
 
 __all__ = ["KIND", "CalibrationRun", "calibration_spec"]
@@ -255,6 +263,7 @@ class CalibrationKind:
     name = "tmcmc"
     title = "calibration"
     http = None  # POST /studies
+    cli = KindCli("calibrate", "services.cli.calibrate:calibrate")
     collection = "/studies"
     posterior = True
     panel = KindPanel(template="kinds/posterior.html", figures=POSTERIOR_FIGURES)

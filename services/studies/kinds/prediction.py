@@ -55,6 +55,7 @@ from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
 from ..request_model import RequestModel
 from .base import (
+    KindCli,
     KindHttp,
     KindPanel,
     StudyTerms,
@@ -334,6 +335,7 @@ class PredictionKind:
         "inside. Bit-identical to ``scm-calib predict`` for the same seed. Any problem "
         "answers 422 naming the field, and nothing is stored.",
     )
+    cli = KindCli("predict", "services.cli.predict:predict_cmd")
     collection = http.path
 
     def build(self, store: Store, study: StudyRecord) -> PredictionRun:

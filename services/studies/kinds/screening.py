@@ -65,7 +65,15 @@ from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
 from ..intake import base_case
 from ..request_model import PRESET_OR_CASE, RequestModel
-from .base import KindHttp, KindPanel, StudyTerms, batch_output, one_run_per_item, stored_case
+from .base import (
+    KindCli,
+    KindHttp,
+    KindPanel,
+    StudyTerms,
+    batch_output,
+    one_run_per_item,
+    stored_case,
+)
 from .checks import check_runs, prior_medians
 
 __all__ = [
@@ -369,6 +377,7 @@ class ScreeningKind:
         fields=ScreeningDesign,
         fields_of=design_view,
     )
+    cli = KindCli("sensitivity", "services.cli.sensitivity:sensitivity")
     collection = http.path
     posterior = False
     panel = KindPanel(

@@ -174,6 +174,7 @@ class UpdateKind(CalibrationKind):
     name = "update"
     title = "posterior update"
     http = None  # POST /studies with update_of
+    cli = None  # scm-calib calibrate --update-of
     collection = "/studies"
     posterior = True
     panel = KindPanel(
