@@ -68,14 +68,17 @@ def run_here(
             store.batches.give_back(owner)
 
 
+def _look(store: Store, study_id: int, watch: Watch | None) -> StudyRecord:
+    """The study now, shown to ``watch``."""
+    study = store.studies.get(study_id)
+    if watch is not None:
+        watch(store, study)
+    return study
+
+
 def _in_process(store: Store, study_id: int, me: str, watch: Watch | None) -> StudyRecord:
     cache = ContextCache()
-    while True:
-        study = store.studies.get(study_id)
-        if watch is not None:
-            watch(store, study)
-        if study.status not in ACTIVE:
-            return study
+    while (study := _look(store, study_id, watch)).status in ACTIVE:
         stage = int(study.current_stage or 0)
         batches = store.batches.list(study_id, stage)
         pending = [b.key for b in batches if b.status == "pending"]
@@ -87,6 +90,7 @@ def _in_process(store: Store, study_id: int, me: str, watch: Watch | None) -> St
             raise RuntimeError(
                 f"study {study_id} is {study.status} at stage {stage} with no batch to run"
             )
+    return study
 
 
 def _on_pool(
@@ -94,14 +98,10 @@ def _on_pool(
 ) -> StudyRecord:
     runtime = LocalRuntime(settings, store, workers).start()
     try:
-        while True:
-            study = store.studies.get(study_id)
-            if watch is not None:
-                watch(store, study)
-            if study.status not in ACTIVE:
-                return study
+        while (study := _look(store, study_id, watch)).status in ACTIVE:
             if not runtime.alive:
                 raise RuntimeError(runtime.health().detail)
             time.sleep(POLL_S)
+        return study
     finally:
         runtime.stop()

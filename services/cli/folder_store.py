@@ -99,9 +99,12 @@ def _identity(store: Store, study: StudySpec | StudyRecord, kind: str | None = N
 
 
 @contextlib.contextmanager
-def open_folder_store(out: Path, workers: int | None = None) -> Iterator[FolderStore]:
+def open_folder_store(
+    out: Path, workers: int | None = None, option: str = "--out"
+) -> Iterator[FolderStore]:
     """The store of results folder ``out`` (created, or migrated to the code's revision),
-    locked for this process; a one-line error if the folder cannot be made or is in use. A
+    locked for this process; a one-line error (naming the folder as ``option``, the command
+    line's word for it) if the folder cannot be made or is in use. A
     folder this call made is removed again if the command fails before storing a study (a
     refused input leaves nothing behind)."""
     from services.store import migrate
@@ -113,13 +116,15 @@ def open_folder_store(out: Path, workers: int | None = None) -> Iterator[FolderS
         out.mkdir(parents=True, exist_ok=True)
         lock = open(out / LOCK_FILE, "a+b")  # noqa: SIM115 (held while the store is open)
     except OSError as exc:
-        raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
+        raise CLIError(f"{option} {out}: {exc.strerror or exc}") from None
     store = None
     try:
         try:
             fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            raise CLIError(f"--out {out}: another scm-calib command is using this folder") from None
+            raise CLIError(
+                f"{option} {out}: another scm-calib command is using this folder"
+            ) from None
         url = f"sqlite:///{db_path.resolve().as_posix()}"
         settings = Settings(
             database_url=url, broker_url=None, worker_concurrency=workers or 1, dashboard=False

@@ -26,6 +26,7 @@ from rich.table import Table
 
 from scm_core.calibration import CaseDefinition, DatasetTerms
 from scm_core.calibration.predict import ConditionPrediction, sweep_loads, sweep_targets
+from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError, SWTDataset
 from scm_core.signals.metadata import merge_metadata
 from services.studies import StudyRequestError
@@ -174,7 +175,7 @@ def _conditions(
     show_default=True,
     help="Posterior samples to simulate.",
 )
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0, max=SEED_MAX), default=0, show_default=True)
 @click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
@@ -210,7 +211,7 @@ def predict_cmd(
     targets = replace(targets, data=(*targets.data, *more_data))
     datasets, _, at_terms, sweep_terms = _conditions(case, summary, targets)
     compile_simulator_once(as_json)
-    with open_folder_store(results, workers) as folder:
+    with open_folder_store(results, workers, "predict") as folder:
         posterior = stored_posterior(folder, parent, "predict")
         ids = folder.add_datasets(datasets, list(targets.data))
         run = partial(_predict, folder, posterior.id, draws, seed, workers)

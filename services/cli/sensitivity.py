@@ -11,6 +11,7 @@ from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import MorrisSettings
+from scm_core.seeds import SEED_MAX
 from services.studies import StudyRequestError, sensitivity_spec
 from worker.here import run_here
 
@@ -59,7 +60,7 @@ def _parse_bounds(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
 @click.option(
     "--levels", default=4, show_default=True, type=click.IntRange(min=2), help="Grid levels (even)."
 )
-@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0, max=SEED_MAX))
 @click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),

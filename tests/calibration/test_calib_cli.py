@@ -303,6 +303,23 @@ def test_sensitivity_stopped_and_resumed_gives_the_same_screening(work: Path, mo
     assert "sens_cut holds a sensitivity study of other inputs" in line
 
 
+def test_a_folder_in_use_by_another_command_is_refused(work: Path, reference: Path) -> None:
+    """One command at a time uses a results folder: while another holds its lock, a command
+    on it stops with a one-line error naming the folder, and nothing of it changes."""
+    import fcntl
+
+    from services.cli.folder_store import DB_FILE, LOCK_FILE
+
+    before = (reference / DB_FILE).read_bytes()
+    with open(reference / LOCK_FILE, "a+b") as held:
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        line = one_line_error(run_cli_here("calibrate", "tiny.toml", "--out", "ref", cwd=work))
+        assert "--out ref: another scm-calib command is using this folder" in line
+        line = one_line_error(run_cli_here("predict", "ref", "--data", "log.csv", cwd=work))
+        assert "predict ref: another scm-calib command is using this folder" in line
+    assert (reference / DB_FILE).read_bytes() == before
+
+
 def test_a_refused_screening_leaves_no_folder(work: Path) -> None:
     line = one_line_error(
         run_cli_here("sensitivity", "tiny.toml", "--bounds", "K=1:2", "--out", "no/sens", cwd=work)

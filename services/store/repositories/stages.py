@@ -266,8 +266,8 @@ class StageRepository:
             return _follow(s, study_id, k, stages[-1][1], tail, (runs, failed), now)
 
 
-def _done_values(red: ReducedStage, now: datetime) -> dict[str, Any]:
-    """A done stage's columns from its reduced population."""
+def _scalars(red: ReducedStage) -> dict[str, Any]:
+    """A done stage's diagnostics and run counts (its columns, and its "stage_done" event)."""
     return {
         "exponent": optional_float(red.exponent),
         "acceptance": optional_float(red.acceptance),
@@ -275,6 +275,13 @@ def _done_values(red: ReducedStage, now: datetime) -> dict[str, Any]:
         "log_evidence": optional_float(red.log_evidence),
         "model_runs": int(red.model_runs),
         "failed_runs": int(red.failed_runs),
+    }
+
+
+def _done_values(red: ReducedStage, now: datetime) -> dict[str, Any]:
+    """A done stage's columns from its reduced population."""
+    return {
+        **_scalars(red),
         "n_steps": red.n_steps,
         "state_meta": dict(red.meta),
         "updated_at": now,
@@ -290,22 +297,8 @@ def _stage_done_event(
     payload: Mapping[str, Any] | None,
     now: datetime,
 ) -> None:
-    append_event(
-        s,
-        study_id,
-        "stage_done",
-        {
-            "stage": stage_index,
-            "exponent": optional_float(red.exponent),
-            "acceptance": optional_float(red.acceptance),
-            "ess": optional_float(red.ess),
-            "log_evidence": optional_float(red.log_evidence),
-            "model_runs": int(red.model_runs),
-            "failed_runs": int(red.failed_runs),
-            **dict(payload or {}),
-        },
-        now,
-    )
+    info = {"stage": stage_index, **_scalars(red), **dict(payload or {})}
+    append_event(s, study_id, "stage_done", info, now)
 
 
 def _follow(
