@@ -103,7 +103,7 @@ def main() -> None:
             f"{log_z:.6g}",
             "yes" if outcome[(name, mode)] == first else "NO",
         )
-    Console().print(table)
+    Console(width=120).print(table)
 
 
 if __name__ == "__main__":
