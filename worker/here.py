@@ -7,10 +7,12 @@ simulator's numba threads use the cores) batches run one after another; with ``w
 run on the embedded server's supervised pool (:class:`~worker.local.LocalRuntime`, one numba
 thread per process).
 
-The caller owns the store for the run (a results folder's database, locked by its command):
-leases left by an earlier run here that was stopped or killed are given back uncounted at the
-start, and this run's at its end, also when Ctrl-C stops it (KeyboardInterrupt is raised to
-the caller; the stages and batches already stored stay, and running again resumes).
+A batch that raises is given back and tried again, up to the store's attempt cap, after which
+the study fails (as on the service). The caller owns the store for the run (a results folder's
+database, locked by its command): leases left by an earlier run here that was stopped or
+killed are given back uncounted at the start, and this run's at its end, also when Ctrl-C
+stops it (KeyboardInterrupt is raised to the caller; the stages and batches already stored
+stay, and running again resumes).
 """
 
 from __future__ import annotations
@@ -83,7 +85,10 @@ def _in_process(store: Store, study_id: int, me: str, watch: Watch | None) -> St
         batches = store.batches.list(study_id, stage)
         pending = [b.key for b in batches if b.status == "pending"]
         if pending:
-            execute_batch(store, pending[0], cache, None, worker=me)
+            try:
+                execute_batch(store, pending[0], cache, None, worker=me)
+            except Exception:  # logged and given back: tried again up to the attempt cap
+                continue
         elif batches and all(b.status == "done" for b in batches):
             advance(store, study_id, stage, cache, None)  # stopped between store and advance
         else:

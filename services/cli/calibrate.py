@@ -46,10 +46,12 @@ from worker.here import run_here
 
 from .common import (
     CLIError,
+    StudyFailed,
     as_option,
     compile_simulator_once,
     data_option,
     data_paths,
+    one_line_logs,
     option_group,
     read_case,
     read_datasets,
@@ -275,7 +277,7 @@ def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
         t0 = time.perf_counter()
         record = _sample(folder, record, ckpt, console, options)
         if record.status == "failed":
-            raise CLIError(f"the study failed: {record.error}")
+            raise StudyFailed(f"the study failed: {record.error}")
         states = stage_states(DatabaseStages(folder.store, record.id))
         run = kind_of(record.kind).build(folder.store, record)
         status = run.tempering.next(states[-1]).status or ""
@@ -380,7 +382,7 @@ def _sample(
     display = StageDisplay(options.quiet, console)
     watch = StageWatch(display, ckpt.save, ckpt.stages.count())
     try:
-        with display:
+        with display, one_line_logs():
             return run_here(folder.store, record.id, folder.settings, options.workers, watch)
     except KeyboardInterrupt:
         n = ckpt.stages.count()

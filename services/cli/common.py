@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
-from collections.abc import Callable, Mapping, Sequence
+import logging
+import sys
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -48,6 +51,43 @@ class CLIError(click.ClickException):
     """A bad input (case file, dataset, option): one line on stderr, exit code 2."""
 
     exit_code = 2
+
+
+class StudyFailed(click.ClickException):
+    """A study that ran and failed (a batch failed at every attempt): one line on stderr
+    naming why, exit code 1 (not a bad input; its stored stages stay)."""
+
+    exit_code = 1
+
+
+class _OneLine(logging.Formatter):
+    """``warning: message`` on one line; an exception as its type and message, no traceback."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = " ".join(record.getMessage().split())
+        exc = record.exc_info[1] if record.exc_info else None
+        if exc is not None:
+            text += f": {type(exc).__name__}: {' '.join(str(exc).split())}"
+        return f"{record.levelname.lower()}: {text}"
+
+
+@contextlib.contextmanager
+def one_line_logs() -> Iterator[None]:
+    """While a command runs a study: the service's warnings and errors (a pool process
+    replaced, a batch that failed and is tried again) as one line each on stderr. Left alone
+    when logging is already configured (a script, the tests)."""
+    root = logging.getLogger()
+    if root.handlers:
+        yield
+        return
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setLevel(logging.WARNING)
+    handler.setFormatter(_OneLine())
+    root.addHandler(handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
 
 
 def as_option(message: str, options: Mapping[str, str]) -> str:

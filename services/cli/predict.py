@@ -36,9 +36,11 @@ from worker.here import run_here
 
 from .common import (
     CLIError,
+    StudyFailed,
     as_option,
     compile_simulator_once,
     data_option,
+    one_line_logs,
     option_group,
     read_datasets,
 )
@@ -289,12 +291,13 @@ def _predict(
         raise CLIError(as_option(str(exc), where)) from None
     record = folder.find(spec) or folder.store.studies.create(spec)
     try:
-        record = run_here(folder.store, record.id, folder.settings, workers)
+        with one_line_logs():
+            record = run_here(folder.store, record.id, folder.settings, workers)
     except KeyboardInterrupt:
         click.echo("interrupted: re-run the same command to go on", err=True)
         raise SystemExit(130) from None
     if record.status != "completed":
-        raise CLIError(f"the prediction ended {record.status}: {record.error}")
+        raise StudyFailed(f"the prediction ended {record.status}: {record.error}")
     preds = kind_of(record.kind).build(folder.store, record).stored(folder.store, record)
     return [p if not role else dataclasses.replace(p, role=role) for p in preds]
 

@@ -17,9 +17,11 @@ from worker.here import run_here
 
 from .common import (
     CLIError,
+    StudyFailed,
     as_option,
     compile_simulator_once,
     data_paths,
+    one_line_logs,
     read_case,
     read_datasets,
 )
@@ -124,7 +126,8 @@ def sensitivity(
         study = folder.study_for(spec, "a sensitivity study")
         compile_simulator_once()
         try:
-            study = run_here(folder.store, study.id, folder.settings, workers)
+            with one_line_logs():
+                study = run_here(folder.store, study.id, folder.settings, workers)
         except KeyboardInterrupt:
             click.echo(
                 f"interrupted: the design points run so far are kept in {out}; re-run the "
@@ -133,7 +136,7 @@ def sensitivity(
             )
             raise SystemExit(130) from None
     if study.status != "completed" or not study.result:
-        raise CLIError(f"the screening ended {study.status}: {study.error}")
+        raise StudyFailed(f"the screening ended {study.status}: {study.error}")
     res = study.result
     doc = {
         "case": case.name,

@@ -320,6 +320,30 @@ def test_a_folder_in_use_by_another_command_is_refused(work: Path, reference: Pa
     assert (reference / DB_FILE).read_bytes() == before
 
 
+def test_a_batch_that_always_fails_ends_the_study_after_the_attempt_cap(
+    work: Path, monkeypatch
+) -> None:
+    """A batch that raises is given back and tried again, as on the service; at the attempt
+    cap the study fails and the command says so in one line (exit 1), no traceback; what the
+    folder stored stays."""
+    from services.cli.folder_store import DB_FILE
+    from services.store import Store
+    from services.studies.kinds.screening import MorrisRun
+
+    def broken(self, store, lease, model_function):
+        raise RuntimeError("the simulator is broken")
+
+    monkeypatch.setattr(MorrisRun, "compute", broken)
+    proc = run_cli_here("sensitivity", "tiny.toml", "--r", "2", "--out", "sens_bad", cwd=work)
+    line = one_line_error(proc, code=1)
+    assert line.startswith("error: the screening ended failed: batch 0 of stage 0")
+    assert "RuntimeError: the simulator is broken" in line
+    with Store.open(f"sqlite:///{work / 'sens_bad' / DB_FILE}") as store:
+        (study,) = store.studies.list().items
+        batch = store.batches.list(study.id, 0)[0]
+        assert study.status == "failed" and batch.attempts == store.db.max_attempts
+
+
 def test_a_refused_screening_leaves_no_folder(work: Path) -> None:
     line = one_line_error(
         run_cli_here("sensitivity", "tiny.toml", "--bounds", "K=1:2", "--out", "no/sens", cwd=work)
