@@ -59,7 +59,7 @@ class FolderStore:
         """The newest study of the folder with ``spec``'s inputs (see :func:`_identity`)."""
         mine = _identity(self.store, spec)
         for study in self.store.studies.list(kind=spec.kind, limit=1000).items:
-            if _identity(self.store, study, study.kind) == mine:
+            if _identity(self.store, study) == mine:
                 return study
         return None
 
@@ -68,7 +68,7 @@ class FolderStore:
         (``what`` names it: "a sensitivity study"): a results folder never mixes inputs."""
         mine = _identity(self.store, spec)
         for study in self.store.studies.list(kind=spec.kind, limit=1000).items:
-            if _identity(self.store, study, study.kind) != mine:
+            if _identity(self.store, study) != mine:
                 raise CLIError(
                     f"--out {self.out} holds {what} of other inputs (case, datasets, seed or "
                     f"settings); give another --out, or remove {self.out / DB_FILE} to start "
@@ -82,13 +82,13 @@ class FolderStore:
         return self.find(spec) or self.store.studies.create(spec)
 
 
-def _identity(store: Store, study: StudySpec | StudyRecord, kind: str | None = None) -> str:
+def _identity(store: Store, study: StudySpec | StudyRecord) -> str:
     """What decides a study's results: kind, the case's fingerprint (not its name, data file
     names, batch size or ``max_stages``: a stopped run can go on), the datasets' contents,
     seed, size and the kind's settings."""
     hashes = [store.datasets.get(int(d)).content_hash for d in study.dataset_ids]
     doc: dict[str, Any] = {
-        "kind": kind or study.kind,
+        "kind": study.kind,
         "case": CaseDefinition.from_stored(dict(study.case)).fingerprint(),
         "datasets": hashes,
         "seed": int(study.seed),
