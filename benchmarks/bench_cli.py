@@ -24,20 +24,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench_startup import checkouts, compile_simulator
 from rich.console import Console
 from rich.table import Table
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def _env(tree: Path) -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": str(tree)}
-
-
-def warm(tree: Path) -> None:
-    """Fill ``tree``'s numba cache (a fresh worktree compiles the simulator once)."""
-    code = "from scm_core.simulator import warm_up; warm_up()"
-    subprocess.run([sys.executable, "-c", code], cwd=tree, env=_env(tree), check=True)
 
 
 def calibrate(tree: Path, case: str, workers: int | None) -> tuple[float, tuple]:
@@ -60,33 +53,18 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--baseline", help="git ref to compare with (run from a worktree)")
     args = ap.parse_args()
-    trees = {"this checkout": ROOT}
-    tmp = Path(tempfile.mkdtemp(prefix="bench-cli-trees-"))
-    if args.baseline:
-        tree = tmp / "baseline"
-        subprocess.run(
-            ["git", "-C", str(ROOT), "worktree", "add", "-q", "--detach", str(tree), args.baseline],
-            check=True,
-        )
-        trees[f"baseline {args.baseline}"] = tree
     modes = {"in-process": None, f"--workers {args.workers}": args.workers}
-    try:
+    times: dict[tuple[str, str], list[float]] = {}
+    outcome: dict[tuple[str, str], tuple] = {}
+    with checkouts(args.baseline) as trees:
         for tree in trees.values():
-            warm(tree)
-        times: dict[tuple[str, str], list[float]] = {}
-        outcome: dict[tuple[str, str], tuple] = {}
+            compile_simulator(tree)
         for _ in range(args.repeats):
             for name, tree in trees.items():
                 for mode, workers in modes.items():
                     seconds, result = calibrate(tree, args.case, workers)
                     times.setdefault((name, mode), []).append(seconds)
                     outcome[(name, mode)] = result
-    finally:
-        if args.baseline:
-            subprocess.run(
-                ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(trees.popitem()[1])],
-                check=False,
-            )
     first = next(iter(outcome.values()))
     table = Table(title=f"scm-calib calibrate {args.case}, median of {args.repeats} [s]")
     for col in ("tree", "mode", "median s", "runs s", "stages", "model runs", "log Z", "same"):

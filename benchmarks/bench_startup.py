@@ -17,12 +17,14 @@ alternating, so both share the machine's noise.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from bench_upload import start_server
@@ -62,6 +64,26 @@ def import_time(tree: Path, modules: str) -> tuple[float, str]:
     return float(out[0]), (out[1].strip() if len(out) > 1 else "")
 
 
+@contextlib.contextmanager
+def checkouts(baseline: str | None) -> Iterator[dict[str, Path]]:
+    """The trees a benchmark compares: {label: path}, a git worktree of ``baseline`` (removed
+    afterwards) first when one is given, then this checkout."""
+    if not baseline:
+        yield {"this checkout": ROOT}
+        return
+    tree = Path(tempfile.mkdtemp(prefix="bench-trees-")) / "baseline"
+    subprocess.run(
+        ["git", "-C", str(ROOT), "worktree", "add", "-q", "--detach", str(tree), baseline],
+        check=True,
+    )
+    try:
+        yield {baseline: tree, "this checkout": ROOT}
+    finally:
+        subprocess.run(
+            ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=False
+        )
+
+
 def compile_simulator(tree: Path) -> None:
     """Fill ``tree``'s numba cache (a fresh worktree compiles the simulator once, minutes)."""
     subprocess.run(
@@ -96,16 +118,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--baseline", help="git ref to compare with (run from a worktree)")
     args = ap.parse_args()
-    trees = {"this checkout": ROOT}
-    tmp = Path(tempfile.mkdtemp(prefix="bench-startup-trees-"))
-    if args.baseline:
-        tree = tmp / "baseline"
-        subprocess.run(
-            ["git", "-C", str(ROOT), "worktree", "add", "-q", "--detach", str(tree), args.baseline],
-            check=True,
-        )
-        trees = {args.baseline: tree, **trees}
-    try:
+    with checkouts(args.baseline) as trees:
         times: dict[tuple[str, str], list[float]] = {}
         loaded: dict[tuple[str, str], str] = {}
         for tree in trees.values():  # warm-up: bytecode and numba caches, the file cache
@@ -120,12 +133,6 @@ def main() -> None:
                     loaded[(entry, label)] = heavy
                 times.setdefault(("serve: ready", label), []).append(serve_ready(tree))
                 loaded[("serve: ready", label)] = ""
-    finally:
-        if args.baseline:
-            subprocess.run(
-                ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tmp / "baseline")],
-                check=False,
-            )
     table = Table(title=f"start-up, median of {args.repeats} fresh processes [s]")
     for col in ("process", "checkout", "median s", "min s", "max s", "heavy libraries loaded"):
         table.add_column(

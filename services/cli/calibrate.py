@@ -307,7 +307,7 @@ def _folder_study(
     ids = folder.add_datasets(study.datasets[n_old:], study.paths[n_old:])
     try:
         if study.parent is not None:
-            parent = stored_posterior(folder, study.parent)
+            parent = stored_posterior(folder, study.parent, datasets=study.datasets[:n_old])
             spec = update_spec(
                 store,
                 folder.settings,
@@ -321,8 +321,7 @@ def _folder_study(
     except StudyRequestError as exc:
         raise CLIError(as_option(str(exc), _OPTIONS)) from None
     what = "an update" if study.parent is not None else "a calibration"
-    folder.refuse_others(spec, what)
-    found = folder.find(spec)
+    found = folder.find(spec, what)
     if found is not None and not _goes_on(found, study.case):
         return found
     record = store.studies.create(spec)

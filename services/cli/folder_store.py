@@ -55,31 +55,29 @@ class FolderStore:
             ids.append(rec.id)
         return ids
 
-    def find(self, spec: StudySpec) -> StudyRecord | None:
-        """The newest study of the folder with ``spec``'s inputs (see :func:`_identity`)."""
+    def find(self, spec: StudySpec, what: str | None = None) -> StudyRecord | None:
+        """The newest study of the folder with ``spec``'s inputs (see :func:`_identity`).
+        With ``what`` (the command's word for it: "a sensitivity study"), a folder holding a
+        study of the kind with other inputs is refused in one line: a results folder never
+        mixes inputs."""
         mine = _identity(self.store, spec)
-        for study in self.store.studies.list(kind=spec.kind, limit=1000).items:
-            if _identity(self.store, study) == mine:
-                return study
-        return None
-
-    def refuse_others(self, spec: StudySpec, what: str) -> None:
-        """A one-line error if the folder holds a study of ``spec``'s kind with other inputs
-        (``what`` names it: "a sensitivity study"): a results folder never mixes inputs."""
-        mine = _identity(self.store, spec)
+        found = None
         for study in self.store.studies.list(kind=spec.kind, limit=1000).items:
             if _identity(self.store, study) != mine:
-                raise CLIError(
-                    f"--out {self.out} holds {what} of other inputs (case, datasets, seed or "
-                    f"settings); give another --out, or remove {self.out / DB_FILE} to start "
-                    "over"
-                )
+                if what is not None:
+                    raise CLIError(
+                        f"--out {self.out} holds {what} of other inputs (case, datasets, seed "
+                        f"or settings); give another --out, or remove {self.out / DB_FILE} to "
+                        "start over"
+                    )
+            elif found is None:
+                found = study  # the listing is newest first
+        return found
 
     def study_for(self, spec: StudySpec, what: str) -> StudyRecord:
         """The folder's study of ``spec``: the one stored (a run to resume or already done)
-        or a new one; refuses a folder holding another (:meth:`refuse_others`)."""
-        self.refuse_others(spec, what)
-        return self.find(spec) or self.store.studies.create(spec)
+        or a new one; refuses a folder holding another (see :meth:`find`)."""
+        return self.find(spec, what) or self.store.studies.create(spec)
 
 
 def _identity(store: Store, study: StudySpec | StudyRecord) -> str:

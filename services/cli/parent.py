@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -121,21 +122,25 @@ def load_parent(results: Path, option: str = "--update-of") -> ParentStudy:
 
 
 def stored_posterior(
-    folder: FolderStore, parent: ParentStudy, option: str = "--update-of"
+    folder: FolderStore,
+    parent: ParentStudy,
+    option: str = "--update-of",
+    datasets: Sequence[SWTDataset] | None = None,
 ) -> StudyRecord:
     """``parent``'s posterior as a completed study of ``folder``'s database: the folder's own
     study when ``parent`` is the folder and its summary names it; else a calibration on all
     the datasets behind the posterior (read again from their files, likelihood order) whose
     stages are ``parent``'s checkpoints, bit for bit, and whose result holds the total log
     evidence of its data (an update's parent, a folder written before folders held a
-    database)."""
+    database). ``datasets``: those already read by :meth:`ParentStudy.datasets`, if any."""
     store = folder.store
     if parent.study_id is not None and folder.out.resolve() == parent.results.resolve():
         with contextlib.suppress(NotFoundError):
             own = store.studies.get(int(parent.study_id))
             if own.status == "completed":
                 return own
-    ids = folder.add_datasets(parent.datasets(option), parent.dataset_paths)
+    found_data = parent.datasets(option) if datasets is None else datasets
+    ids = folder.add_datasets(found_data, parent.dataset_paths)
     spec = calibration_spec(store, folder.settings, parent.case, ids)
     spec = replace(spec, name=f"{parent.case.name} ({parent.results.resolve()})"[:200])
     found = folder.find(spec)

@@ -30,6 +30,7 @@ from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError, SWTDataset
 from scm_core.signals.metadata import merge_metadata
 from services.studies import StudyRequestError
+from services.studies.batching import local_batch_size
 from services.studies.kinds import kind_of
 from services.studies.kinds.prediction import PredictionRequest, prediction_spec
 from worker.here import run_here
@@ -282,7 +283,7 @@ def _predict(
         else [{"name": t.name, **t.conditions} for t in conditions],
         draws=draws,
         seed=seed,
-        batch_size=max(1, math.ceil(draws / (4 * (workers or 1)))),
+        batch_size=local_batch_size(draws, workers),
     )
     try:
         spec = prediction_spec(folder.store, folder.settings, body)

@@ -19,6 +19,8 @@ from rich.progress import (
 
 from scm_core.calibration import StageStart
 from scm_core.inference import StageState
+from services.stages import DatabaseStages
+from services.studies.kinds import kind_of
 
 # ---------------------------------------------------------------------- progress
 
@@ -144,9 +146,6 @@ class StageWatch:
         self.session = True
 
     def __call__(self, store: Any, study: Any) -> None:
-        from services.stages import DatabaseStages
-        from services.studies.kinds import kind_of
-
         stages = DatabaseStages(store, study.id)
         while self.saved < stages.count():
             state = stages.state(self.saved)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -13,6 +12,7 @@ from rich.table import Table
 from scm_core.calibration import MorrisSettings
 from scm_core.seeds import SEED_MAX
 from services.studies import StudyRequestError, sensitivity_spec
+from services.studies.batching import local_batch_size
 from worker.here import run_here
 
 from .common import (
@@ -122,7 +122,7 @@ def sensitivity(
             )
         except StudyRequestError as exc:
             raise CLIError(as_option(str(exc), _OPTIONS)) from None
-        spec = replace(spec, batch_size=_batch_size(spec.n_samples, workers))
+        spec = replace(spec, batch_size=local_batch_size(spec.n_samples, workers))
         study = folder.study_for(spec, "a sensitivity study")
         compile_simulator_once()
         try:
@@ -150,12 +150,6 @@ def sensitivity(
 
     plot_indices(res, out / "sensitivity.png")
     _print_indices(res, out)
-
-
-def _batch_size(n_points: int, workers: int | None) -> int:
-    """Design points per batch: four batches in this process (progress and Ctrl-C between
-    them), else about four per worker process."""
-    return max(1, math.ceil(n_points / (4 * (workers or 1))))
 
 
 #: the screening kind's request fields, as this command's options

@@ -44,10 +44,10 @@ def indices_figure(
     return fig
 
 
-def stored_indices_figure(doc: Mapping[str, Any], title: str) -> Figure:
+def stored_indices_figure(doc: Mapping[str, Any], title: str, note: str = "") -> Figure:
     """The bars of :func:`indices_figure` from a stored result document
     (:meth:`SensitivityResult.to_dict`: tables response -> factor -> index, null for NaN);
-    ``title`` is prefixed to its settings and run counts."""
+    ``title`` is followed by its settings and run counts, then ``note``."""
     names = [f["name"] for f in doc["factors"]]
 
     def table(key: str) -> NDArray[np.float64]:
@@ -62,7 +62,7 @@ def stored_indices_figure(doc: Mapping[str, Any], title: str) -> Figure:
         table("linear_index"),
         table("nonlinear_index"),
         f"{title} (r = {doc['r']}, {doc['levels']} levels, {doc['n_runs']} runs, "
-        f"{doc['n_failed_runs']} failed)",
+        f"{doc['n_failed_runs']} failed){note}",
     )
 
 

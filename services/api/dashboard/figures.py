@@ -361,7 +361,7 @@ def _indices(store: Store, study: StudyRecord, **_: Any) -> Figure:
     if "linear_index" not in res:
         raise FigureError(f"study {study.id} has no Morris result yet ({study.status})")
     title = f"{study.name}: Morris screening"
-    return plots.sensitivity.stored_indices_figure(res, title)
+    return plots.sensitivity.stored_indices_figure(res, title, " (Figure 4)")
 
 
 def _band(b: dict[str, Any] | None) -> Band | None:
