@@ -119,6 +119,18 @@ class _TimedLikelihood(WrappedLikelihood):
             self.seconds += time.perf_counter() - t0
 
 
+def is_interrupt(exc: BaseException | None) -> bool:
+    """KeyboardInterrupt, possibly wrapped (numba turns one raised inside a compiled call's
+    callback into a SystemError whose cause is the KeyboardInterrupt)."""
+    seen = 0
+    while exc is not None and seen < 10:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        exc = exc.__cause__ or exc.__context__
+        seen += 1
+    return False
+
+
 def execute_batch(
     store: Store,
     key: BatchKey,
@@ -144,6 +156,8 @@ def execute_batch(
         with beat:
             result = ctx.compute(store, lease, timed)
     except Exception as exc:
+        if is_interrupt(exc):  # stopped, not failed: the lease stays for its owner to give back
+            raise KeyboardInterrupt from exc
         log.exception("batch %s failed", key)
         store.batches.release(lease, f"{type(exc).__name__}: {exc}")
         raise
