@@ -1,13 +1,15 @@
-"""What each of a study page's figures costs to draw, cold (no cache), per stage.
+"""What each of a study page's figures costs to make, cold (no cache), per stage.
 
-Run: ``python benchmarks/bench_figures.py [--repeats 5] [--fmt svg]``. Serves a fresh embedded
-instance (SQLite, two local workers) once, runs bench_progress's small calibration to its end,
-stops the server, then draws the last finished stage's page figures
+Run: ``python benchmarks/bench_figures.py [--repeats 5] [--fmt json svg]``. Serves a fresh
+embedded instance (SQLite, two local workers) once, runs bench_progress's small calibration to
+its end, stops the server, then makes the last finished stage's page figures
 (:func:`services.api.dashboard.figures.page_figures`) in this process with an empty cache,
-``--repeats`` times, and prints the median and spread of each figure's wall time [ms] and
-size [kB], their sum, and the makespan of the two figure processes' longest-first schedule
-(what the page waits for after a stage ends, on top of its poll). The simulator is compiled and
-matplotlib warmed before the first repeat, as the dashboard's figure processes do
+``--repeats`` times per format, and prints the median and spread of each figure's wall time
+[ms] and size [kB], their sum, and the makespan of the two figure processes' longest-first
+schedule (what the page waits for after a stage ends, on top of its poll). ``json`` is the
+chart's data the page draws (issue 45), ``svg``/``png`` the matplotlib drawing of the same
+chart (the downloads; what the page showed before). The simulator is compiled and matplotlib
+warmed before the first repeat, as the dashboard's figure processes do
 (:func:`~services.api.dashboard.drawing.prepare_drawing`).
 """
 
@@ -64,11 +66,11 @@ def makespan(seconds: list[float], processes: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--fmt", default="svg", choices=("svg", "png"))
+    ap.add_argument("--fmt", nargs="+", default=["json", "svg"], choices=("json", "svg", "png"))
     args = ap.parse_args()
 
-    from services.api.dashboard.drawing import DRAWING_PROCESSES, prepare_drawing
-    from services.api.dashboard.figures import FigureCache, page_figures, study_figure
+    from services.api.dashboard.drawing import prepare_drawing
+    from services.api.dashboard.figures import page_figures
     from services.api.views import parameter_names
     from services.store import Store
 
@@ -79,23 +81,41 @@ def main() -> None:
         done = [s.stage_index for s in store.stages.list(sid) if s.status == "done"]
         specs = page_figures(parameter_names(study), done[-1])
         prepare_drawing()  # as a figure process
-        times: dict[str, list[float]] = {}
-        sizes: dict[str, float] = {}
-        for _ in range(args.repeats + 1):  # the first: warm-up, not counted
-            cache = FigureCache()
-            for spec in specs:
-                label = spec["name"] + (f" {'/'.join(spec['pair'])}" if "pair" in spec else "")
-                t0 = time.perf_counter()
-                body = study_figure(store, study, fmt=args.fmt, cache=cache, **spec)
-                times.setdefault(label, []).append(time.perf_counter() - t0)
-                sizes[label] = len(body) / 1024
+        results = {fmt: measure(store, study, specs, fmt, args.repeats) for fmt in args.fmt}
         store.close()
-    table = Table(title=f"page figures of the last stage ({done[-1]}), cold, {args.fmt}")
+    for fmt, (times, sizes) in results.items():
+        report(times, sizes, f"page figures of the last stage ({done[-1]}), cold, {fmt}")
+
+
+def measure(
+    store: object, study: object, specs: list[dict], fmt: str, repeats: int
+) -> tuple[dict[str, list[float]], dict[str, float]]:
+    """Each figure's wall times [s] over ``repeats`` cold makes (after one not counted) and
+    its size [kB]."""
+    from services.api.dashboard.figures import FigureCache, study_figure
+
+    times: dict[str, list[float]] = {}
+    sizes: dict[str, float] = {}
+    for k in range(repeats + 1):  # the first: warm-up, not counted
+        cache = FigureCache()
+        for spec in specs:
+            label = spec["name"] + (f" {'/'.join(spec['pair'])}" if "pair" in spec else "")
+            t0 = time.perf_counter()
+            body = study_figure(store, study, fmt=fmt, cache=cache, **spec)
+            if k:
+                times.setdefault(label, []).append(time.perf_counter() - t0)
+            sizes[label] = len(body) / 1024
+    return times, sizes
+
+
+def report(times: dict[str, list[float]], sizes: dict[str, float], title: str) -> None:
+    from services.api.dashboard.drawing import DRAWING_PROCESSES
+
+    table = Table(title=title)
     for col in ("figure", "median ms", "min ms", "max ms", "kB"):
         table.add_column(col, justify="right")
     medians = {}
     for label, ts in times.items():
-        ts = ts[1:]
         medians[label] = statistics.median(ts)
         table.add_row(
             label,

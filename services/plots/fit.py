@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from scm_core.signals import SWTDataset, TestConditions, lowpass
 from scm_core.simulator import SWTResult
 
+from .chart import Axis, Chart, Panel, hline, hspan, line, segment, text, vspan
 from .figures import save
 
 #: points per drawn curve at most: about two per pixel column of a panel (5.2 in at 100-120 dpi);
@@ -83,20 +84,20 @@ def _window_map(
     return lo - b * s0, b
 
 
-def fit_figure(
+def fit_chart(
     datasets: Sequence[SWTDataset],
     sims: Sequence[SWTResult | None],
     title: str | None = None,
     responses: Sequence[str] = ("F", "T", "z"),
     offsets: dict[str, float] | None = None,
-) -> Figure:
+) -> Chart:
     """One column per dataset, one row per response of ``responses`` that some dataset
     measured: the filtered measured signal with its steady mean over the experimental window,
     and the simulated signal with its mean over the simulation's windows (both windows
-    shaded). Summary datasets (no
-    series) show their mean +- sd as a band; a response a dataset did not measure shows the
-    simulation only. ``offsets`` (response -> value in SI) are measurement offsets added to the
-    simulated signal (e.g. a calibrated sinkage datum)."""
+    shaded). Summary datasets (no series) show their mean +- sd as a band; a response a
+    dataset did not measure shows the simulation only. ``offsets`` (response -> value in SI)
+    are measurement offsets added to the simulated signal (e.g. a calibrated sinkage datum).
+    A column's panels share their time axis (tick labels under the bottom one)."""
     rows = [
         row for row in _ROWS if row[0] in responses and any(row[0] in d.responses for d in datasets)
     ]
@@ -104,63 +105,69 @@ def fit_figure(
         rows = [row for row in _ROWS if row[0] in responses] or list(_ROWS)
     offsets = offsets or {}
     ncols = len(datasets)
-    fig = Figure(figsize=(max(5.2 * ncols, 8.0), 2.6 * len(rows) + 0.4), layout="constrained")
-    # a column's panels share their time axis: its tick labels under the bottom one only
-    axes = np.array(fig.subplots(len(rows), ncols, squeeze=False, sharex="col"))
-    for c, (ds, sim) in enumerate(zip(datasets, sims, strict=True)):
+    grid: list[list[Panel]] = [[] for _ in rows]
+    for ds, sim in zip(datasets, sims, strict=True):
         t_start, t_end = 0.0, 0.0  # the time axis drawn [s]
-        rig = None if sim is None else sim.rig
         window = None  # the measured steady window, where the dataset has a time axis
         if ds.series is not None and ds.series.t.size:
             t_meas = ds.series.t
             window = ds.window if ds.window is not None else (float(t_meas[0]), float(t_meas[-1]))
             t_end = float(t_meas[-1])
-        for r, (key, column, ylabel, scale, offset_name) in enumerate(rows):
-            ax = axes[r, c]
+        column: list[Panel] = []
+        for r, (key, col, ylabel, scale, offset_name) in enumerate(rows):
+            bottom = r == len(rows) - 1
+            panel = Panel(
+                Axis(
+                    ("time t [s]" if window is None else "measured time t [s]") if bottom else "",
+                    tick_labels=bottom,
+                ),
+                Axis(ylabel),
+                title=f"{ds.name} ({condition_label(ds.conditions)})" if r == 0 else None,
+                legend="lower right",
+            )
             stat = ds.responses.get(key)
             if stat is None:
-                ax.text(0.02, 0.95, "not measured", transform=ax.transAxes, va="top", fontsize=8)
+                panel.add(text("not measured"))
             elif window is not None:  # a measured time axis
-                t, y = decimated(ds.series.t, ds.series.filtered[column] * scale)
-                ax.plot(t, y, lw=0.7, color="0.35", label="measured (filtered)")
+                t, y = decimated(ds.series.t, ds.series.filtered[col] * scale)
                 lo, hi = window
-                ax.axvspan(lo, hi, color="0.5", alpha=0.08, lw=0, label="measured window")
-                ax.hlines(
-                    stat.mean * scale,
-                    lo,
-                    hi,
-                    colors="k",
-                    lw=2.2,
-                    label=f"measured mean {stat.mean * scale:.4g}",
+                panel.add(
+                    line(t, y, "mid", width=0.7, label="measured (filtered)"),
+                    vspan(lo, hi, label="measured window"),
+                    segment(
+                        lo, hi, stat.mean * scale, label=f"measured mean {stat.mean * scale:.4g}"
+                    ),
                 )
             else:
-                ax.axhspan(
-                    (stat.mean - stat.sd) * scale,
-                    (stat.mean + stat.sd) * scale,
-                    color="0.8",
-                    alpha=0.6,
-                    label="measured mean +- sd",
+                panel.add(
+                    hspan(
+                        (stat.mean - stat.sd) * scale,
+                        (stat.mean + stat.sd) * scale,
+                        label="measured mean +- sd",
+                    ),
+                    hline(stat.mean * scale, "black", width=2.0),
                 )
-                ax.axhline(stat.mean * scale, color="k", lw=2.0)
-            if sim is not None and rig is not None:
-                first, last = _draw_simulated(
-                    ax, sim, key, scale, offset_name, offsets, ds, window, top=r == 0
-                )
+            if sim is not None and sim.rig is not None:
+                first, last = _simulated(panel, sim, key, scale, offset_name, offsets, ds, window)
                 t_start, t_end = min(t_start, first), max(t_end, last)
-            ax.set_ylabel(ylabel)
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=7, loc="lower right")
-        axes[0, c].set_title(f"{ds.name} ({condition_label(ds.conditions)})")
-        axes[-1, c].set_xlabel("time t [s]" if window is None else "measured time t [s]")
-        if t_end > 0:
-            for r in range(len(rows)):
-                axes[r, c].set_xlim(t_start, t_end)
-    fig.suptitle(title or "Measured vs simulated at the MAP sample")
-    return fig
+                if window is not None and r == 0:
+                    a, b = _window_map(window, (getattr(sim.rig, offset_name), sim.rig.duration))
+                    panel.top = ("simulated time [s]", a, b)
+            column.append(panel)
+        for r, panel in enumerate(column):
+            if t_end > 0:
+                panel.x = replace(panel.x, lo=t_start, hi=t_end)
+            grid[r].append(panel)
+    return Chart(
+        title or "Measured vs simulated at the MAP sample",
+        [p for row in grid for p in row],
+        columns=ncols,
+        size=(max(5.2 * ncols, 8.0), 2.6 * len(rows) + 0.4),
+    )
 
 
-def _draw_simulated(
-    ax: Any,
+def _simulated(
+    panel: Panel,
     sim: SWTResult,
     key: str,
     scale: float,
@@ -168,32 +175,29 @@ def _draw_simulated(
     offsets: dict[str, float],
     ds: SWTDataset,
     window: tuple[float, float] | None,
-    top: bool = True,
 ) -> tuple[float, float]:
-    """The simulated signal of ``key`` on ``ax``, raw and filtered, with its averaging window
-    and steady mean. Where the dataset has a measured time axis (``window``: its steady window),
-    the simulation's time is mapped linearly so that its averaging window lies over the
-    measured one, and (``top``: the column's top panel) a top axis gives the simulated time: a
-    12 s simulation of a 180 s log then spans the log's window instead of the first 7 % of the
-    axis. Returns the first and last times drawn, on the measured axis [s]."""
+    """The simulated signal of ``key`` on ``panel``, raw and filtered, with its averaging
+    window and steady mean. Where the dataset has a measured time axis (``window``: its steady
+    window), the simulation's time is mapped linearly so that its averaging window lies over
+    the measured one (a 12 s simulation of a 180 s log then spans the log's window instead of
+    the first 7 % of the axis; the panel's top axis gives the simulated time). Returns the
+    first and last times drawn, on the measured axis [s]."""
     rig = sim.rig
     off = getattr(rig, offset_name)
     a, b = (0.0, 1.0) if window is None else _window_map(window, (off, rig.duration))
     ts = sim.series["t"]
     ys = (sim.series[key] + offsets.get(key, 0.0)) * scale
     t_raw, y_raw = decimated(ts, ys)
-    ax.plot(a + b * t_raw, y_raw, lw=0.5, color="tab:blue", alpha=0.3)
     t_f, y_f = decimated(ts, _filtered(ts, ys, ds.cutoff_hz))
-    ax.plot(a + b * t_f, y_f, lw=0.9, color="tab:blue", label="simulated (filtered)")
     w0, w1 = a + b * off, a + b * rig.duration
-    ax.axvspan(w0, w1, color="tab:blue", alpha=0.07, lw=0, label="simulated window")
+    panel.add(
+        line(a + b * t_raw, y_raw, "blue", width=0.5, opacity=0.3),
+        line(a + b * t_f, y_f, "blue", width=0.9, label="simulated (filtered)"),
+        vspan(w0, w1, "blue", opacity=0.07, label="simulated window"),
+    )
     if sim.means is not None:
         m = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale
-        ax.hlines(m, w0, w1, colors="tab:red", lw=2.2, label=f"simulated mean {m:.4g}")
-    if window is not None and top:
-        sim_axis = ax.secondary_xaxis("top", functions=(lambda t: (t - a) / b, lambda s: a + b * s))
-        sim_axis.set_xlabel("simulated time [s]", fontsize=7)
-        sim_axis.tick_params(labelsize=7)
+        panel.add(segment(w0, w1, m, "red", label=f"simulated mean {m:.4g}"))
     return a + b * float(ts[0]) if ts.size else w0, w1
 
 
@@ -203,5 +207,7 @@ def plot_fit(
     path: str | Path,
     **options: Any,
 ) -> Path:
-    """:func:`fit_figure` saved to ``path``."""
-    return save(fit_figure(datasets, sims, **options), path)
+    """:func:`fit_chart` drawn to ``path``."""
+    from .mpl import draw
+
+    return save(draw(fit_chart(datasets, sims, **options)), path)

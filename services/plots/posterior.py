@@ -6,16 +6,19 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from scm_core.inference.posterior import kde_1d, kde_2d
 
+from .chart import Axis, Chart, Panel, bars, contours, line, marker, points, vline
 from .choices import default_pairs
 from .figures import save
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _LABELS = {
     "k_c": "k_c [N/m^(n+1)]",
@@ -57,6 +60,8 @@ def _from_plot_scale(log: bool) -> Any:
 
 def _density_grid(d: int) -> tuple[Figure, NDArray[Any]]:
     """A figure with one density panel per parameter, four to a row."""
+    from matplotlib.figure import Figure
+
     ncols = min(4, d)
     nrows = math.ceil(d / ncols)
     fig = Figure(figsize=(3.4 * ncols, 2.8 * nrows + 0.4), layout="constrained")
@@ -88,7 +93,31 @@ def _per_unit(v: NDArray[np.float64], width: float) -> NDArray[np.float64]:
     return np.full(v.size, 1.0 / (v.size * width))
 
 
-def prior_posterior_figure(
+def _density(v: NDArray[np.float64], edges: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Bar heights of ``v`` binned at ``edges`` (on the binning scale) as a density per unit
+    of that scale (per decade for log10 bins), whatever scale the bars are drawn on."""
+    v = v[np.isfinite(v)]
+    counts, _ = np.histogram(v, bins=edges)
+    return counts / (max(v.size, 1) * (edges[1] - edges[0]))
+
+
+def _density_panel(name: str, units: Mapping[str, str] | None, log: bool, first: bool) -> Panel:
+    """A density panel: a log axis (density per decade) for a log-scale parameter."""
+    return Panel(
+        Axis(label(name, units), scale="log" if log else "linear"),
+        Axis("density per decade" if log else "density", lo=0.0),
+        legend="best" if first else None,
+    )
+
+
+def _grid_chart(title: str, panels: list[Panel | None]) -> Chart:
+    """Density panels, four to a row."""
+    ncols = min(4, len(panels))
+    nrows = math.ceil(len(panels) / ncols)
+    return Chart(title, panels, columns=ncols, size=(3.4 * ncols, 2.8 * nrows + 0.4))
+
+
+def prior_posterior_chart(
     names: Sequence[str],
     prior_samples: NDArray[np.float64],
     posterior_samples: NDArray[np.float64],
@@ -99,15 +128,13 @@ def prior_posterior_figure(
     title: str | None = None,
     log_params: Collection[str] = (),
     labels: tuple[str, str] = ("prior", "posterior"),
-) -> Figure:
+) -> Chart:
     """Histograms (densities) of prior and posterior samples per parameter (Figure 5);
     ``labels`` names the two (an update: the earlier and the updated posterior);
     parameters in ``log_params`` (log-uniform priors, e.g. the moduli) are binned in log10 and
     drawn on a log axis, their density per decade."""
-    d = len(names)
-    fig, axes = _density_grid(d)
+    panels: list[Panel | None] = []
     for j, name in enumerate(names):
-        ax = axes[j]
         log = _log(name, log_params)
         back = _from_plot_scale(log)
         pr = _tx(name, prior_samples[:, j], log_params)
@@ -115,39 +142,25 @@ def prior_posterior_figure(
         if bounds is not None:
             lo, hi = _tx(name, bounds[j], log_params)
         else:
-            lo, hi = min(pr.min(), po.min()), max(pr.max(), po.max())
+            lo, hi = min(np.nanmin(pr), np.nanmin(po)), max(np.nanmax(pr), np.nanmax(po))
         if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
-            lo, hi = float(np.min(po)) - 0.5, float(np.max(po)) + 0.5
-        edges = np.linspace(lo, hi, 41)
+            lo, hi = float(np.nanmin(po)) - 0.5, float(np.nanmax(po)) + 0.5
+        panel = _density_panel(name, units, log, first=j == 0)
         # densities on the binning scale (per unit, or per decade), drawn at the values
-        ax.hist(
-            back(pr),
-            bins=back(edges),
-            weights=_per_unit(pr, edges[1] - edges[0]),
-            color="0.75",
-            label=labels[0],
-        )
-        p_lo, p_hi = float(po.min()), float(po.max())
+        edges = np.linspace(lo, hi, 41)
+        panel.add(bars(back(edges), _density(pr, edges), "light", label=labels[0]))
+        p_lo, p_hi = float(np.nanmin(po)), float(np.nanmax(po))
         if p_hi > p_lo:
             fine = np.linspace(p_lo, p_hi, 31)
-            ax.hist(
-                back(po),
-                bins=back(fine),
-                weights=_per_unit(po, fine[1] - fine[0]),
-                color="tab:blue",
-                alpha=0.75,
-                label=labels[1],
-            )
+            panel.add(bars(back(fine), _density(po, fine), "blue", opacity=0.75, label=labels[1]))
         else:
-            ax.axvline(float(back(p_lo)), color="tab:blue", lw=2, label=labels[1])
+            panel.add(vline(float(back(p_lo)), "blue", width=2.0, label=labels[1]))
         if map_sample is not None:
-            ax.axvline(map_sample[j], color="tab:red", lw=1.2, label="MAP")
+            panel.add(vline(float(map_sample[j]), "red", label="MAP"))
         if reference and name in reference:
-            ax.axvline(reference[name], color="k", lw=1.0, ls=":", label="bevameter")
-        _density_axis(ax, name, units, log)
-    _close_grid(axes, d)
-    fig.suptitle(title or "Prior and posterior densities")
-    return fig
+            panel.add(vline(reference[name], "black", width=1.0, dash="dotted", label="bevameter"))
+        panels.append(panel)
+    return _grid_chart(title or "Prior and posterior densities", panels)
 
 
 def plot_prior_posterior(
@@ -157,11 +170,45 @@ def plot_prior_posterior(
     path: str | Path,
     **options: Any,
 ) -> Path:
-    """:func:`prior_posterior_figure` saved to ``path`` (PNG, SVG, PDF by its suffix)."""
-    return save(prior_posterior_figure(names, prior_samples, posterior_samples, **options), path)
+    """:func:`prior_posterior_chart` drawn to ``path`` (PNG, SVG, PDF by its suffix)."""
+    from .mpl import draw
+
+    chart = prior_posterior_chart(names, prior_samples, posterior_samples, **options)
+    return save(draw(chart), path)
 
 
-def pairs_figure(
+def _contour_levels(
+    x: NDArray[np.float64], y: NDArray[np.float64], n_grid: int, n_levels: int
+) -> list[tuple[float, list[tuple[NDArray[np.float64], NDArray[np.float64]]]]]:
+    """Kernel-density contours of (x, y) at ``n_levels`` levels from 5 to 95 % of the density's
+    maximum, closed (:func:`kde_2d` pads three kernel sds): [(level, [(px, py), ...]), ...];
+    none where the sample is degenerate (a line, a few distinct points)."""
+    distinct = np.unique(np.column_stack([x, y]), axis=0).shape[0]
+    if not (np.ptp(x) > 0 and np.ptp(y) > 0 and distinct > 3):
+        return []
+    try:
+        gx, gy, dens = kde_2d(x, y, n_grid=n_grid)
+    except (np.linalg.LinAlgError, ValueError):
+        return []
+    import contourpy
+
+    gen = contourpy.contour_generator(gx, gy, dens, line_type="Separate")
+    out = []
+    for level in np.linspace(0.05, 0.95, n_levels) * float(dens.max()):
+        out.append((float(level), [(p[:, 0], p[:, 1]) for p in gen.lines(level)]))
+    return out
+
+
+def _scaled_paths(
+    levels: list[tuple[float, list[tuple[NDArray[np.float64], NDArray[np.float64]]]]],
+    bx: Any,
+    by: Any,
+) -> list[tuple[float, list[tuple[NDArray[np.float64], NDArray[np.float64]]]]]:
+    """Contour paths from the estimation scale (log10) back to the values drawn."""
+    return [(v, [(bx(px), by(py)) for px, py in paths]) for v, paths in levels]
+
+
+def pairs_chart(
     names: Sequence[str],
     samples: NDArray[np.float64],
     pairs: Sequence[tuple[str, str]] | None = None,
@@ -171,81 +218,69 @@ def pairs_figure(
     title: str | None = None,
     log_params: Collection[str] = (),
     max_points: int = 4000,
-) -> Figure | None:
+) -> Chart | None:
     """Bivariate kernel-density contours of posterior pairs (Figures 6-8); parameters in
     ``log_params`` are drawn on log axes (their densities estimated in log10).
 
     ``k_star_line`` = (k*, b_eff) draws the dashed line k_c / b_eff + k_phi = k* on the k_c-k_phi
     panel (the paper's bevameter k* at the simulations' mean b_eff); ``reference`` marks
-    bevameter means. At most
-    ``max_points`` samples (an even thinning of the equally weighted sample) are drawn as
-    dots, rasterised in vector formats, and enter the kernel density. None if no pair.
+    bevameter means. At most ``max_points`` samples (an even thinning of the equally weighted
+    sample) are drawn as dots and enter the kernel density. None if no pair.
     """
     pairs = list(pairs) if pairs is not None else default_pairs(names)
     if not pairs:
         return None
     index = {n: j for j, n in enumerate(names)}
-    fig = Figure(figsize=(max(4.6 * len(pairs), 6.4), 4.4), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(1, len(pairs)))
-    for ax, (a, b) in zip(axes, pairs, strict=True):
+    panels: list[Panel | None] = []
+    for a, b in pairs:
         # estimated on the plotting scale (log10 for log-uniform priors), drawn at the values
         log_a, log_b = _log(a, log_params), _log(b, log_params)
         bx, by = _from_plot_scale(log_a), _from_plot_scale(log_b)
         x = _tx(a, samples[:, index[a]], log_params)
         y = _tx(b, samples[:, index[b]], log_params)
         step = max(1, math.ceil(x.size / max_points))
-        ax.scatter(
-            bx(x[::step]),
-            by(y[::step]),
-            s=5,
-            color="0.3",
-            alpha=0.45,
-            lw=0,
-            label="samples",
-            rasterized=True,
-        )
-        distinct = np.unique(np.column_stack([x, y]), axis=0).shape[0]
-        if np.ptp(x) > 0 and np.ptp(y) > 0 and distinct > 3:
-            try:
-                gx, gy, dens = kde_2d(x[::step], y[::step], n_grid=80)
-                levels = np.linspace(0.05, 0.95, 8) * float(dens.max())
-                ax.contour(bx(gx), by(gy), dens, levels=levels, cmap="viridis", linewidths=1.0)
-            except (np.linalg.LinAlgError, ValueError):
-                pass
-        if log_a:
-            ax.set_xscale("log")
-        if log_b:
-            ax.set_yscale("log")
+        x, y = x[::step], y[::step]
+        panel = Panel(
+            Axis(label(a, units), scale="log" if log_a else "linear"),
+            Axis(label(b, units), scale="log" if log_b else "linear"),
+        ).add(points(bx(x), by(y), label="samples"))
+        levels = _contour_levels(x, y, n_grid=80, n_levels=8)
+        if levels:
+            panel.add(contours(_scaled_paths(levels, bx, by), label="density"))
         if k_star_line is not None and (a, b) == ("k_c", "k_phi"):
             k_star, b_eff = k_star_line
-            lo, hi = ax.get_xlim()
-            k_c = np.geomspace(lo, hi, 200) if log_a else np.linspace(lo, hi, 200)
-            ylim = ax.get_ylim()
+            k_c = bx(np.linspace(float(np.nanmin(x)), float(np.nanmax(x)), 200))
             with np.errstate(invalid="ignore"):
                 k_phi = k_star - k_c / b_eff
             if log_b:
                 k_phi = np.where(k_phi > 0, k_phi, np.nan)
-            ax.plot(k_c, k_phi, "--", color="0.5", label=f"k* = {k_star:.3g}")
-            ax.set_ylim(ylim)
+            panel.add(line(k_c, k_phi, "grey", dash="dashed", label=f"k* = {k_star:.3g}"))
         ref = {**(reference or {})}
         if "k_star" in ref and (a, b) == ("k_c", "k_phi"):
             ref.setdefault("k_c", 0.0)
             ref.setdefault("k_phi", ref["k_star"])
         if a in ref and b in ref:
-            ax.plot(ref[a], ref[b], "k+", ms=12, mew=2, label="bevameter")
-        ax.set_xlabel(label(a, units))
-        ax.set_ylabel(label(b, units))
-        if not log_a:
-            ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
-        if not log_b:
-            ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
-    fig.suptitle(title or "Bivariate posterior densities")
-    return fig
+            panel.add(marker(ref[a], ref[b], label="bevameter"))
+        panels.append(panel)
+    return Chart(
+        title or "Bivariate posterior densities",
+        panels,
+        columns=len(panels),
+        size=(max(4.6 * len(panels), 6.4), 4.4),
+    )
 
 
-def pair_matrix_figure(
+def plot_pairs(
+    names: Sequence[str], samples: NDArray[np.float64], path: str | Path, **options: Any
+) -> Path | None:
+    """:func:`pairs_chart` drawn to ``path``; None (nothing written) if no pair."""
+    from .mpl import draw
+
+    chart = pairs_chart(names, samples, **options)
+    return None if chart is None else save(draw(chart), path)
+
+
+def pair_matrix_chart(
     names: Sequence[str],
     samples: NDArray[np.float64],
     chosen: Sequence[str],
@@ -254,15 +289,13 @@ def pair_matrix_figure(
     log_params: Collection[str] = (),
     title: str | None = None,
     max_points: int = 2000,
-) -> Figure:
+) -> Chart:
     """A pair matrix of the ``chosen`` parameters (a corner plot): on the diagonal each one's
     marginal (histogram and kernel density), below it each pair's samples and kernel-density
     contours (5-95 % of the maximum, closed: :func:`kde_2d`). Parameters in ``log_params`` are
     estimated and drawn in log10 (axes labelled log10). ``reference`` marks bevameter values."""
     index = {n: j for j, n in enumerate(names)}
     d = len(chosen)
-    fig = Figure(figsize=(1.9 * d + 1.0, 1.9 * d + 0.6), layout="constrained")
-    axes = np.array(fig.subplots(d, d, squeeze=False))
     step = max(1, math.ceil(samples.shape[0] / max_points))
     cols = {n: _tx(n, samples[::step, index[n]], log_params) for n in chosen}
 
@@ -274,54 +307,40 @@ def pair_matrix_figure(
         for n, v in (reference or {}).items()
         if n in cols
     }
+    panels: list[Panel | None] = []
     for i, a in enumerate(chosen):
         for k, b in enumerate(chosen):
-            ax = axes[i, k]
             if k > i:
-                ax.set_visible(False)
+                panels.append(None)
                 continue
             x, y = cols[b], cols[a]
+            x_axis = Axis(name_of(b) if i == d - 1 else "", tick_labels=i == d - 1)
             if k == i:
                 ok = x[np.isfinite(x)]
-                ax.hist(ok, bins=30, density=True, color="tab:blue", alpha=0.35)
+                panel = Panel(x_axis, Axis("", lo=0.0, tick_labels=False), legend=None)
+                if ok.size and np.ptp(ok) > 0:
+                    edges = np.linspace(ok.min(), ok.max(), 31)
+                    panel.add(bars(edges, _density(ok, edges), "blue", opacity=0.35))
                 if ok.size > 3 and np.ptp(ok) > 0:
                     g, dens = kde_1d(ok)
-                    ax.plot(g, dens, color="tab:blue", lw=1.2)
-                ax.set_yticks([])
+                    panel.add(line(g, dens, "blue"))
                 if b in ref:
-                    ax.axvline(ref[b], color="k", ls="--", lw=1)
+                    panel.add(vline(ref[b], "black", width=1.0, dash="dashed"))
             else:
-                ax.scatter(x, y, s=3, color="0.3", alpha=0.35, lw=0, rasterized=True)
-                distinct = np.unique(np.column_stack([x, y]), axis=0).shape[0]
-                if np.ptp(x) > 0 and np.ptp(y) > 0 and distinct > 3:
-                    try:
-                        gx, gy, dens = kde_2d(x, y, n_grid=60)
-                        levels = np.linspace(0.05, 0.95, 6) * float(dens.max())
-                        ax.contour(gx, gy, dens, levels=levels, cmap="viridis", linewidths=0.9)
-                    except (np.linalg.LinAlgError, ValueError):
-                        pass
+                y_axis = Axis(name_of(a) if k == 0 else "", tick_labels=k == 0)
+                panel = Panel(x_axis, y_axis, legend=None).add(points(x, y, size=1.2, opacity=0.35))
+                levels = _contour_levels(x, y, n_grid=60, n_levels=6)
+                if levels:
+                    panel.add(contours(levels, width=0.9))
                 if a in ref and b in ref:
-                    ax.plot(ref[b], ref[a], "k+", ms=10, mew=1.5)
-            ax.tick_params(labelsize=7)
-            if i == d - 1:
-                ax.set_xlabel(name_of(b), fontsize=8)
-            else:
-                ax.set_xticklabels([])
-            if k == 0 and i > 0:
-                ax.set_ylabel(name_of(a), fontsize=8)
-            elif k > 0 and k != i:
-                ax.set_yticklabels([])
-            ax.grid(alpha=0.25)
-    fig.suptitle(title or "Pair matrix of the posterior")
-    return fig
-
-
-def plot_pairs(
-    names: Sequence[str], samples: NDArray[np.float64], path: str | Path, **options: Any
-) -> Path | None:
-    """:func:`pairs_figure` saved to ``path``; None (nothing written) if no pair."""
-    fig = pairs_figure(names, samples, **options)
-    return None if fig is None else save(fig, path)
+                    panel.add(marker(ref[b], ref[a], size=10.0))
+            panels.append(panel)
+    return Chart(
+        title or "Pair matrix of the posterior",
+        panels,
+        columns=d,
+        size=(1.9 * d + 1.0, 1.9 * d + 0.6),
+    )
 
 
 def compare_figure(

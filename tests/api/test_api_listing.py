@@ -264,6 +264,8 @@ def test_figures_of_a_stopped_study_say_it_is_not_a_posterior(env) -> None:
     for name in ("prior_posterior", "pairs", "fit"):
         svg = client.get(f"/ui/figures/studies/{stopped}/{name}.svg").text
         assert f"stage 1 (exponent {exponent:.3g}: not a posterior)" in svg, name
+        chart = client.get(f"/ui/figures/studies/{stopped}/{name}.json").json()  # the page's
+        assert f"stage 1 (exponent {exponent:.3g}: not a posterior)" in chart["title"], name
         prior = client.get(f"/ui/figures/studies/{stopped}/{name}.svg", params={"stage": 0}).text
         assert "stage 0 (the prior sample: not a posterior)" in prior, name
         done = client.get(f"/ui/figures/studies/{full}/{name}.svg").text
@@ -289,6 +291,40 @@ def test_figure_urls_name_their_content_and_are_kept(env) -> None:
     assert old.headers["cache-control"] == "private, max-age=60"
     staged = client.get(f"/ui/figures/studies/{sid}/prior_posterior.svg", params={"stage": 1})
     assert staged.headers["cache-control"] == kept
+    # the page draws the stage figures from their charts' data, kept the same way
+    assert f"/ui/figures/studies/{sid}/schedule.json?v={version}" in page
+    chart = client.get(f"/ui/figures/studies/{sid}/schedule.json", params={"v": version})
+    assert chart.headers["cache-control"] == kept
+    assert chart.headers["content-type"] == "application/json"
+
+
+def test_the_page_draws_each_stage_figure_from_the_chart_the_download_draws(env) -> None:
+    """Each stage figure is one chart: its JSON (what the page draws) and its SVG download
+    (matplotlib) show the same title and axis labels; a figure drawn only as an image refuses
+    the JSON, naming why; the JSON travels compressed."""
+    client, url = env
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    sid = client.post(
+        "/studies", json={"case": tiny_case(seed=7), "dataset_ids": [ds]}, headers=AUTH
+    ).json()["id"]
+    assert run_inline(url, sid) == "completed"
+    for name in ("schedule", "prior_posterior", "trace", "pairs", "matrix", "fit"):
+        r = client.get(
+            f"/ui/figures/studies/{sid}/{name}.json", headers={"Accept-Encoding": "gzip"}
+        )
+        assert r.status_code == 200, (name, r.text)
+        chart = r.json()
+        assert chart["panels"] and chart["title"], name
+        svg = client.get(f"/ui/figures/studies/{sid}/{name}.svg").text
+        assert chart["title"].replace("&", "&amp;") in svg, name
+        labels = {p["x"]["label"] for p in chart["panels"] if p} - {""}
+        assert all(label.replace("&", "&amp;") in svg for label in labels), (name, labels)
+        if len(r.content) > 2000:
+            assert r.headers.get("content-encoding") == "gzip", name
+    r = client.get(f"/ui/figures/studies/{sid}/schedule.gif")
+    assert r.status_code == 404 and "json" in r.json()["detail"]
+    r = client.get(f"/ui/figures/datasets/{ds}/signals.json")
+    assert r.status_code == 404 and "format" in r.json()["detail"]
 
 
 def test_an_empty_datasets_page_says_how_to_fill_it(env) -> None:

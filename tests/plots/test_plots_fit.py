@@ -16,7 +16,8 @@ import pytest
 from scm_core.signals import load_dataset
 from scm_core.simulator import RigConfig, simulate_swt
 from services.plots.figures import render
-from services.plots.fit import MAX_POINTS, decimated, fit_figure
+from services.plots.fit import MAX_POINTS, decimated, fit_chart
+from services.plots.mpl import draw
 
 LOG = Path(__file__).resolve().parents[2] / "examples" / "wf34_s020.csv"
 
@@ -56,21 +57,26 @@ def test_a_short_simulation_spans_the_measured_window() -> None:
     sim = simulate_swt(
         rig=RigConfig(duration=12.0, dt=0.02, offset_F=4.0, offset_T=4.0, offset_z=1.0)
     )
-    fig = fit_figure([ds], [sim], responses=("F", "T", "z"))
-    ax = fig.axes[0]  # F
-    lines = [ln for ln in ax.get_lines() if ln.get_label() == "simulated (filtered)"]
-    x = lines[0].get_xdata()
+    chart = fit_chart([ds], [sim], responses=("F", "T", "z"))
+    panel = chart.panels[0]  # F
+    simulated = [la for la in panel.layers if la.get("label") == "simulated (filtered)"]
+    x = np.array(simulated[0]["x"])
     # the simulated window [4, 12] s maps onto the measured window [lo, hi]
     b = (hi - lo) / (12.0 - 4.0)
     assert x[-1] == pytest.approx(hi, abs=b * 0.05)
     assert x[0] == pytest.approx(lo - 4.0 * b, abs=b * 0.05)
-    assert ax.get_xlim()[0] <= x[0]  # the simulation's start is on the axis
+    assert panel.x.lo <= x[0]  # the simulation's start is on the axis
+    label, a, scale = panel.top  # the simulated time over the top
+    assert label == "simulated time [s]" and (x[-1] - a) / scale == pytest.approx(12.0, abs=0.05)
+    for p in chart.panels:
+        for layer in p.layers:
+            assert len(layer.get("x", ())) <= MAX_POINTS + 2
+    fig = draw(chart)
+    ax = fig.axes[0]
     assert any(
         getattr(child, "get_xlabel", lambda: "")() == "simulated time [s]"
         for child in ax.child_axes
     )
-    for ln in ax.get_lines():
-        assert len(ln.get_xdata()) <= MAX_POINTS + 2
     buf = io.BytesIO()
     fig.savefig(buf, format="svg")
     assert buf.tell() < 400_000
@@ -83,7 +89,7 @@ def test_served_svg_paths_are_cut_to_a_tenth_of_a_point() -> None:
     sim = simulate_swt(
         rig=RigConfig(duration=12.0, dt=0.02, offset_F=4.0, offset_T=4.0, offset_z=1.0)
     )
-    fig = fit_figure(ds, [sim, sim])
+    fig = draw(fit_chart(ds, [sim, sim]))
     svg = render(fig, "svg")
     root = ElementTree.fromstring(svg)
     paths = [el.get("d") for el in root.iter("{http://www.w3.org/2000/svg}path") if el.get("d")]

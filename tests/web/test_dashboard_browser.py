@@ -193,13 +193,16 @@ class Watched:
         return float(self.page.evaluate("() => performance.now()"))
 
     def figures_loaded(self) -> int:
-        """Wait for every figure of the page; returns how many there are (each non-empty)."""
+        """Wait for every figure of the page, images and charts; returns how many there are
+        (each non-empty: an image with its pixels, a chart drawn from its data)."""
         self.page.wait_for_function(
             "() => [...document.querySelectorAll('img[data-src]')]"
-            ".every(i => i.complete && i.naturalWidth > 0)",
+            ".every(i => i.complete && i.naturalWidth > 0)"
+            " && [...document.querySelectorAll('[data-chart]')].every(c =>"
+            " c.dataset.drawn === c.dataset.chart && c.querySelector('svg.chart[data-ready]'))",
             timeout=120_000,
         )
-        return self.page.locator("img[data-src]").count()
+        return self.page.locator("img[data-src], [data-chart]").count()
 
     def shoot(self, name: str) -> None:
         if SHOTS is not None:
@@ -253,6 +256,8 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
                 assert n == expected_figures.get(name, 0), (name, n)
                 for img in w.page.locator("img[data-src]").all():
                     assert (img.get_attribute("alt") or "").strip(), name
+                for chart in w.page.locator("[data-chart]").all():
+                    assert (chart.get_attribute("aria-label") or "").strip(), name
                 for table in w.page.locator("table").all():
                     assert table.locator("th").count() > 0, name
                 # a phone's width: no sideways scroll of the page (wide tables scroll in place)
@@ -315,8 +320,8 @@ def test_study_page_downloads_parse(server, browser) -> None:
         chooser.locator("select[name=b]").select_option("phi")
         chooser.locator("select[name=a]").select_option("n")
         w.page.wait_for_function(
-            "() => { const i = document.querySelector('img[data-figure=pairs]');"
-            " return i.dataset.loaded.includes('a=n&b=phi') && i.naturalWidth > 0; }"
+            "() => { const c = document.querySelector('[data-chart][data-figure=pairs]');"
+            " return (c.dataset.drawn || '').includes('a=n&b=phi'); }"
         )
         w.clean()
     finally:
@@ -331,17 +336,22 @@ def test_pair_matrix_redraws_for_the_checked_parameters(server, browser) -> None
     try:
         w.goto(f"{server['base']}/ui/studies/{server['b']}")
         w.figures_loaded()
-        img = "document.querySelector('img[data-figure=matrix]')"
-        assert "p=n,phi,J" in w.page.evaluate(f"{img}.dataset.loaded")
+        box = "document.querySelector('[data-chart][data-figure=matrix]')"
+        assert "p=n,phi,J" in w.page.evaluate(f"{box}.dataset.drawn")
+        assert (
+            w.page.locator("[data-chart][data-figure=matrix] g.chart-panel").count() == 6
+        )  # 3 + 3
         form = w.page.locator("form.matrix-chooser")
         form.locator("input[value=n]").uncheck()
-        w.page.wait_for_function(
-            f"() => {img}.dataset.loaded.includes('p=phi,J') && {img}.naturalWidth > 0"
-        )
-        assert "phi, J" in w.page.locator("img[data-figure=matrix]").get_attribute("alt")
+        w.page.wait_for_function(f"() => ({box}.dataset.drawn || '').includes('p=phi,J')")
+        assert (
+            w.page.locator("[data-chart][data-figure=matrix] g.chart-panel").count() == 3
+        )  # 2 + 1
+        matrix = w.page.locator("[data-chart][data-figure=matrix]")
+        assert "phi, J" in matrix.get_attribute("aria-label")
         form.locator("input[value=J]").uncheck()  # one parameter: the matrix stays as it was
         w.page.wait_for_timeout(300)
-        assert w.page.evaluate(f"{img}.dataset.loaded").endswith("p=phi,J")
+        assert w.page.evaluate(f"{box}.dataset.drawn").endswith("p=phi,J")
         w.clean()
         r = w.page.request.get(
             f"{server['base']}/ui/figures/studies/{server['b']}/matrix.svg?stage=1&p=phi,K"
@@ -361,15 +371,65 @@ def _read_out(text: str) -> dict[str, float]:
     return {k.strip(): float(v) for k, v in (part.split(" = ") for part in text.split(", "))}
 
 
-def test_hovering_a_figure_reads_out_the_data_under_the_pointer(server, browser) -> None:
-    """Issue 45's values on hover: over the bivariate density (and over its enlarged copy,
-    zoomed) the page shows the data coordinates under the pointer, from the axes the SVG
-    carries; a point a quarter into the axes' box reads a quarter of its limits (to a pixel)."""
+def test_a_chart_reads_out_zooms_and_enlarges(server, browser) -> None:
+    """Issue 45's exploring, on the bivariate density drawn in the page from its chart: the
+    pointer a quarter into the plot reads a quarter of the axes' limits (to a pixel); a box
+    dragged over the middle zooms the panel to it, a double-click resets it; "enlarge" draws
+    the chart again at the screen's width in a dialog, which its button closes."""
     w = Watched(browser)
     try:
         w.goto(f"{server['base']}/ui/studies/{server['a']}")
         w.figures_loaded()
-        img = w.page.locator("img[data-figure=pairs]")
+        chart = w.page.locator("[data-chart][data-figure=pairs]")
+        chart.scroll_into_view_if_needed()
+        panel = chart.locator("g.chart-panel").first
+        x0, x1 = map(float, panel.get_attribute("data-xlim").split(","))
+        y0, y1 = map(float, panel.get_attribute("data-ylim").split(","))
+        plot = chart.locator(".chart-hit").first.bounding_box()
+        w.page.mouse.move(plot["x"] + 0.25 * plot["width"], plot["y"] + 0.25 * plot["height"])
+        readout = chart.locator(".chart-readout")
+        readout.wait_for(state="visible")
+        got = _read_out(readout.inner_text().splitlines()[0])
+        xv, yv = got.values()
+        ex, ey = x0 + 0.25 * (x1 - x0), y0 + 0.75 * (y1 - y0)
+        px, py = (x1 - x0) / plot["width"], (y1 - y0) / plot["height"]  # one pixel
+        assert abs(xv - ex) <= 1.5 * px + _shown(ex), (got, x0, x1)
+        assert abs(yv - ey) <= 1.5 * py + _shown(ey), (got, y0, y1)
+        # a box over the middle half zooms the panel to it
+        w.page.mouse.move(plot["x"] + 0.25 * plot["width"], plot["y"] + 0.25 * plot["height"])
+        w.page.mouse.down()
+        w.page.mouse.move(
+            plot["x"] + 0.75 * plot["width"], plot["y"] + 0.75 * plot["height"], steps=4
+        )
+        w.page.mouse.up()
+        z0, z1 = map(float, panel.get_attribute("data-xlim").split(","))
+        assert z0 == pytest.approx(x0 + 0.25 * (x1 - x0), abs=2 * px)
+        assert z1 == pytest.approx(x0 + 0.75 * (x1 - x0), abs=2 * px)
+        w.page.mouse.dblclick(plot["x"] + 0.5 * plot["width"], plot["y"] + 0.5 * plot["height"])
+        reset = list(map(float, panel.get_attribute("data-xlim").split(",")))
+        assert reset == pytest.approx([x0, x1])
+        w.page.locator("#fig-pairs button[data-enlarge]").click()
+        big = w.page.locator("dialog#figure-zoom[open] svg.chart[data-ready]")
+        big.wait_for()
+        width = w.page.evaluate("window.innerWidth")
+        assert big.bounding_box()["width"] > 0.9 * width  # the screen's width
+        w.page.locator("dialog#figure-zoom button[data-close-dialog]").click()
+        w.page.wait_for_selector("dialog#figure-zoom", state="hidden")
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_hovering_a_figure_reads_out_the_data_under_the_pointer(server, browser) -> None:
+    """Issue 45's values on hover, over an image figure (the posterior predictive panel, and
+    its enlarged copy, zoomed): the page shows the data coordinates under the pointer, from the
+    axes the SVG carries; a point a quarter into the axes' box reads a quarter of its limits
+    (to a pixel)."""
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/studies/{server['a']}")
+        w.figures_loaded()
+        img = w.page.locator("img[data-figure=predictive]")
         ax = json.loads(img.get_attribute("data-axes"))[0]
         assert ax["xscale"] == ax["yscale"] == "linear", ax
         left, top, right, bottom = ax["box"]
@@ -386,7 +446,7 @@ def test_hovering_a_figure_reads_out_the_data_under_the_pointer(server, browser)
             return _read_out(w.page.inner_text("#figure-readout")), px, py
 
         got, px, py = hover_at(0.25, 0.75, img)
-        assert list(got) == [ax["xlabel"], ax["ylabel"]], got
+        assert list(got) == [ax["xlabel"] or "x", ax["ylabel"] or "y"], got
         xv, yv = got.values()
         ex, ey = (
             ax["x"][0] + 0.25 * (ax["x"][1] - ax["x"][0]),
@@ -565,9 +625,9 @@ setInterval(() => {
   if (k && !(k in window.__seen.stage)) window.__seen.stage[k] = now;
   const h = document.querySelector("#results h2");
   const m = h && /stage (\\d+)/.exec(h.textContent);
-  const imgs = [...document.querySelectorAll("#results img[data-figure]")];
-  const ok = imgs.length > 0 && imgs.every((i) => i.src && i.dataset.loaded === i.dataset.src
-    && !i.classList.contains("loading") && i.complete && i.naturalWidth > 0);
+  const charts = [...document.querySelectorAll("#results [data-chart]")];
+  const ok = charts.length > 0 && charts.every((c) => c.dataset.drawn === c.dataset.chart
+    && c.querySelector("svg.chart[data-ready]"));
   if (m && ok && !(m[1] in window.__seen.figs)) window.__seen.figs[m[1]] = now;
 }, 50);
 """
@@ -593,11 +653,11 @@ def _watch_api(base: str, sid: int, stop: threading.Event, seen: dict) -> None:
 
 def test_a_running_studys_page_keeps_up_with_its_stages_and_figures(server, browser) -> None:
     """Issue 45: the page follows a running study stage by stage without a reload (it polls
-    every second; the server draws a stage's figures as it ends, FigureWarmer, in a process of
-    its own) and ends on the final stage's figures. The lags behind the API (polled every 0.1 s
-    beside the page) are printed; the progress must be within 2 s of the API's (it polls every
-    second and fetches figures two at a time, so they never hold its connections); how soon the
-    figures come is CPU time the suite's workers share, printed, not asserted."""
+    every second; the server makes a stage's charts as it ends, FigureWarmer, in a process of
+    its own, and the page draws them) and ends on the final stage's figures. The lags behind
+    the API (polled every 0.1 s beside the page) are printed; the progress and every stage's
+    figures the page shows must come within 2 s of the API's (it polls every second and
+    fetches figures two at a time, so they never hold its connections)."""
     base, (d1, d2) = server["base"], server["datasets"]
     case = tiny_case(seed=13, params=("phi", "n", "J"), n_samples=60)
     case["sampler"]["max_stages"] = 12
@@ -633,12 +693,12 @@ def test_a_running_studys_page_keeps_up_with_its_stages_and_figures(server, brow
         assert not any(f"stage={final}&" in u + "&" for u in w.aborted), w.aborted
         assert len(stages) >= 4 and len(shown) >= 3, (stages, shown)  # followed while running
         assert max(shown.values()) <= 2000.0, shown  # issue 45: within 2 s of the API
-        # the final stage's figures appeared (waited for above, at most 60 s); how soon is
-        # printed, not asserted: it is CPU time the suite's parallel workers share
-        assert final in drawn, drawn
+        # issue 45: a finished stage's figures within 2 s of its end (the page draws them from
+        # their charts' data: the server computes numbers, not a layout of text and ticks)
+        assert final in drawn and max(drawn.values()) <= 2000.0, drawn
         heading = w.page.locator("#results h2").first.inner_text()
         assert f"stage {final})" in heading, heading  # the final stage's, not a running one's
-        schedule = w.page.locator("img[data-figure=schedule]").get_attribute("data-src")
+        schedule = w.page.locator("[data-chart][data-figure=schedule]").get_attribute("data-chart")
         version = httpx.get(f"{base}/studies/{sid}", headers=AUTH).json()["version"]
         assert schedule.endswith(f"?v={version}"), schedule  # the completed study's own
         w.clean()
@@ -726,7 +786,7 @@ def test_a_tapped_figure_opens_enlarged_and_closes(server, browser) -> None:
     try:
         w.goto(f"{server['base']}/ui/studies/{server['a']}")
         w.figures_loaded()
-        img = w.page.locator("img[data-figure=prior_posterior]")
+        img = w.page.locator("img[data-figure=predictive]")
         small = img.bounding_box()["width"]
         natural = img.evaluate("i => i.naturalWidth")
         assert small <= 400 < natural
@@ -766,7 +826,9 @@ def test_update_links_its_parent_and_shows_both_posteriors(server, browser) -> N
         w.goto(f"{server['base']}/ui/studies/{server['update']}")
         w.figures_loaded()
         assert w.page.locator(f"a[href='/ui/studies/{server['a']}']").count() == 1
-        alt = w.page.locator("img[data-figure=prior_posterior]").get_attribute("alt")
+        alt = w.page.locator("[data-chart][data-figure=prior_posterior]").get_attribute(
+            "aria-label"
+        )
         assert "earlier" in alt
         # the three evidences: the new data's (the increment), the earlier data's, all data's,
         # as the API reports them (the dashboard prints 6 significant digits)

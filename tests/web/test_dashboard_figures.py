@@ -1,8 +1,10 @@
-"""The figure layer the dashboard and the CLI share: rendering to bytes, the schedule with
-stages not yet done, thinning of large samples, and the cache."""
+"""The figure layer the dashboard and the CLI share: the stage figures' charts (what they show,
+checked against numpy's and scipy's numbers), drawing them with matplotlib and rendering to
+bytes, the schedule with stages not yet done, thinning of large samples, and the cache."""
 
 from __future__ import annotations
 
+import json
 import threading
 import xml.etree.ElementTree as ET
 
@@ -11,12 +13,13 @@ import pytest
 
 from services.api.dashboard.figures import FigureCache
 from services.plots.figures import render
-from services.plots.posterior import pair_matrix_figure, pairs_figure
-from services.plots.stages import schedule_figure, stage_trace_figure
+from services.plots.mpl import draw
+from services.plots.posterior import pair_matrix_chart, pairs_chart
+from services.plots.stages import schedule_chart, stage_trace_chart
 
 
 def test_render_is_deterministic_and_checks_the_format() -> None:
-    fig = schedule_figure([0, 1, 2], [0.0, 0.01, 1.0], [None, 0.3, 0.25], [500, 250, 260], 500)
+    fig = draw(schedule_chart([0, 1, 2], [0.0, 0.01, 1.0], [None, 0.3, 0.25], [500, 250, 260], 500))
     svg = render(fig, "svg")
     assert svg == render(fig, "svg")  # no creation date: the same figure, the same bytes
     root = ET.fromstring(svg)
@@ -29,19 +32,48 @@ def test_render_is_deterministic_and_checks_the_format() -> None:
 
 
 def test_schedule_of_a_stage_not_done_leaves_it_out() -> None:
-    fig = schedule_figure([0, 1, 2], [0.0, 0.05, None], [None, 0.4, None])
-    ax_p, ax_a = fig.axes[:2]
-    assert ax_p.lines[0].get_xdata().tolist() == [1.0]  # p = 0 has no place on a log axis
+    chart = schedule_chart([0, 1, 2], [0.0, 0.05, None], [None, 0.4, None])
+    exponent, rates = chart.panels
+    assert exponent.layers[0]["x"] == [1.0]  # p = 0 has no place on a log axis
+    assert exponent.y.scale == "log" and rates.layers[0]["x"] == [1.0]
+    ax_p, ax_a = draw(chart).axes[:2]  # matplotlib draws what the chart holds
+    assert ax_p.lines[0].get_xdata().tolist() == [1.0] and ax_p.get_yscale() == "log"
     assert ax_a.lines[0].get_xdata().tolist() == [1.0]
 
 
 def test_pairs_of_a_large_sample_draw_at_most_max_points() -> None:
     rng = np.random.default_rng(1)
     X = rng.normal(size=(16_000, 2))
-    fig = pairs_figure(["a", "b"], X, pairs=[("a", "b")], max_points=4000)
-    dots = fig.axes[0].collections[0]
-    assert dots.get_offsets().shape[0] == 4000 and dots.get_rasterized()
+    chart = pairs_chart(["a", "b"], X, pairs=[("a", "b")], max_points=4000)
+    dots = chart.panels[0].layers[0]
+    assert dots["kind"] == "points" and len(dots["x"]) == 4000
+    assert len(json.dumps(chart.to_json())) < 150_000  # what the page fetches
+    fig = draw(chart)
+    drawn = fig.axes[0].collections[0]
+    assert drawn.get_offsets().shape[0] == 4000 and drawn.get_rasterized()
     assert len(render(fig, "svg")) < 300_000
+
+
+def test_pairs_contours_enclose_the_gaussians_mass() -> None:
+    """Kernel-density contours of a standard bivariate normal sample are closed curves around
+    the mean, and the one at a fraction f of the density's maximum lies near the circle of
+    radius sqrt(-2 ln f (1 + h^2)): the normal's own, widened by the kernel (bandwidth h), to
+    the sampling error of 3000 points."""
+    X = np.random.default_rng(3).normal(size=(3000, 2))
+    chart = pairs_chart(["a", "b"], X, pairs=[("a", "b")])
+    levels = next(la for la in chart.panels[0].layers if la["kind"] == "contours")["levels"]
+    assert len(levels) == 8
+    peak = levels[-1]["value"] / 0.95
+    for level in levels[1:-1]:
+        f = level["value"] / peak
+        # the estimate is the normal convolved with the kernel (Scott's factor h = n^(-1/6)):
+        # N(0, (1 + h^2) I)
+        radius = np.sqrt(-2.0 * np.log(f) * (1.0 + 3000 ** (-1 / 3)))
+        for path in level["paths"]:
+            x, y = np.array(path["x"]), np.array(path["y"])
+            assert (x[0], y[0]) == pytest.approx((x[-1], y[-1]))  # closed
+            r = np.hypot(x, y)
+            assert np.median(r) == pytest.approx(radius, rel=0.06)
 
 
 def test_cache_keeps_the_newest_entries() -> None:
@@ -92,15 +124,18 @@ def test_stage_trace_draws_each_stage_population_quantiles() -> None:
     rng = np.random.default_rng(0)
     sd = (1.0, 0.5, 0.1)
     pops = [np.column_stack([rng.normal(2.0, s, 400), 10 ** rng.normal(6.0, s, 400)]) for s in sd]
-    fig = stage_trace_figure(["phi", "k_phi"], [0, 1, 2], pops, log_params={"k_phi"})
+    chart = stage_trace_chart(["phi", "k_phi"], [0, 1, 2], pops, log_params={"k_phi"})
+    assert len(chart.panels) == 2 and chart.panels[1].y.scale == "log"
+    for k, panel in enumerate(chart.panels):
+        outer, inner, median = panel.layers
+        np.testing.assert_allclose(median["y"], [np.median(p[:, k]) for p in pops], rtol=1e-4)
+        for q, layer in ((0.025, outer), (0.25, inner)):
+            want = [np.quantile(p[:, k], [q, 1 - q]) for p in pops]
+            np.testing.assert_allclose(layer["lo"], [w[0] for w in want], rtol=1e-4)
+            np.testing.assert_allclose(layer["hi"], [w[1] for w in want], rtol=1e-4)
+    fig = draw(chart)
     axes = [ax for ax in fig.axes if ax.get_visible()]
     assert len(axes) == 2 and axes[1].get_yscale() == "log"
-    for k, ax in enumerate(axes):
-        np.testing.assert_allclose(ax.lines[0].get_ydata(), [np.median(p[:, k]) for p in pops])
-        outer = ax.collections[0].get_paths()[0].vertices[:, 1]
-        for p in pops:
-            lo, hi = np.quantile(p[:, k], [0.025, 0.975])
-            assert np.isclose(outer, lo).any() and np.isclose(outer, hi).any()
     assert render(fig, "svg").startswith(b"<?xml")
 
 
@@ -111,18 +146,20 @@ def test_pair_matrix_has_marginals_on_the_diagonal_and_pairs_below() -> None:
     x = np.column_stack(
         [rng.normal(30, 2, 500), 10 ** rng.normal(6, 0.3, 500), rng.normal(1, 0.1, 500)]
     )
-    fig = pair_matrix_figure(["phi", "k_phi", "n"], x, ["phi", "k_phi", "n"], log_params={"k_phi"})
-    axes = [ax for ax in fig.axes if ax.get_visible()]
-    assert len(axes) == 6
-    diag = [ax for ax in axes if ax.lines and not ax.collections]
-    assert len(diag) == 3
-    for ax in diag:
-        g, dens = ax.lines[0].get_data()
+    chart = pair_matrix_chart(["phi", "k_phi", "n"], x, ["phi", "k_phi", "n"], log_params={"k_phi"})
+    cells = chart.panels
+    assert len(cells) == 9 and [c is None for c in cells].count(True) == 3  # above the diagonal
+    diag = [cells[4 * i] for i in range(3)]
+    centres = []
+    for panel in diag:
+        density = next(la for la in panel.layers if la["kind"] == "line")
+        g, dens = np.array(density["x"]), np.array(density["y"])
         assert np.trapezoid(dens, g) == pytest.approx(1.0, abs=0.02)
-    means = [np.average(ax.lines[0].get_xdata(), weights=ax.lines[0].get_ydata()) for ax in diag]
-    centres = sorted(float(m) for m in means)
-    assert centres == pytest.approx([1.0, 6.0, 30.0], abs=0.1)  # log10 k_phi around 6
-    assert "log10" in fig.axes[3].get_ylabel()  # second row: k_phi
+        centres.append(float(np.average(g, weights=dens)))
+    assert sorted(centres) == pytest.approx([1.0, 6.0, 30.0], abs=0.1)  # log10 k_phi around 6
+    assert "log10" in cells[3].y.label  # second row: k_phi
+    fig = draw(chart)
+    assert len([ax for ax in fig.axes if ax.get_visible()]) == 6
     assert render(fig, "svg").startswith(b"<?xml")
 
 

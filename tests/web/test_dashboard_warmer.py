@@ -1,5 +1,5 @@
-"""The figure warmer draws a watched study's page figures when a stage finishes: after one of
-its passes, the page's figure links are all in the cache (nothing left to draw on request)."""
+"""The figure warmer makes a watched study's page charts when a stage finishes: after one of
+its passes, the page's chart links are all in the cache (nothing left to make on request)."""
 
 from __future__ import annotations
 
@@ -38,11 +38,11 @@ def test_warmer_draws_the_figures_a_study_page_links(backend, tmp_path) -> None:
         assert page.status_code == 200 and warmer.watched() == [sid]
         assert warmer.step(store) == [sid]
         drawn = len(warmer.cache)  # the figures and the fit's simulation at the MAP
-        links = re.findall(r'<img data-src="([^"]+)"', page.text)
+        links = re.findall(r'data-chart="([^"]+)"', page.text)
         assert len(links) == 6, links  # schedule, prior/posterior, trace, pairs, matrix, fit
         for link in links:
             r = client.get(link.replace("&amp;", "&"))
-            assert r.status_code == 200 and r.content.startswith(b"<?xml"), link
+            assert r.status_code == 200 and r.json()["panels"], link
         assert len(warmer.cache) == drawn  # every link was drawn ahead: no new draw
         assert warmer.watched() == []  # ended: its figures are final, no longer watched
         assert warmer.step(store) == []

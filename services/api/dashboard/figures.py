@@ -10,6 +10,7 @@ number of samples.
 
 from __future__ import annotations
 
+import json
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Hashable, Sequence
@@ -24,6 +25,7 @@ from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePred
 from scm_core.inference.posterior import map_sample, pool_samples
 from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import SWTDataset
+from services.plots.chart import Chart
 from services.plots.choices import default_pairs, mean_b_eff
 from services.store import StageRecord, Store, StudyRecord
 from services.studies.datasets import load_datasets, stored_log
@@ -34,6 +36,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = [
+    "CHART_FORMAT",
     "STUDY_FIGURES",
     "FigureCache",
     "FigureError",
@@ -44,6 +47,9 @@ __all__ = [
 ]
 
 RESPONSES = ("F", "T", "z")
+
+#: the format of a figure as chart data, drawn by the page's script (charts.js)
+CHART_FORMAT = "json"
 
 
 class FigureError(ValueError):
@@ -161,8 +167,8 @@ def map_simulations(
 # ---------------------------------------------------------------------------- study figures
 
 
-def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: Any) -> Figure:
-    return plots.stages.schedule_figure(
+def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: Any) -> Chart:
+    return plots.stages.schedule_chart(
         [s.stage_index for s in stages],
         [s.exponent for s in stages],
         [s.acceptance for s in stages],
@@ -174,11 +180,11 @@ def _schedule(store: Store, study: StudyRecord, stages: list[StageRecord], **_: 
 
 def _trace(
     store: Store, study: StudyRecord, stage: int, stages: Sequence[StageRecord], **_: Any
-) -> Figure:
+) -> Chart:
     case = stored_case(study.case)
     done = [s.stage_index for s in stages if s.status == "done" and s.stage_index <= stage]
     data = [_stage_data(store, study, j) for j in done]
-    return plots.stages.stage_trace_figure(
+    return plots.stages.stage_trace_chart(
         data[-1].names,
         done,
         [d.samples for d in data],
@@ -205,13 +211,13 @@ def _stage_title(study: StudyRecord, stages: Sequence[StageRecord], stage: int) 
 
 def _prior_posterior(
     store: Store, study: StudyRecord, stage: int, stages: Sequence[StageRecord], **_: Any
-) -> Figure:
+) -> Chart:
     case = stored_case(study.case)
     prior = case.prior()
     data = _stage_data(store, study, stage)
     first = _stage_data(store, study, 0)
     panel = _panel(study)
-    return plots.posterior.prior_posterior_figure(
+    return plots.posterior.prior_posterior_chart(
         data.names,
         first.samples,
         data.samples,
@@ -233,7 +239,7 @@ def _pairs(
     stages: Sequence[StageRecord],
     pair: tuple[str, str] | None = None,
     **_: Any,
-) -> Figure:
+) -> Chart:
     case = stored_case(study.case)
     data = _stage_data(store, study, stage)
     if pair is not None and not set(pair) <= set(data.names):
@@ -248,7 +254,7 @@ def _pairs(
         _, sims, _ = map_simulations(store, study, stage, cache)
         b_eff = mean_b_eff(sims[0])
         k_star_line = (k_star, b_eff) if b_eff else None
-    fig = plots.posterior.pairs_figure(
+    chart = plots.posterior.pairs_chart(
         data.names,
         data.samples,
         pairs=None if pair is None else [pair],
@@ -258,9 +264,9 @@ def _pairs(
         title=f"{study.name}: bivariate density{_stage_title(study, stages, stage)} (Figures 6-8)",
         log_params=_log_params(case),
     )
-    if fig is None:
+    if chart is None:
         raise FigureError(f"study {study.id} has no parameter pair to draw")
-    return fig
+    return chart
 
 
 #: at most this many parameters in a pair matrix (d * (d + 1) / 2 panels)
@@ -316,7 +322,7 @@ def _matrix(
     stages: Sequence[StageRecord],
     params: tuple[str, ...] | None = None,
     **_: Any,
-) -> Figure:
+) -> Chart:
     case = stored_case(study.case)
     data = _stage_data(store, study, stage)
     chosen = list(params) if params else default_matrix(data.names)
@@ -325,7 +331,7 @@ def _matrix(
         raise FigureError(f"p: {', '.join(unknown)} not among {', '.join(data.names)}")
     if not 2 <= len(chosen) <= MATRIX_MAX or len(set(chosen)) != len(chosen):
         raise FigureError(f"p: choose 2 to {MATRIX_MAX} different parameters")
-    return plots.posterior.pair_matrix_figure(
+    return plots.posterior.pair_matrix_chart(
         data.names,
         data.samples,
         chosen,
@@ -343,10 +349,10 @@ def _fit(
     cache: FigureCache,
     stages: Sequence[StageRecord],
     **_: Any,
-) -> Figure:
+) -> Chart:
     case = stored_case(study.case)
     datasets, sims, offsets = map_simulations(store, study, stage, cache)
-    return plots.fit.fit_figure(
+    return plots.fit.fit_chart(
         datasets,
         sims,
         title=f"{study.name}: measured vs simulated at the MAP{_stage_title(study, stages, stage)} "
@@ -401,7 +407,7 @@ def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
 
 #: figure name -> (builder, needs a finished stage); a kind names those it is drawn for
 #: (``KindPanel.figures``)
-STUDY_FIGURES: dict[str, tuple[Callable[..., Figure], bool]] = {
+STUDY_FIGURES: dict[str, tuple[Callable[..., Chart | Figure], bool]] = {
     "schedule": (_schedule, False),
     "prior_posterior": (_prior_posterior, True),
     "trace": (_trace, True),
@@ -424,10 +430,11 @@ def study_figure(
     params: tuple[str, ...] | None = None,
     drawer: Any = None,
 ) -> bytes:
-    """Figure ``name`` of ``study`` as SVG or PNG bytes (cached). ``stage``: a finished stage
-    (default the last); ``pair``: the parameters of the bivariate density; ``drawer``: a
-    :class:`~services.api.dashboard.drawing.FigureProcess` that draws what ``cache`` lacks
-    (None: drawn here). FigureError if the figure does not apply."""
+    """Figure ``name`` of ``study`` as SVG or PNG bytes, or as the JSON of its chart
+    (``fmt`` "json": what the page draws; :mod:`services.plots.chart`), cached. ``stage``: a
+    finished stage (default the last); ``pair``: the parameters of the bivariate density;
+    ``drawer``: a :class:`~services.api.dashboard.drawing.FigureProcess` that makes what
+    ``cache`` lacks (None: made here). FigureError if the figure does not apply."""
     if name not in STUDY_FIGURES:
         raise FigureError(f"figure: unknown figure {name!r}; one of {sorted(STUDY_FIGURES)}")
     build, needs_stage = STUDY_FIGURES[name]
@@ -453,7 +460,7 @@ def study_figure(
         if drawer is not None:
             options = {"stage": stage, "pair": pair, "params": params}
             return drawer.study_figure(study.id, name, fmt, options)
-        fig = build(
+        made = build(
             store=store,
             study=study,
             stages=stages,
@@ -462,6 +469,11 @@ def study_figure(
             pair=pair,
             params=params,
         )
+        if fmt == CHART_FORMAT:
+            if not isinstance(made, Chart):
+                raise FigureError(f"figure {name}: drawn as an image only (svg, png)")
+            return json.dumps(made.to_json(), separators=(",", ":"), allow_nan=False).encode()
+        fig = plots.mpl.draw(made) if isinstance(made, Chart) else made
         return plots.figures.render(fig, fmt)
 
     return cache.get_or_make(key, make)

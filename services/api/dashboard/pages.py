@@ -7,8 +7,10 @@ fragments (a study's row, progress and stages) carry the study's ETag (``data-et
 with ``If-None-Match`` every few seconds while the tab is visible and the study is active: an
 unchanged study answers 304 from the studies table alone, and a study that has ended renders
 without a polling trigger. Figures (``/ui/figures/...``) are SVG or PNG from
-``services.plots``, cached per (study, stage, figure, options, format). Writes (cancel, upload,
-new study) go to the JSON API from the page's script, with the token.
+``services.plots``; a study's stage figures are also served as their charts' data (``.json``,
+:mod:`services.plots.chart`), which the page draws (``static/charts.js``); all cached per
+(study, stage, figure, options, format). Writes (cancel, upload, new study) go to the JSON API
+from the page's script, with the token.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from ..views import (
     study_progress,
 )
 from .figures import (
+    CHART_FORMAT,
     DRAW_SECONDS,
     MATRIX_MAX,
     FigureError,
@@ -121,7 +124,7 @@ def _figure_response(data: bytes, fmt: str, filename: str, fixed: bool = False) 
     so the browser may keep it for good; otherwise for a minute."""
     return Response(
         data,
-        media_type=FORMATS[fmt],
+        media_type=FORMATS.get(fmt, "application/json"),
         headers={
             "Cache-Control": FIXED_FIGURE_CACHE if fixed else "private, max-age=60",
             "Content-Disposition": f'inline; filename="{filename}"',
@@ -129,9 +132,11 @@ def _figure_response(data: bytes, fmt: str, filename: str, fixed: bool = False) 
     )
 
 
-def _fmt(fmt: str) -> str:
-    if fmt not in FORMATS:
-        raise HTTPException(404, f"figure format must be one of {sorted(FORMATS)}, got {fmt!r}")
+def _fmt(fmt: str, chart: bool = False) -> str:
+    """``fmt`` if it is an image format (or, with ``chart``, a chart's JSON), else 404."""
+    known = sorted(FORMATS) + ([CHART_FORMAT] if chart else [])
+    if fmt not in known:
+        raise HTTPException(404, f"figure format must be one of {known}, got {fmt!r}")
     return fmt
 
 
@@ -412,8 +417,9 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
 
 
 def _figure_routes(warmer: FigureWarmer) -> APIRouter:
-    """Figures (SVG or PNG) of studies, datasets and comparisons (in ``warmer``'s cache; study
-    figures drawn by its drawing process)."""
+    """Figures (SVG or PNG; a study's stage figures also as chart data, JSON) of studies,
+    datasets and comparisons (in ``warmer``'s cache; study figures made by its drawing
+    process)."""
     reads = _reads()
     cache = warmer.cache
 
@@ -435,7 +441,7 @@ def _figure_routes(warmer: FigureWarmer) -> APIRouter:
             Query(ge=0, le=INT64_MAX, description="The study version the figure is of."),
         ] = None,
     ) -> Response:
-        fmt = _fmt(fmt)
+        fmt = _fmt(fmt, chart=True)
         study = store.studies.get(study_id)
         # a finished stage's figure never changes; one of another version is not served
         fixed = stage is not None or (v is not None and v == study.version)

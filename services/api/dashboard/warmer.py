@@ -1,13 +1,14 @@
-"""Draw a watched study's figures when one of its stages finishes, before its page asks.
+"""Make a watched study's charts when one of its stages finishes, before its page asks.
 
-A study page polls its results fragment, which links the figures of the last finished stage;
-drawn on request, they would appear a render later than the fragment (each 0.1-0.7 s, a stage's
-six about 1-2 s on two busy cores). :class:`FigureWarmer` looks at the studies whose pages were
-open in the last ``forget_after`` seconds every ``interval`` seconds (one indexed read each) and,
-when one's finished stages or state changed, draws that stage's page figures
+A study page polls its results fragment, which links the charts of the last finished stage
+(their data, drawn in the browser); made on request, they would appear a computation later
+than the fragment (kernel densities, contour paths, the fit's simulations at the MAP).
+:class:`FigureWarmer` looks at the studies whose pages were open in the last ``forget_after``
+seconds every ``interval`` seconds (one indexed read each) and, when one's finished stages or
+state changed, makes that stage's page charts
 (:func:`~services.api.dashboard.figures.page_figures`) into the dashboard's
 :class:`~services.api.dashboard.figures.FigureCache` on its own thread; a page's request for a
-figure being drawn waits for it instead of drawing it again.
+chart being made waits for it instead of making it again.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from services.store.errors import NotFoundError
 from services.store.models import STUDY_ACTIVE
 
 from .drawing import DRAWING_PROCESSES, FigureProcess
-from .figures import FigureCache, FigureError, page_figures, study_figure
+from .figures import CHART_FORMAT, FigureCache, FigureError, page_figures, study_figure
 
 __all__ = ["FigureWarmer"]
 
@@ -128,7 +129,7 @@ class FigureWarmer:
                 # FigureError: not drawn for this kind or stage, so the page does not show it
                 with contextlib.suppress(FigureError):
                     study_figure(
-                        store, study, fmt="svg", cache=self.cache, drawer=self.drawer, **spec
+                        store, study, fmt=CHART_FORMAT, cache=self.cache, drawer=self.drawer, **spec
                     )
                 return True
 

@@ -47,47 +47,61 @@
     if (next) next(); else fetching -= 1;
   }
   const shown = new Map();
+  const charts = new Map();  // chart box -> its drawn chart (charts.js handle)
   /* a figure whose fragment a newer one replaced (a later stage, the study's end) is not
      fetched any more: queued ones are skipped, those in flight aborted, so the newest
      stage's figures never wait behind stale ones */
   const inflight = new Map();
   function dropStale() {
-    for (const [img, ctl] of inflight) if (!img.isConnected) ctl.abort();
+    for (const [el, ctl] of inflight) if (!el.isConnected) ctl.abort();
+    for (const [box, chart] of charts) if (!box.isConnected) { chart.destroy(); charts.delete(box); }
   }
-  async function loadFigure(img) {
-    const src = img.dataset.src;
-    if (!src || img.dataset.loaded === src) return;
-    img.dataset.loaded = src;
-    img.classList.add("loading");
+  /* fetch src for el (an img or a chart box) in a figure slot and show it (show(resp)) */
+  async function loadInto(el, src, show) {
+    if (!src || el.dataset.loaded === src) return;
+    el.dataset.loaded = src;
+    el.classList.add("loading");
     await figureSlot();
     const ctl = new AbortController();
     try {
-      if (!img.isConnected || img.dataset.loaded !== src) return;
-      inflight.set(img, ctl);
+      if (!el.isConnected || el.dataset.loaded !== src) return;
+      inflight.set(el, ctl);
       const resp = await fetch(src, { headers: authHeaders(), signal: ctl.signal });
       if (!resp.ok) {
-        img.classList.remove("loading");
-        img.replaceWith(Object.assign(document.createElement("p"), {
+        el.classList.remove("loading");
+        el.replaceWith(Object.assign(document.createElement("p"), {
           className: "error figure-error",
           textContent: "figure unavailable: " + (await detailOf(resp)),
         }));
         return;
       }
-      const blob = await resp.blob();
-      img.dataset.axes = blob.type.startsWith("image/svg") ? axesOf(await blob.text()) : "";
-      const url = URL.createObjectURL(blob);
-      const old = shown.get(img);
-      img.src = url;
-      shown.set(img, url);
-      if (old) URL.revokeObjectURL(old);
+      await show(resp);
     } catch (err) {
       if (err.name !== "AbortError") throw err;
     } finally {
-      inflight.delete(img);
+      inflight.delete(el);
       releaseSlot();
-      img.classList.remove("loading");
+      el.classList.remove("loading");
     }
   }
+  const loadFigure = (img) => loadInto(img, img.dataset.src, async (resp) => {
+    const blob = await resp.blob();
+    img.dataset.axes = blob.type.startsWith("image/svg") ? axesOf(await blob.text()) : "";
+    const url = URL.createObjectURL(blob);
+    const old = shown.get(img);
+    img.src = url;
+    shown.set(img, url);
+    if (old) URL.revokeObjectURL(old);
+  });
+  /* a chart: its data (services.plots.chart) drawn in the page by charts.js, which fits it to
+     the page's width and gives it hover values and box zoom */
+  const loadChart = (box) => loadInto(box, box.dataset.chart, async (resp) => {
+    const spec = await resp.json();
+    const old = charts.get(box);
+    if (old) old.destroy();
+    charts.set(box, window.ScmCharts.render(box, spec));
+    box.dataset.drawn = box.dataset.chart;
+  });
 
   /* hover readout: an SVG figure carries where its axes lie and their limits
      (<metadata id="axes">, services.plots.figures.axes_geometry); the pointer over a figure, or
@@ -139,8 +153,10 @@
      request then finds its figure being drawn instead of queueing behind the others */
   function loadFigures(root) {
     dropStale();
-    const cost = (img) => parseFloat(img.dataset.cost || "0");
-    [...root.querySelectorAll("img[data-src]")].sort((a, b) => cost(b) - cost(a)).forEach(loadFigure);
+    const cost = (el) => parseFloat(el.dataset.cost || "0");
+    [...root.querySelectorAll("img[data-src], [data-chart]")]
+      .sort((a, b) => cost(b) - cost(a))
+      .forEach((el) => (el.dataset.chart ? loadChart(el) : loadFigure(el)));
   }
 
   /* downloads: with a token, fetched and saved from a blob; without, the plain link */
@@ -218,19 +234,26 @@
       apply();
     });
     dlg.addEventListener("pointerup", () => { view.drag = null; });
-    dlg.addEventListener("click", () => { if (!view.dragged) dlg.close(); view.dragged = false; });
+    dlg.addEventListener("click", () => {
+      if (!view.dragged && !dlg.classList.contains("chart-zoom")) dlg.close();
+      view.dragged = false;
+    });
     return view;
   }
   let zoom = null;
-  document.addEventListener("click", (ev) => {
-    const img = ev.target.closest("figure.fig img");
-    if (!img || !img.src) return;
+  function zoomDialog() {
     let dlg = document.getElementById("figure-zoom");
     if (!dlg) {
       dlg = Object.assign(document.createElement("dialog"), { id: "figure-zoom", className: "figure-zoom" });
       document.body.append(dlg);
       zoom = zoomView(dlg);
     }
+    return dlg;
+  }
+  document.addEventListener("click", (ev) => {
+    const img = ev.target.closest("figure.fig img");
+    if (!img || !img.src) return;
+    const dlg = zoomDialog();
     const pic = Object.assign(document.createElement("img"), { src: img.src, alt: img.alt });
     pic.dataset.axes = img.dataset.axes || "";
     pic.draggable = false;
@@ -238,35 +261,67 @@
     zoom.reset();
     dlg.showModal();
   });
+  /* a chart enlarged: drawn again at the screen's width (its own box zoom works there; the
+     dialog closes with its button or Escape, not with a tap, which the zoom uses) */
+  document.addEventListener("click", (ev) => {
+    const btn = ev.target.closest("button[data-enlarge]");
+    if (btn) {
+      const box = btn.closest("figure.fig").querySelector("[data-chart]");
+      const chart = box && charts.get(box);
+      if (!chart) return;
+      const dlg = zoomDialog();
+      const close = Object.assign(document.createElement("button"), {
+        type: "button", className: "close", textContent: "close",
+      });
+      close.dataset.closeDialog = "";
+      const big = Object.assign(document.createElement("div"), { className: "chart-box" });
+      big.setAttribute("role", "img");
+      big.setAttribute("aria-label", box.getAttribute("aria-label") || "");
+      dlg.replaceChildren(close, big);
+      dlg.classList.add("chart-zoom");
+      dlg.showModal();
+      const drawn = window.ScmCharts.render(big, chart.spec);
+      dlg.addEventListener("close", () => { drawn.destroy(); dlg.classList.remove("chart-zoom"); }, { once: true });
+      return;
+    }
+    if (ev.target.closest("button[data-close-dialog]")) ev.target.closest("dialog").close();
+  });
+
+  /* a figure (img or chart) and its downloads shown with other options: swap(url) */
+  function swapFigure(el, swap, alt) {
+    if (el.dataset.chart) {
+      el.dataset.chart = swap(el.dataset.chart);
+      el.setAttribute("aria-label", alt);
+    } else {
+      el.dataset.src = swap(el.dataset.src);
+      el.alt = alt;
+    }
+    el.closest("figure").querySelectorAll("a[data-download]").forEach((l) => { l.href = swap(l.getAttribute("href")); });
+    if (el.dataset.chart) loadChart(el); else loadFigure(el);
+  }
 
   /* the matrix chooser redraws the pair matrix with the checked parameters (2 to data-max) */
   document.addEventListener("change", (ev) => {
     const form = ev.target.closest("form.matrix-chooser");
     if (!form) return;
-    const img = document.querySelector('img[data-figure="matrix"]');
-    if (!img) return;
+    const el = document.querySelector('figure.fig [data-figure="matrix"]');
+    if (!el) return;
     const chosen = [...form.querySelectorAll("input[name=p]:checked")].map((i) => i.value);
     if (chosen.length < 2 || chosen.length > Number(form.dataset.max)) return;
     const swap = (s) => s.replace(/&p=[^&]*/, "&p=" + chosen.map(encodeURIComponent).join(","));
-    img.dataset.src = swap(img.dataset.src);
-    img.alt = "Pair matrix of " + chosen.join(", ");
-    img.closest("figure").querySelectorAll("a[data-download]").forEach((l) => { l.href = swap(l.getAttribute("href")); });
-    loadFigure(img);
+    swapFigure(el, swap, "Pair matrix of " + chosen.join(", "));
   });
 
   /* the pair chooser swaps the bivariate figure */
   document.addEventListener("change", (ev) => {
     const form = ev.target.closest("form.pair-chooser");
     if (!form) return;
-    const img = document.querySelector('img[data-figure="pairs"]');
-    if (!img) return;
+    const el = document.querySelector('figure.fig [data-figure="pairs"]');
+    if (!el) return;
     const a = form.elements.a.value, b = form.elements.b.value;
     if (a === b) return;
     const swap = (s) => s.replace(/&a=[^&]*&b=[^&]*/, "&a=" + encodeURIComponent(a) + "&b=" + encodeURIComponent(b));
-    img.dataset.src = swap(img.dataset.src);
-    img.alt = "Bivariate posterior density of " + a + " and " + b;
-    img.closest("figure").querySelectorAll("a[data-download]").forEach((l) => { l.href = swap(l.getAttribute("href")); });
-    loadFigure(img);
+    swapFigure(el, swap, "Bivariate posterior density of " + a + " and " + b);
   });
 
   /* the checked dataset ids in upload order (the likelihood's order), not the list's */
