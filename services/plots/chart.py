@@ -167,12 +167,15 @@ class Panel:
 @dataclass
 class Chart:
     """A figure: ``panels`` in rows of ``columns`` (None leaves a cell empty), a title, and
-    the size matplotlib draws it at ([in]; the browser fits it to the page's width)."""
+    the size matplotlib draws it at ([in]; the browser fits it to the page's width, with fewer
+    columns on a narrow screen: the panels re-flowed row by row or, with ``reflow``
+    "columns", column by column, where a column belongs together: Fig. 3's dataset)."""
 
     title: str
     panels: list[Panel | None]
     columns: int = 1
     size: tuple[float, float] = (8.0, 4.0)
+    reflow: str = "rows"
 
     @property
     def rows(self) -> int:
@@ -183,6 +186,7 @@ class Chart:
             "title": self.title,
             "columns": self.columns,
             "size": list(self.size),
+            "reflow": self.reflow,
             "panels": [None if p is None else p.to_json() for p in self.panels],
         }
 

@@ -163,6 +163,7 @@ def fit_chart(
         [p for row in grid for p in row],
         columns=ncols,
         size=(max(5.2 * ncols, 8.0), 2.6 * len(rows) + 0.4),
+        reflow="columns",  # a dataset's responses together on a narrow screen
     )
 
 

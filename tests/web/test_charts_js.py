@@ -245,6 +245,20 @@ def test_phone_width_stacks_panels(browser) -> None:
     ctx.close()
 
 
+def test_a_chart_of_columns_reflows_column_by_column(browser) -> None:
+    """Fig. 3 has a column per dataset: on a phone its panels stack a dataset at a time
+    (reflow "columns"); other charts stack row by row."""
+    ctx, page, errors = open_page(browser, width=400)
+    for reflow, want in (("columns", [0, 2, 4, 1, 3, 5]), ("rows", [0, 1, 2, 3, 4, 5])):
+        panels = [Panel(Axis(f"x{k}"), Axis("y")).add(line([0, 1], [k, k + 1])) for k in range(6)]
+        render(page, Chart("grid", panels, columns=2, size=(10.0, 7.0), reflow=reflow))
+        drawn = page.locator("svg.chart g.chart-panel").all()
+        order = sorted(drawn, key=lambda g: g.bounding_box()["y"])
+        assert [int(g.get_attribute("data-panel")) for g in order] == want, reflow
+    assert errors == []
+    ctx.close()
+
+
 def test_render_time_of_a_big_spec(page) -> None:
     rng = np.random.default_rng(2)
     x = np.linspace(0, 10, 1200)

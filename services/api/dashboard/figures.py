@@ -225,7 +225,8 @@ def _prior_posterior(
         units=dict(prior.units or {}),
         map_sample=_map(data),
         reference=case.reference,
-        title=f"{study.name}: {panel.start} and{_stage_title(study, stages, stage)} (Figure 5)",
+        title=f"{study.name}: {panel.start} and {panel.end}{_stage_title(study, stages, stage)}"
+        " (Figure 5)",
         log_params=_log_params(case),
         labels=(panel.start, panel.end),
     )

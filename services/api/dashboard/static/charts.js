@@ -460,12 +460,17 @@
     const cs = getComputedStyle(el);
     return Math.max(0, Math.floor(el.clientWidth - (parseFloat(cs.paddingLeft) || 0) - (parseFloat(cs.paddingRight) || 0)));
   }
-  /* the grid: spec.columns, or fewer at MIN_COL px each (re-flowed in order, empty cells
-     dropped); a row's height from matplotlib's aspect, plus room for titles and top axes */
+  /* the grid: spec.columns, or fewer at MIN_COL px each (re-flowed in order, row by row or,
+     with spec.reflow "columns", column by column, so a column's panels stay together; empty
+     cells dropped); a row's height from matplotlib's aspect, plus room for titles and top axes */
   function layout(spec, W) {
     const n = spec.panels.length, cols0 = Math.max(1, spec.columns || 1);
     const cols = Math.min(cols0, Math.max(1, Math.floor(W / MIN_COL)));
-    const cells = spec.panels.map((p, i) => (p ? i : null)).filter((i) => cols === cols0 || i !== null);
+    let order = spec.panels.map((p, i) => i);
+    if (cols < cols0 && spec.reflow === "columns") {
+      order = order.slice().sort((a, b) => (a % cols0) - (b % cols0) || a - b);
+    }
+    const cells = order.map((i) => (spec.panels[i] ? i : null)).filter((i) => cols === cols0 || i !== null);
     const size = spec.size || [8, 4];
     const aspect = (size[1] / Math.max(1, Math.ceil(n / cols0))) / (size[0] / cols0);
     const cw = W / cols, base = clamp(cw * aspect, 150, 340), boxes = [];

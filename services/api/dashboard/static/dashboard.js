@@ -95,8 +95,10 @@
   });
   /* a chart: its data (services.plots.chart) drawn in the page by charts.js, which fits it to
      the page's width and gives it hover values and box zoom */
+  const PX_PER_INCH = 120;  // a chart is at most as wide as its file's drawing (spec.size, inches)
   const loadChart = (box) => loadInto(box, box.dataset.chart, async (resp) => {
     const spec = await resp.json();
+    box.style.maxWidth = Math.round(spec.size[0] * PX_PER_INCH) + "px";
     const old = charts.get(box);
     if (old) old.destroy();
     charts.set(box, window.ScmCharts.render(box, spec));
