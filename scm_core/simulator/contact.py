@@ -33,6 +33,7 @@ from .layout import (
     P_SHEARDISP,
     P_SHEARSCALE,
     P_SLIPV,
+    P_STUCKSOIL,
     P_TANDELTA,
     P_TANPHI,
     P_TAPER,
@@ -318,6 +319,9 @@ def evaluate_contact(
     n_exp = prm[P_N]
     tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
     tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8))
+    # where the surface sticks to the soil (its velocity inside the interface's friction cone)
+    # the soil moving with it fails in the soil, at phi (stuck_shear 'soil'; a dead wedge)
+    stuck_soil = prm[P_STUCKSOIL] > 0.5 and tandelta < tanphi
     coh = prm[P_C]
     dsoil = prm[P_DSOIL]
     J = prm[P_J]
@@ -349,6 +353,7 @@ def evaluate_contact(
     Ty_fwd = 0.0
     k_prev = -1
     rx = rz = nx = nz = tx = tz = sd = dsd = fsh = vt = 0.0
+    mu = tandelta
     for p in range(npatch):
         if pflag[p] == 0:
             continue
@@ -377,11 +382,14 @@ def evaluate_contact(
                 tx = vtx / vt
                 tz = vtz / vt
             fsh = 1.0 - math.exp(-vt / J)
+            mu = tandelta
+            if stuck_soil and pen > 0.0 and vt <= tandelta * pen * sv:
+                mu = tanphi  # the surface pushes more than it slides: the soil moves with it
         if disp_form:
             fsh = 1.0 - math.exp(-(pst[p, 4] + vt * dt) / J)
         incl = 1.0
         if incl_exp > 0.0:
-            incl = inclination_factor(nx, nz, tx, tz, fsh * tandelta, incl_exp)
+            incl = inclination_factor(nx, nz, tx, tz, fsh * mu, incl_exp)
         rows = pj1[p] - pj0[p]
         sink = pst[p, 0] - (zw + e[k])
         sel = pst[p, 3] * (sink - pst[p, 1])
@@ -402,7 +410,7 @@ def evaluate_contact(
         else:
             gam = float(rows)
         sig_sum = gam * sb + rows * sd  # sum over the patch's rows of eq. (7) [Pa]
-        tau_sum = fsh * (coh * rows + tandelta * sig_sum)  # eq. (8)
+        tau_sum = fsh * (coh * rows + mu * sig_sum)  # eq. (8)
         dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding
         dfz = (sig_sum * nz - tau_sum * tz) * dA
         Fx += dfx
@@ -412,7 +420,7 @@ def evaluate_contact(
             Fx_fwd += dfx
             Ty_fwd += kin * rz * dfx
         dsig = -gam * dsb + rows * dsd  # d(sig_sum)/d(zw): sinkage falls as the axle rises
-        dFz += (dsig * nz - fsh * tandelta * dsig * tz) * dA
+        dFz += (dsig * nz - fsh * mu * dsig * tz) * dA
     # Coulomb sliding limit of the soil under the wheel (Micklethwaite's maximum tractive
     # effort c A + W tan(phi)): thrust beyond it (grouser faces pressing columns that Bekker's
     # law alone does not bound) shears the soil instead, so the forward contributions are scaled

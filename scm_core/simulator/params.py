@@ -276,6 +276,16 @@ class RigConfig(_Frozen):
         "r_s = r + h_g and s the rim's slip, i.e. the rim's slip velocity times r_s / r: the "
         "soil below the tips moves with them until the rim slips); ignored otherwise",
     )
+    stuck_shear: Literal["interface", "soil"] = Field(
+        "interface",
+        description="What shears where the wheel's surface does not slide over the soil, i.e. "
+        "where its velocity relative to the ground lies inside the friction cone of the "
+        "rim-soil interface (tangential speed <= tan(delta) times the speed into the soil; "
+        "docs/simulator.md step 2): 'interface' (the rim's own friction delta, as where it "
+        "slides; SCM) or 'soil' (the soil there moves with the rim, a dead wedge as ahead of "
+        "a skidding wheel or a blunt blade, and fails in the soil, at phi); the same unless "
+        "SoilParams.interface_friction < 1",
+    )
     sinkage_datum: Literal["outer", "rim"] = Field(
         "outer",
         description="Where the reported sinkage z is zero: 'outer' (the axle height at which "

@@ -75,6 +75,7 @@ class ResolvedRig:
     grouser_contact: str
     sinkage_datum: str
     grouser_slip: str
+    stuck_shear: str
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -153,4 +154,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         grouser_contact=rig.grouser_contact,
         sinkage_datum=rig.sinkage_datum,
         grouser_slip=rig.grouser_slip,
+        stuck_shear=rig.stuck_shear,
     )

@@ -47,3 +47,61 @@ def test_the_tip_circle_shears_soil_on_soil(ratio):
     faces = pack(soil, grousered, RigConfig())
     assert trapped[P_TANDELTA] == soil.tan_phi
     assert faces[P_TANDELTA] == pytest.approx(ratio * soil.tan_phi, rel=1e-15)
+
+
+def _cmu(slip: float, stuck: str) -> RigConfig:
+    return RigConfig(
+        W=W,
+        slip=slip,
+        slip_convention="symmetric",
+        carriage_speed=0.01,
+        shear="displacement",
+        skid_ploughing="sliding_face",
+        stuck_shear=stuck,
+    )
+
+
+SAND = {"k_phi": 5e6, "n": 1.2, "phi": 30.0, "J": 0.008, "shear_band": 0.015}
+
+
+def test_stuck_soil_changes_nothing_when_the_rim_is_as_rough_as_the_soil():
+    """With delta = phi the soil that moves with the rim shears at the same angle either way:
+    skid, rolling and drive give the same bits."""
+    wheel = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    soils = [SoilParams(**SAND)] * 6
+    rigs = [_cmu(s, m) for s in (-0.5, 0.0, 0.5) for m in ("interface", "soil")]
+    res = simulate_batch(soils, wheel, rigs)
+    assert res.ok.all()
+    np.testing.assert_array_equal(res.means[0::2], res.means[1::2])
+
+
+def test_a_sliding_rim_keeps_coulombs_friction_with_stuck_soil():
+    """Where the rim slides (a wheel spinning on a soil too stiff to sink: its velocity lies
+    outside the friction cone everywhere) the interface's delta still acts: Coulomb's
+    tan(delta) W, as without the option."""
+    soil = SoilParams(k_phi=5e8, n=1.0, phi=30.0, J=0.001, shear_band=0.0, interface_friction=0.5)
+    rig = RigConfig(
+        W=W, slip=0.9, slip_convention="symmetric", carriage_speed=0.01, shear="displacement",
+        stuck_shear="soil",
+    )  # fmt: skip
+    res = simulate_batch([soil], WheelGeometry(R=R, b=0.05, n_grousers=0), [rig])
+    tan_delta = 0.5 * math.tan(math.radians(30.0))
+    assert res.means[0, 0] / W == pytest.approx(tan_delta, rel=0.01)
+
+
+def test_a_locked_rim_brakes_harder_where_its_wedge_shears_the_soil():
+    """A locked smooth rim of friction delta < phi: the soil ahead of the upper front face
+    moves with the rim (its velocity, into the soil, lies inside the friction cone), so with
+    stuck_shear 'soil' that part shears at phi and the wheel brakes harder than with delta
+    everywhere, and no harder than a rim as rough as the soil (delta = phi everywhere)."""
+    wheel = WheelGeometry(R=R, b=0.05, n_grousers=0)
+    smooth = SoilParams(**SAND, interface_friction=0.6)
+    rough = SoilParams(**SAND)
+    res = simulate_batch(
+        [smooth, smooth, rough],
+        wheel,
+        [_cmu(-1.0, "interface"), _cmu(-1.0, "soil"), _cmu(-1.0, "interface")],
+    )
+    assert res.ok.all()
+    sliding, wedge, soil_on_soil = res.means[:, 0]
+    assert soil_on_soil < wedge < sliding - 0.5  # N: braking is negative
