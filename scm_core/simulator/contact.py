@@ -318,10 +318,8 @@ def evaluate_contact(
         res[i] = 0.0
     n_exp = prm[P_N]
     tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
-    tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8))
-    # where the surface sticks to the soil (its velocity inside the interface's friction cone)
-    # the soil moving with it fails in the soil, at phi (stuck_shear 'soil'; a dead wedge)
-    stuck_soil = prm[P_STUCKSOIL] > 0.5 and tandelta < tanphi
+    tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8)), at phi where it
+    stuck_soil = prm[P_STUCKSOIL] > 0.5 and tandelta < tanphi  # sticks (stuck_shear 'soil')
     coh = prm[P_C]
     dsoil = prm[P_DSOIL]
     J = prm[P_J]
@@ -352,8 +350,7 @@ def evaluate_contact(
     Fx_fwd = 0.0  # forward (thrust) contributions and their moment
     Ty_fwd = 0.0
     k_prev = -1
-    rx = rz = nx = nz = tx = tz = sd = dsd = fsh = vt = 0.0
-    mu = tandelta
+    rx = rz = nx = nz = tx = tz = sd = dsd = fsh = vt = mu = 0.0
     for p in range(npatch):
         if pflag[p] == 0:
             continue
@@ -382,9 +379,8 @@ def evaluate_contact(
                 tx = vtx / vt
                 tz = vtz / vt
             fsh = 1.0 - math.exp(-vt / J)
-            mu = tandelta
-            if stuck_soil and pen > 0.0 and vt <= tandelta * pen * sv:
-                mu = tanphi  # the surface pushes more than it slides: the soil moves with it
+            # the surface pushes into the soil more than it slides: the soil moves with it
+            mu = tanphi if stuck_soil and pen > 0.0 and vt <= tandelta * pen * sv else tandelta
         if disp_form:
             fsh = 1.0 - math.exp(-(pst[p, 4] + vt * dt) / J)
         incl = 1.0

@@ -18,7 +18,10 @@ line        x, y, color, width, dash ("dashed", "dotted" or null), marker ("o", 
             null), opacity, label
 band        x, lo, hi, color, opacity, label: the area between two curves
 bars        edges (n + 1), heights (n), color, opacity, fill (false: an outline), label
-points      x, y, color, size (marker radius [px]), opacity, label
+points      x, y, color, size (marker radius [px]), opacity, symbol ("o" circle, "s" square),
+            label
+errorbars   x, y, lo, hi, color, width, label: at each x a bar from lo to hi with caps and a
+            tick at y (a median and its interval)
 contours    levels: [{value, color, paths: [{x, y}, ...]}, ...], width, label
 vline       x, color, width, dash, label; hline: y, ...
 segment     x0, x1, y, color, width, label: a horizontal segment (a mean over a window)
@@ -47,6 +50,7 @@ __all__ = [
     "band",
     "bars",
     "contours",
+    "errorbars",
     "hline",
     "hspan",
     "line",
@@ -256,12 +260,32 @@ def points(
     size: float = 1.5,
     opacity: float = 0.45,
     label: str | None = None,
+    symbol: str = "o",
 ) -> dict[str, Any]:
     return {
         "kind": "points",
         "x": numbers(x),
         "y": numbers(y),
-        **_style(color, label, opacity, size=size),
+        **_style(color, label, opacity, size=size, symbol=symbol),
+    }
+
+
+def errorbars(
+    x: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    lo: Sequence[float] | np.ndarray,
+    hi: Sequence[float] | np.ndarray,
+    color: str = "blue",
+    width: float = 1.0,
+    label: str | None = None,
+) -> dict[str, Any]:
+    return {
+        "kind": "errorbars",
+        "x": numbers(x),
+        "y": numbers(y),
+        "lo": numbers(lo),
+        "hi": numbers(hi),
+        **_style(color, label, width=width),
     }
 
 

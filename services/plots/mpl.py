@@ -118,9 +118,25 @@ def _points(ax: Any, d: dict[str, Any]) -> None:
         s=(2.0 * d["size"]) ** 2 * 0.6,
         color=d["color"],
         alpha=d["opacity"],
+        marker=d.get("symbol", "o"),
         lw=0,
         label=d["label"],
         rasterized=True,
+    )
+
+
+def _errorbars(ax: Any, d: dict[str, Any]) -> None:
+    y = _arr(d["y"])
+    ax.errorbar(
+        _arr(d["x"]),
+        y,
+        yerr=[y - _arr(d["lo"]), _arr(d["hi"]) - y],
+        fmt="_",
+        color=d["color"],
+        ms=9,
+        elinewidth=d["width"],
+        capsize=3,
+        label=d["label"],
     )
 
 
@@ -169,6 +185,7 @@ _LAYERS = {
     "band": _band,
     "bars": _bars,
     "points": _points,
+    "errorbars": _errorbars,
     "contours": _contours,
     "vline": _vline,
     "hline": _hline,

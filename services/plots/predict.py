@@ -4,12 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
-import numpy as np
-from matplotlib.figure import Figure
+from scm_core.calibration.predict import Band, ConditionPrediction
 
-from scm_core.calibration.predict import ConditionPrediction
-
+from .chart import Axis, Chart, Panel, band, errorbars, line, points, text, vline
 from .figures import save
 
 _PANELS = (
@@ -18,94 +17,100 @@ _PANELS = (
     ("z", "sinkage z [mm]", 1000.0),
 )
 _ROLE_STYLE = {
-    "calibration": ("o", "k", "measured, used in the calibration"),
-    "predicted": ("s", "tab:red", "measured, held out"),
+    "calibration": ("o", "black", "measured, used in the calibration"),
+    "predicted": ("s", "red", "measured, held out"),
 }
+SLIP_LABEL = "slip (omega r - v) / max(v, omega r)  [-1 = locked]"
 
 
-def predictions_figure(
+def predictions_chart(
     datasets: Sequence[ConditionPrediction],
     sweep: Sequence[ConditionPrediction],
     title: str | None = None,
     responses: Sequence[str] = ("F", "T", "z"),
-) -> Figure:
+) -> Chart:
     """One panel per response against the symmetric lab slip (-1 = locked): the sweep's
     median and 95 % bands (simulated means, and with the prediction-error noise), each
     dataset's predicted median (a tick) and 95 % predictive interval (the bar), and its
-    measurement where it has one (filled: used in the calibration; squares: held out)."""
-    panels = [p for p in _PANELS if p[0] in responses]
-    fig = Figure(figsize=(7.0, 2.6 * len(panels) + 0.6), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
+    measurement where it has one (circles: used in the calibration; squares: held out)."""
+    rows = [p for p in _PANELS if p[0] in responses]
     sw = sorted((c for c in sweep if c.slip_symmetric is not None), key=lambda c: c.slip_symmetric)
-    for ax, (key, label, scale) in zip(axes, panels, strict=True):
+    shown = [c for c in datasets if c.slip_symmetric is not None]
+    panels: list[Panel | None] = []
+    for k, (key, label, scale) in enumerate(rows):
+        bottom = k == len(rows) - 1
+        panel = Panel(
+            Axis(SLIP_LABEL if bottom else "", tick_labels=bottom),
+            Axis(label),
+            legend="best" if k == 0 else None,
+        )
+        panel.add(vline(0.0, "grey", width=0.6))
         if sw:
-            s = np.array([c.slip_symmetric for c in sw])
-            med = np.array([c.responses[key].simulated.median for c in sw]) * scale
-            lo = np.array([c.responses[key].simulated.lo for c in sw]) * scale
-            hi = np.array([c.responses[key].simulated.hi for c in sw]) * scale
+            s = [c.slip_symmetric for c in sw]
+            sim = [c.responses[key].simulated for c in sw]
             pred = [c.responses[key].predictive for c in sw]
             if all(p is not None for p in pred):
-                plo = np.array([p.lo for p in pred]) * scale
-                phi = np.array([p.hi for p in pred]) * scale
-                ax.fill_between(
-                    s,
-                    plo,
-                    phi,
-                    color="tab:blue",
-                    alpha=0.12,
-                    lw=0,
-                    label="95 % predictive band (with model error)",
-                )
-            ax.fill_between(
-                s,
-                lo,
-                hi,
-                color="tab:blue",
-                alpha=0.3,
-                lw=0,
-                label="95 % band of the simulated mean",
+                panel.add(_band(s, pred, scale, 0.12, "95 % predictive band (with model error)"))
+            panel.add(
+                _band(s, sim, scale, 0.3, "95 % band of the simulated mean"),
+                line(s, [b.median * scale for b in sim], width=1.5, label="posterior median"),
             )
-            ax.plot(s, med, color="tab:blue", lw=1.5, label="posterior median")
-        shown = set()
-        for c in datasets:
-            if c.slip_symmetric is None:
-                continue
-            r = c.responses[key]
-            band = r.predictive or r.simulated
-            kind = "predictive interval" if r.predictive is not None else "band of the mean"
-            ax.errorbar(
-                c.slip_symmetric,
-                band.median * scale,
-                yerr=[[(band.median - band.lo) * scale], [(band.hi - band.median) * scale]],
-                fmt="_",
-                color="tab:blue",
-                ms=9,
-                elinewidth=1.0,
-                capsize=3,
-                label=None if "bar" in shown else f"predicted median, 95 % {kind}",
+        if shown:
+            bands = [c.responses[key].predictive or c.responses[key].simulated for c in shown]
+            kind = (
+                "predictive interval"
+                if all(c.responses[key].predictive is not None for c in shown)
+                else "band of the mean"
             )
-            shown.add("bar")
-            if r.measured is not None:
-                marker, color, lab = _ROLE_STYLE.get(c.role, _ROLE_STYLE["predicted"])
-                ax.plot(
-                    c.slip_symmetric,
-                    r.measured * scale,
-                    marker,
-                    color=color,
-                    ms=5,
-                    label=None if c.role in shown else lab,
-                    zorder=5,
+            panel.add(
+                errorbars(
+                    [c.slip_symmetric for c in shown],
+                    [b.median * scale for b in bands],
+                    [b.lo * scale for b in bands],
+                    [b.hi * scale for b in bands],
+                    label=f"predicted median, 95 % {kind}",
                 )
-                shown.add(c.role)
-        if not any(c.responses[key].measured is not None for c in datasets):
-            ax.text(0.02, 0.92, "no measurement", transform=ax.transAxes, fontsize=8)
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-        ax.axvline(0.0, color="0.6", lw=0.6)
-    axes[0].legend(fontsize=7, loc="best")
-    axes[-1].set_xlabel("slip (omega r - v) / max(v, omega r)  [-1 = locked]")
-    fig.suptitle(title or "Posterior predictions across slip")
-    return fig
+            )
+        measured = [c for c in shown if c.responses[key].measured is not None]
+        for role, (symbol, color, name) in _ROLE_STYLE.items():
+            # a role without a style of its own (a dataset not in the posterior) is held out
+            mine = [
+                c for c in measured if (c.role if c.role in _ROLE_STYLE else "predicted") == role
+            ]
+            if mine:
+                panel.add(
+                    points(
+                        [c.slip_symmetric for c in mine],
+                        [c.responses[key].measured * scale for c in mine],
+                        color,
+                        size=3.5,
+                        opacity=1.0,
+                        symbol=symbol,
+                        label=name,
+                    )
+                )
+        if not any(c.responses[key].measured is not None for c in shown):
+            panel.add(text("no measurement"))
+        panels.append(panel)
+    return Chart(
+        title or "Posterior predictions across slip",
+        panels,
+        columns=1,
+        size=(7.0, 2.6 * len(rows) + 0.6),
+    )
+
+
+def _band(
+    slips: list[float], bands: Sequence[Band], scale: float, opacity: float, label: str
+) -> dict[str, Any]:
+    """The 95 % band of ``bands`` (one per slip) in the drawn unit."""
+    return band(
+        slips,
+        [b.lo * scale for b in bands],
+        [b.hi * scale for b in bands],
+        opacity=opacity,
+        label=label,
+    )
 
 
 def plot_predictions(
@@ -115,5 +120,7 @@ def plot_predictions(
     title: str | None = None,
     responses: Sequence[str] = ("F", "T", "z"),
 ) -> Path:
-    """:func:`predictions_figure` saved to ``path``."""
-    return save(predictions_figure(datasets, sweep, title, responses), path, dpi=120)
+    """:func:`predictions_chart` drawn to ``path``."""
+    from .mpl import draw
+
+    return save(draw(predictions_chart(datasets, sweep, title, responses)), path, dpi=120)

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-from matplotlib.figure import Figure
-
 from scm_core.signals import SWTDataset
 from scm_core.simulator import SWTResult
+
+from .chart import Axis, Chart, Panel, line, segment, vspan
+from .fit import decimated
 
 _PANELS = (
     ("F", "drawbar pull F [N]", 1.0, "offset_F"),
@@ -19,6 +19,8 @@ _PANELS = (
 
 def plot_swt(result: SWTResult, path: str | Path, title: str | None = None) -> Path:
     """Draw F, T and z against time with the averaging windows shaded and the means marked."""
+    from matplotlib.figure import Figure
+
     path = Path(path)
     rig = result.rig
     fig = Figure(figsize=(8, 7.5), layout="constrained")
@@ -49,31 +51,37 @@ _MEASURED = (
 )
 
 
-def measured_figure(ds: SWTDataset, max_points: int = 4000, title: str | None = None) -> Figure:
+def measured_chart(ds: SWTDataset, title: str | None = None) -> Chart:
     """A lab log's channels against time: raw (light) and low-pass filtered, the averaging
-    window shaded and the steady mean +- its standard error marked. At most ``max_points``
-    samples per line (an even thinning; the means are those of all samples)."""
+    window shaded and the steady mean marked. Each line is min-max decimated to what a panel's
+    pixel columns show (:func:`~services.plots.fit.decimated`: every peak kept; the means are
+    those of all samples)."""
     if ds.series is None:
         raise ValueError(f"dataset {ds.name!r} has no series (a summary dataset)")
     s = ds.series
     rows = [r for r in _MEASURED if r[1] in s.raw]
-    fig = Figure(figsize=(8.0, 2.3 * len(rows) + 0.5), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(len(rows), 1, sharex=True))
-    step = max(1, -(-len(s.t) // max_points))
-    t = s.t[::step]
-    for ax, (key, column, label, scale) in zip(axes, rows, strict=True):
-        ax.plot(t, s.raw[column][::step] * scale, lw=0.4, color="0.7", label="raw")
-        ax.plot(t, s.filtered[column][::step] * scale, lw=0.9, color="tab:blue", label="filtered")
+    panels: list[Panel | None] = []
+    for k, (key, column, label, scale) in enumerate(rows):
+        bottom = k == len(rows) - 1
+        panel = Panel(
+            Axis("time t [s]" if bottom else "", tick_labels=bottom),
+            Axis(label),
+            legend="lower right",
+        ).add(
+            line(*decimated(s.t, s.raw[column] * scale), "light", width=0.4, label="raw"),
+            line(*decimated(s.t, s.filtered[column] * scale), width=0.9, label="filtered"),
+        )
         if ds.window is not None:
-            ax.axvspan(*ds.window, color="tab:orange", alpha=0.12, label="averaging window")
-        stat = ds.responses.get(key)
-        if stat is not None and ds.window is not None:
-            m = stat.mean * scale
-            ax.hlines(m, *ds.window, colors="tab:red", lw=2.0, label=f"mean {m:.4g}")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-        ax.legend(loc="lower right", fontsize=7)
-    axes[-1].set_xlabel("time t [s]")
+            panel.add(vspan(*ds.window, "orange", opacity=0.12, label="averaging window"))
+            stat = ds.responses.get(key)
+            if stat is not None:
+                m = stat.mean * scale
+                panel.add(segment(*ds.window, m, "red", width=2.0, label=f"mean {m:.4g}"))
+        panels.append(panel)
     cut = f", low-pass {ds.cutoff_hz:g} Hz" if ds.cutoff_hz else ""
-    axes[0].set_title(title or f"{ds.name}: measured signals{cut}")
-    return fig
+    return Chart(
+        title or f"{ds.name}: measured signals{cut}",
+        panels,
+        columns=1,
+        size=(8.0, 2.3 * len(rows) + 0.5),
+    )

@@ -323,8 +323,8 @@ def test_the_page_draws_each_stage_figure_from_the_chart_the_download_draws(env)
             assert r.headers.get("content-encoding") == "gzip", name
     r = client.get(f"/ui/figures/studies/{sid}/schedule.gif")
     assert r.status_code == 404 and "json" in r.json()["detail"]
-    r = client.get(f"/ui/figures/datasets/{ds}/signals.json")
-    assert r.status_code == 404 and "format" in r.json()["detail"]
+    r = client.get("/ui/figures/compare.json", params={"ids": f"{sid},{sid}"})
+    assert r.status_code == 404 and "format" in r.json()["detail"]  # an image only
 
 
 def test_an_empty_datasets_page_says_how_to_fill_it(env) -> None:

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
-from services.plots.predict import predictions_figure
+from services.plots.mpl import draw
+from services.plots.predict import predictions_chart
 
 
 def _condition(name: str, slip: float, median: float, measured: float, role: str):
@@ -17,15 +18,20 @@ def test_each_dataset_shows_its_median_and_interval_with_a_legend() -> None:
         _condition("a", -0.5, -16.0, -17.7, "calibration"),
         _condition("b", 0.5, 1.2, 2.8, "predicted"),
     ]
-    fig = predictions_figure(datasets, [], responses=("F",))
+    chart = predictions_chart(datasets, [], responses=("F",))
+    bars = next(la for la in chart.panels[0].layers if la["kind"] == "errorbars")
+    assert bars["y"] == [-16.0, 1.2] and bars["lo"] == [-18.0, -0.8] and bars["hi"] == [-13.0, 4.2]
+    measured = [la for la in chart.panels[0].layers if la["kind"] == "points"]
+    assert [(m["symbol"], m["y"]) for m in measured] == [("o", [-17.7]), ("s", [2.8])]
+    fig = draw(chart)  # the download: matplotlib draws the same
     ax = fig.axes[0]
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "predicted median, 95 % predictive interval" in labels
     assert "measured, used in the calibration" in labels and "measured, held out" in labels
     # the median is drawn as a marker at the predicted value, the bar spans the interval
     ticks = [ln for ln in ax.get_lines() if ln.get_marker() == "_" and ln.get_markersize() == 9]
-    assert sorted(float(ln.get_ydata()[0]) for ln in ticks) == [-16.0, 1.2]
-    segments = [c for c in ax.collections if c.get_segments()]
+    assert sorted(float(y) for ln in ticks for y in ln.get_ydata()) == [-16.0, 1.2]
+    segments = [c for c in ax.collections if hasattr(c, "get_segments") and c.get_segments()]
     spans = sorted(
         (float(s[:, 1].min()), float(s[:, 1].max())) for c in segments for s in c.get_segments()
     )

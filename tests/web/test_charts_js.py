@@ -25,6 +25,7 @@ from services.plots.chart import (
     band,
     bars,
     contours,
+    errorbars,
     hline,
     hspan,
     line,
@@ -201,6 +202,72 @@ def test_hover_reads_the_nearest_point(page) -> None:
     assert second == f"{LABEL}: x = 3, y = 3"
     page.mouse.move(5, 5)  # outside every panel
     assert readout.is_hidden()
+
+
+BAR_X, BAR_Y = [1.0, 2.0, 3.0, 4.0], [2.0, 2.5, None, 1.5]
+BAR_LO, BAR_HI = [1.2, 0.5, 1.0, 1.1], [2.6, 3.8, 2.0, 1.9]  # the third bar's null y: skipped
+SQUARE_X, SQUARE_Y = [1.5, 2.5, 3.5], [1.8, 2.2, 2.4]
+
+
+def bars_chart() -> Chart:
+    """Error bars (medians and their intervals) over square points."""
+    return Chart(
+        "intervals",
+        [
+            Panel(Axis("x"), Axis("y"), legend="upper right").add(
+                points(SQUARE_X, SQUARE_Y, size=3, opacity=1, label="runs", symbol="s"),
+                errorbars(BAR_X, BAR_Y, BAR_LO, BAR_HI, color="red", label="median, 95 %"),
+            )
+        ],
+    )
+
+
+def path_points(page, selector: str) -> list[tuple[float, float]]:
+    """Screen points sampled along a drawn path, every 0.25 px of its length."""
+    js = """sel => {
+      const path = document.querySelector(sel), m = path.getScreenCTM(), n = path.getTotalLength();
+      const at = (s) => path.getPointAtLength(Math.min(s, n)).matrixTransform(m);
+      return Array.from({ length: Math.ceil(n / 0.25) + 1 }, (_, k) => at(k * 0.25))
+        .map((p) => [p.x, p.y]);
+    }"""
+    return [tuple(p) for p in page.evaluate(js, selector)]
+
+
+def test_errorbars_and_square_points(page) -> None:
+    render(page, bars_chart())
+    bar = panel(page, 0) + " path.layer.layer-errorbars"
+    assert page.locator(bar).count() == 1
+    drawn = path_points(page, bar)
+    for i in (0, 1, 3):  # each drawn bar spans lo..hi at its x
+        x, top = to_px(page, 0, BAR_X[i], BAR_HI[i])
+        bottom = to_px(page, 0, BAR_X[i], BAR_LO[i])[1]
+        ys = sorted(py for px, py in drawn if abs(px - x) < 1)
+        assert (ys[0], ys[-1]) == pytest.approx((top, bottom), abs=1.0), i
+        assert max(np.diff(ys)) < 1, i  # one unbroken vertical line
+    x = to_px(page, 0, BAR_X[2], 0)[0]
+    assert not [p for p in drawn if abs(p[0] - x) < 8]  # nothing at the bar with a null y
+    # the y limits: the lowest lo and highest hi with 4 % padding (the points lie inside)
+    y0, y1 = lims(page, 0, "y")
+    lo, hi = min(BAR_LO), max(BAR_HI)
+    assert [y0, y1] == pytest.approx([lo - 0.04 * (hi - lo), hi + 0.04 * (hi - lo)], abs=1e-6)
+    # the square points: one path, no arcs, spanning the points' extent and their size
+    squares = page.locator(panel(page, 0) + " path.layer.layer-points")
+    assert squares.count() == 1
+    d = squares.get_attribute("d")
+    assert d and not re.search("[aA]", d), d
+    box = squares.bounding_box()
+    left, low = to_px(page, 0, min(SQUARE_X), min(SQUARE_Y))
+    right, high = to_px(page, 0, max(SQUARE_X), max(SQUARE_Y))
+    assert box["x"] == pytest.approx(left - 3, abs=1)  # squares of side 2 * size = 6 px
+    assert box["width"] == pytest.approx(right - left + 6, abs=1)
+    assert box["y"] == pytest.approx(high - 3, abs=1)
+    assert box["height"] == pytest.approx(low - high + 6, abs=1)
+    legend = page.locator(panel(page, 0) + " .chart-legend").text_content()
+    assert "runs" in legend and "median, 95 %" in legend
+    # hovering at a bar's (x, y) reads out its y, lo and hi
+    page.mouse.move(*to_px(page, 0, BAR_X[1], BAR_Y[1]))
+    readout = page.locator("#c .chart-readout[role=status]")
+    assert readout.text_content().split("\n")[1] == "median, 95 %: x = 2, y = 2.5 [0.5 … 3.8]"
 
 
 def test_drag_zooms_and_double_click_resets(page) -> None:

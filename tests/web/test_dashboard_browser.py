@@ -421,15 +421,15 @@ def test_a_chart_reads_out_zooms_and_enlarges(server, browser) -> None:
 
 
 def test_hovering_a_figure_reads_out_the_data_under_the_pointer(server, browser) -> None:
-    """Issue 45's values on hover, over an image figure (the posterior predictive panel, and
+    """Issue 45's values on hover, over an image figure (the comparison's densities, and
     its enlarged copy, zoomed): the page shows the data coordinates under the pointer, from the
     axes the SVG carries; a point a quarter into the axes' box reads a quarter of its limits
     (to a pixel)."""
     w = Watched(browser)
     try:
-        w.goto(f"{server['base']}/ui/studies/{server['a']}")
+        w.goto(f"{server['base']}/ui/compare?ids={server['a']},{server['b']}")
         w.figures_loaded()
-        img = w.page.locator("img[data-figure=predictive]")
+        img = w.page.locator("img[data-figure=compare]")
         ax = json.loads(img.get_attribute("data-axes"))[0]
         assert ax["xscale"] == ax["yscale"] == "linear", ax
         left, top, right, bottom = ax["box"]
@@ -459,16 +459,20 @@ def test_hovering_a_figure_reads_out_the_data_under_the_pointer(server, browser)
         img.click()  # enlarged, then zoomed about the pointer: the readout follows
         big = w.page.locator("dialog.figure-zoom img")
         big.wait_for()
+        # the pointer over the middle of the enlarged image's first axes; the wheel zooms about
+        # it, so the same point stays under it
+        box = big.bounding_box()
+        cx = box["x"] + box["width"] * (left + right) / 2
+        cy = box["y"] + box["height"] * (top + bottom) / 2
+        w.page.mouse.move(cx, cy)
         w.page.mouse.wheel(0, -400)
         w.page.wait_for_function(
             "() => Number(document.querySelector('dialog img').dataset.scale) > 1"
         )
-        # the pointer at the middle of the window, over the zoomed image's axes
-        w.page.mouse.move(640, 400)
-        w.page.mouse.move(641, 401)
+        w.page.mouse.move(cx + 1, cy + 1)
         box = big.bounding_box()
-        fx = ((641 - box["x"]) / box["width"] - left) / (right - left)
-        fy = (bottom - (401 - box["y"]) / box["height"]) / (bottom - top)
+        fx = ((cx + 1 - box["x"]) / box["width"] - left) / (right - left)
+        fy = (bottom - (cy + 1 - box["y"]) / box["height"]) / (bottom - top)
         assert 0 < fx < 1 and 0 < fy < 1, (fx, fy, box)
         w.page.wait_for_selector("#figure-readout:not([hidden])")
         xv, yv = _read_out(w.page.inner_text("#figure-readout")).values()
@@ -784,9 +788,9 @@ def test_a_tapped_figure_opens_enlarged_and_closes(server, browser) -> None:
     closes it."""
     w = Watched(browser, SIZES["400x800"])
     try:
-        w.goto(f"{server['base']}/ui/studies/{server['a']}")
+        w.goto(f"{server['base']}/ui/compare?ids={server['a']},{server['b']}")
         w.figures_loaded()
-        img = w.page.locator("img[data-figure=predictive]")
+        img = w.page.locator("img[data-figure=compare]")
         small = img.bounding_box()["width"]
         natural = img.evaluate("i => i.naturalWidth")
         assert small <= 400 < natural
@@ -1044,10 +1048,10 @@ def test_an_update_and_a_prediction_start_from_a_completed_calibration(server, b
         # back on the calibration: its posterior predictive panel shows the newest prediction
         w.goto(f"{base}/ui/studies/{a}")
         w.figures_loaded()
-        src = w.page.locator("#fig-predictive img").get_attribute("src")
-        assert src and src.startswith("blob:"), src  # loaded (the page fetches with the token)
-        shown = w.page.locator("#fig-predictive img").get_attribute("data-src")
-        assert shown == f"/ui/figures/studies/{p}/predictions.svg", shown
+        chart = w.page.locator("#fig-predictive [data-chart]")
+        shown = chart.get_attribute("data-drawn")  # drawn (the page fetches with the token)
+        assert shown == f"/ui/figures/studies/{p}/predictions.json", shown
+        assert chart.locator("svg.chart .layer-errorbars").count() >= 1  # each dataset's band
         listed = w.page.locator("#results a[href^='/ui/studies/']").evaluate_all(
             "els => els.map(e => e.getAttribute('href'))"
         )

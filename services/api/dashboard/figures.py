@@ -377,7 +377,7 @@ def _band(b: dict[str, Any] | None) -> Band | None:
     return Band(*(np.nan if b[k] is None else float(b[k]) for k in ("median", "lo", "hi")))
 
 
-def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
+def _predictions(store: Store, study: StudyRecord, **_: Any) -> Chart:
     res = study.result or {}
     if "predictions" not in res:
         raise FigureError(f"study {study.id} has no predictions yet ({study.status})")
@@ -401,7 +401,7 @@ def _predictions(store: Store, study: StudyRecord, **_: Any) -> Figure:
     datasets = [c for c in conds if c.role != "sweep"]
     sweep = [c for c in conds if c.role == "sweep"]
     responses = [r for r in RESPONSES if conds and r in conds[0].responses]
-    return plots.predict.predictions_figure(
+    return plots.predict.predictions_chart(
         datasets, sweep, title=f"{study.name}: posterior predictions", responses=responses
     )
 
@@ -470,21 +470,27 @@ def study_figure(
             pair=pair,
             params=params,
         )
-        if fmt == CHART_FORMAT:
-            if not isinstance(made, Chart):
-                raise FigureError(f"figure {name}: drawn as an image only (svg, png)")
-            return json.dumps(made.to_json(), separators=(",", ":"), allow_nan=False).encode()
-        fig = plots.mpl.draw(made) if isinstance(made, Chart) else made
-        return plots.figures.render(fig, fmt)
+        if fmt == CHART_FORMAT and not isinstance(made, Chart):
+            raise FigureError(f"figure {name}: drawn as an image only (svg, png)")
+        return _made(made, fmt)
 
     return cache.get_or_make(key, make)
 
 
+def _made(made: Chart | Figure, fmt: str) -> bytes:
+    """A chart as its JSON (``fmt`` "json") or drawn by matplotlib, or a figure, rendered."""
+    if fmt == CHART_FORMAT:
+        return json.dumps(made.to_json(), separators=(",", ":"), allow_nan=False).encode()
+    fig = plots.mpl.draw(made) if isinstance(made, Chart) else made
+    return plots.figures.render(fig, fmt)
+
+
 def dataset_signals(store: Store, dataset_id: int, fmt: str, cache: FigureCache) -> bytes:
-    """A stored log's raw and filtered channels with the averaging window (cached)."""
+    """A stored log's raw and filtered channels with the averaging window, as an image or
+    (``fmt`` "json") its chart's data (cached)."""
 
     def make() -> bytes:
-        return plots.figures.render(plots.swt.measured_figure(stored_log(store, dataset_id)), fmt)
+        return _made(plots.swt.measured_chart(stored_log(store, dataset_id)), fmt)
 
     return cache.get_or_make(("signals", dataset_id, fmt), make)
 

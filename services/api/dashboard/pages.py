@@ -465,7 +465,7 @@ def _figure_routes(warmer: FigureWarmer) -> APIRouter:
 
     @reads.get("/ui/figures/datasets/{dataset_id}/signals.{fmt}")
     def dataset_figure_route(dataset_id: DatasetId, fmt: str, store: StoreDep) -> Response:
-        fmt = _fmt(fmt)
+        fmt = _fmt(fmt, chart=True)
         try:
             data = dataset_signals(store, dataset_id, fmt, cache)
         except ValueError as exc:

@@ -122,10 +122,10 @@
 
   /* the fields of each kind of layer that hold x and y values (contours: their paths) */
   const KEYS = {
-    x: { line: ["x"], band: ["x"], bars: ["edges"], points: ["x"], vline: ["x"], segment: ["x0", "x1"],
-      vspan: ["x0", "x1"], marker: ["x"] },
-    y: { line: ["y"], band: ["lo", "hi"], bars: ["heights"], points: ["y"], hline: ["y"], segment: ["y"],
-      hspan: ["y0", "y1"], marker: ["y"] },
+    x: { line: ["x"], band: ["x"], bars: ["edges"], points: ["x"], errorbars: ["x"], vline: ["x"],
+      segment: ["x0", "x1"], vspan: ["x0", "x1"], marker: ["x"] },
+    y: { line: ["y"], band: ["lo", "hi"], bars: ["heights"], points: ["y"], errorbars: ["y", "lo", "hi"],
+      hline: ["y"], segment: ["y"], hspan: ["y0", "y1"], marker: ["y"] },
   };
   /* an axis's limits: its lo/hi where given, else the layers' extent with 4 % padding (in log
      space on a log axis); bars on a linear y axis start at 0, with no padding below it */
@@ -187,6 +187,9 @@
     }
     return parts.join("");
   }
+  /* an errorbars layer's bar i is drawn (and read out) when its x, y, lo and hi all are */
+  const barOk = (d, i, sx, sy) => sx.ok(d.x[i]) && sy.ok(d.y[i]) && sy.ok(d.lo[i]) && sy.ok(d.hi[i]);
+  const CAP = 3, TICK = 5;  // px: half-widths of an error bar's caps and of its tick at y
   function layerGroup(g, d, attrs) {
     return node("g", Object.assign({ class: "layer layer-" + d.kind }, attrs), g);
   }
@@ -241,9 +244,19 @@
         : { fill: "none", stroke: d.color, "stroke-opacity": d.opacity, "stroke-width": 1.4 * PT };
       node("path", Object.assign({ class: "layer layer-bars", d: path }, look), g);
     },
-    points(g, d, sx, sy) {  // one path of circles: thousands of points, one DOM node
-      const path = symbols(d.x, d.y, sx, sy, "o", d.size);
+    points(g, d, sx, sy) {  // one path of circles (or squares): thousands of points, one DOM node
+      const path = symbols(d.x, d.y, sx, sy, d.symbol || "o", d.size);
       node("path", { class: "layer layer-points", d: path, fill: d.color, "fill-opacity": d.opacity }, g);
+    },
+    errorbars(g, d, sx, sy) {  // at each x a bar lo..hi with caps, a wider tick at y: one path
+      let path = "";
+      for (let i = 0; i < d.x.length; i++) {
+        if (!barOk(d, i, sx, sy)) continue;
+        const x = f1(sx.px(d.x[i])), y = f1(sy.px(d.y[i])), lo = f1(sy.px(d.lo[i])), hi = f1(sy.px(d.hi[i]));
+        path += `M${x} ${lo}V${hi}M${f1(x - CAP)} ${lo}h${2 * CAP}M${f1(x - CAP)} ${hi}h${2 * CAP}`;
+        path += `M${f1(x - TICK)} ${y}h${2 * TICK}`;
+      }
+      node("path", Object.assign(stroked("errorbars", d, path), { opacity: d.opacity }), g);
     },
     contours(g, d, sx, sy) {  // one path per level, in the level's colour
       const cg = layerGroup(g, d, { fill: "none", "stroke-width": d.width * PT, "stroke-linejoin": "round" });
@@ -297,7 +310,12 @@
       node("rect", { x, y: cy - 5, width: 14, height: 10, fill: outline ? "none" : d.color,
         "fill-opacity": Math.max(d.opacity, 0.3), stroke: outline ? d.color : "none" }, g);
     } else if (d.kind === "points") {
-      node("circle", { cx: x + 7, cy, r: 3, fill: d.color, "fill-opacity": Math.max(d.opacity, 0.6) }, g);
+      const look = { fill: d.color, "fill-opacity": Math.max(d.opacity, 0.6) };
+      if (d.symbol === "s") node("path", Object.assign({ d: symbolAt(x + 7, cy, "s", 3) }, look), g);
+      else node("circle", Object.assign({ cx: x + 7, cy, r: 3 }, look), g);
+    } else if (d.kind === "errorbars") {  // a bar with caps
+      node("path", { d: `M${x + 7} ${f1(cy - 5)}v10M${x + 4} ${f1(cy - 5)}h6M${x + 4} ${f1(cy + 5)}h6`, stroke: d.color,
+        "stroke-width": Math.min(3, (d.width || 1) * PT), opacity: d.opacity, fill: "none" }, g);
     } else if (d.kind === "marker") {
       node("path", { d: `M${x + 2} ${cy}h10M${x + 7} ${cy - 5}v10`, stroke: d.color, "stroke-width": 2 }, g);
     } else {
@@ -340,6 +358,7 @@
     for (const d of panel.layers) {
       if (d.kind === "line") seeLine(d.x, d.y);
       else if (d.kind === "points") seeAll(d.x, d.y);
+      else if (d.kind === "errorbars") { seeAll(d.x, d.y); seeAll(d.x, d.lo); seeAll(d.x, d.hi); }
       else if (d.kind === "vline") seeLine([d.x, d.x], [ya, yb]);
       else if (d.kind === "hline") seeLine([xa, xb], [d.y, d.y]);
       else if (d.kind === "segment") seeLine([d.x0, d.x1], [d.y, d.y]);
@@ -514,17 +533,22 @@
   }
   const inside = (pl, pt) => pt.x >= pl.x && pt.x <= pl.x + pl.w && pt.y >= pl.y && pt.y <= pl.y + pl.h;
   const boxAt = (st, pt) => st.boxes.find((b) => inside(b.plot, pt));
-  function nearest(b, pt) {  // the line or points layers' data point closest to pt, within NEAR px
+  /* the line, points or errorbars layers' data point (x, y) closest to pt, within NEAR px;
+     an error bar's with its lo and hi */
+  function nearest(b, pt) {
     let best = null, bestD = NEAR * NEAR;
     for (const d of b.panel.layers) {
-      if (d.kind !== "line" && d.kind !== "points") continue;
-      const n = Math.min(d.x.length, d.y.length);
+      if (d.kind !== "line" && d.kind !== "points" && d.kind !== "errorbars") continue;
+      const bar = d.kind === "errorbars", n = Math.min(d.x.length, d.y.length);
       for (let i = 0; i < n; i++) {
-        if (!b.sx.ok(d.x[i]) || !b.sy.ok(d.y[i])) continue;
+        if (bar ? !barOk(d, i, b.sx, b.sy) : !b.sx.ok(d.x[i]) || !b.sy.ok(d.y[i])) continue;
         const dx = b.sx.px(d.x[i]) - pt.x;
         if (dx * dx > bestD) continue;
         const dy = b.sy.px(d.y[i]) - pt.y, dd = dx * dx + dy * dy;
-        if (dd <= bestD) { bestD = dd; best = { label: d.label || "value", x: d.x[i], y: d.y[i] }; }
+        if (dd > bestD) continue;
+        bestD = dd;
+        best = { label: d.label || "value", x: d.x[i], y: d.y[i] };
+        if (bar) Object.assign(best, { lo: d.lo[i], hi: d.hi[i] });
       }
     }
     return best;
@@ -535,6 +559,7 @@
     const p = b.panel, near = nearest(b, pt);
     let text = `${p.x.label || "x"} = ${num(b.sx.inv(pt.x), 4)}, ${p.y.label || "y"} = ${num(b.sy.inv(pt.y), 4)}`;
     if (near) text += `\n${near.label}: x = ${num(near.x, 6)}, y = ${num(near.y, 6)}`;
+    if (near && near.lo != null) text += ` [${num(near.lo, 6)} … ${num(near.hi, 6)}]`;
     el.textContent = text;
     el.hidden = false;
     const cr = st.container.getBoundingClientRect(), x = ev.clientX - cr.left - st.container.clientLeft;
