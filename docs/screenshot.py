@@ -66,8 +66,9 @@ def main() -> None:
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             page.goto(f"{base}/ui/studies/{study['id']}")
             page.wait_for_function(
-                "() => document.querySelectorAll('img[data-src]').length >= 4 && "
-                "[...document.querySelectorAll('img[data-src]')].every(i => i.naturalWidth > 0)",
+                "() => document.querySelectorAll('[data-chart]').length >= 4 && "
+                "[...document.querySelectorAll('[data-chart]')].every(c =>"
+                " c.dataset.drawn === c.dataset.chart && c.querySelector('svg.chart[data-ready]'))",
                 timeout=120_000,
             )
             page.screenshot(path=str(args.out), full_page=True)

@@ -173,7 +173,8 @@ class Chart:
     """A figure: ``panels`` in rows of ``columns`` (None leaves a cell empty), a title, and
     the size matplotlib draws it at ([in]; the browser fits it to the page's width, with fewer
     columns on a narrow screen: the panels re-flowed row by row or, with ``reflow``
-    "columns", column by column, where a column belongs together: Fig. 3's dataset)."""
+    "columns", column by column, where a column belongs together: Fig. 3's dataset; "none"
+    keeps the grid, a pair matrix's, which then scrolls sideways in its box on a phone)."""
 
     title: str
     panels: list[Panel | None]

@@ -340,6 +340,7 @@ def pair_matrix_chart(
         panels,
         columns=d,
         size=(1.9 * d + 1.0, 1.9 * d + 0.6),
+        reflow="none",  # a corner plot: its rows and columns are the same parameters
     )
 
 

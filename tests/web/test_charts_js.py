@@ -326,6 +326,28 @@ def test_a_chart_of_columns_reflows_column_by_column(browser) -> None:
     ctx.close()
 
 
+def test_a_kept_grid_scrolls_in_its_box_on_a_phone(browser) -> None:
+    """A pair matrix keeps its rows and columns (reflow "none"): at 400 px its four columns
+    stay side by side, the chart scrolls sideways in its own box and the page does not."""
+    ctx, page, errors = open_page(browser, width=400)
+    panels = [
+        None if k > i else Panel(Axis("x"), Axis("y")).add(line([0, 1], [i, k]))
+        for i in range(4)
+        for k in range(4)
+    ]
+    render(page, Chart("matrix", panels, columns=4, size=(8.6, 8.2), reflow="none"))
+    xs = sorted({round(g.bounding_box()["x"]) for g in page.locator("g.chart-panel").all()})
+    assert len(xs) == 4  # four columns
+    box = page.evaluate(
+        "(() => { const c = document.getElementById('c');"
+        " return [c.scrollWidth, c.clientWidth]; })()"
+    )
+    assert box[0] > box[1]  # wider than its box: it scrolls there
+    assert page.evaluate("document.documentElement.scrollWidth") <= 400
+    assert errors == []
+    ctx.close()
+
+
 def test_render_time_of_a_big_spec(page) -> None:
     rng = np.random.default_rng(2)
     x = np.linspace(0, 10, 1200)

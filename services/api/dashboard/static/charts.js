@@ -13,6 +13,7 @@
   const DASH = { dashed: "6 3", dotted: "2 2" };
   const PT = 1.33;  // px per matplotlib point (line widths)
   const MIN_COL = 280;  // px: the narrowest column; a narrower screen gets fewer columns
+  const MIN_CELL = 170;  // px: a grid kept whole (reflow "none") is at least this per column
   const M = { left: 56, right: 14, top: 8, bottom: 40, title: 18, top2: 30 };  // margins [px]
   const TITLE_H = 22;
   const DRAG_MIN = 6;  // px: a shorter drag (along an axis) does not zoom (along it)
@@ -481,10 +482,11 @@
   }
   /* the grid: spec.columns, or fewer at MIN_COL px each (re-flowed in order, row by row or,
      with spec.reflow "columns", column by column, so a column's panels stay together; empty
-     cells dropped); a row's height from matplotlib's aspect, plus room for titles and top axes */
+     cells dropped; reflow "none" keeps the grid, a pair matrix's); a row's height from
+     matplotlib's aspect, plus room for titles and top axes */
   function layout(spec, W) {
     const n = spec.panels.length, cols0 = Math.max(1, spec.columns || 1);
-    const cols = Math.min(cols0, Math.max(1, Math.floor(W / MIN_COL)));
+    const cols = spec.reflow === "none" ? cols0 : Math.min(cols0, Math.max(1, Math.floor(W / MIN_COL)));
     let order = spec.panels.map((p, i) => i);
     if (cols < cols0 && spec.reflow === "columns") {
       order = order.slice().sort((a, b) => (a % cols0) - (b % cols0) || a - b);
@@ -507,14 +509,19 @@
   }
   function draw(st) {
     st.width = contentWidth(st.container);
-    const W = st.width || 640;  // hidden (a closed dialog): drawn again when it shows
-    const spec = st.spec, lay = layout(spec, W);
+    const spec = st.spec, kept = spec.reflow === "none";
+    // hidden (a closed dialog): drawn again when it shows; a grid kept whole is at least
+    // MIN_CELL px a column and, wider than its box, scrolls sideways in it (the page does not)
+    let W = st.width || 640;
+    if (kept) W = Math.max(W, Math.max(1, spec.columns || 1) * MIN_CELL);
+    st.container.style.overflowX = W > st.width ? "auto" : "";
+    const lay = layout(spec, W);
     const svg = node("svg", {
       class: "chart", role: "img", "aria-label": spec.title || "chart",
       width: W, height: lay.height, viewBox: `0 0 ${W} ${lay.height}`,
       // a touch drag across zooms, one along the page scrolls it (the browser takes that)
-      style: "display:block;max-width:100%;height:auto;font-family:inherit;user-select:none;"
-        + "-webkit-user-select:none;touch-action:pan-y pinch-zoom",
+      style: (W > st.width ? "display:block;" : "display:block;max-width:100%;height:auto;")
+        + "font-family:inherit;user-select:none;-webkit-user-select:none;touch-action:pan-y pinch-zoom",
     });
     if (spec.title) {
       centred(svg, fit(spec.title, W - 8, 7), "chart-title", W / 2, 15, { "font-size": 12, "font-weight": "bold" });
