@@ -12,7 +12,9 @@ the study fails (as on the service). The caller owns the store for the run (a re
 database, locked by its command): leases left by an earlier run here that was stopped or
 killed are given back uncounted at the start, and this run's at its end, also when Ctrl-C
 stops it (KeyboardInterrupt is raised to the caller; the stages and batches already stored
-stay, and running again resumes).
+stay, and running again resumes). Ctrl-C stops a simulation or a wait at once and store work at
+its end (:class:`~worker.interrupt.Interrupts`), so an interrupted run leaves no transaction
+open and is never lost in a garbage-collection callback.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from services.config import Settings
 from services.store import Store, StudyRecord
 from services.studies import start_study
 
+from .interrupt import Interrupts
 from .local import LocalRuntime
 from .orchestrator import ContextCache, advance, execute_batch
 
@@ -57,36 +60,40 @@ def run_here(
     running; returns its record. ``settings``: the store's URL and lease policy (a pool's
     processes open the store themselves)."""
     owners = _owners()
-    for owner in owners:
-        store.batches.give_back(owner)
-    if store.studies.get(study_id).status == "queued":
-        start_study(store, study_id, None)
-    try:
-        if workers is None:
-            return _in_process(store, study_id, f"{owners[0]}/{os.getpid()}", watch)
-        return _on_pool(store, study_id, settings, workers, watch)
-    finally:
+    with Interrupts().installed() as stop:
         for owner in owners:
             store.batches.give_back(owner)
+        if store.studies.get(study_id).status == "queued":
+            start_study(store, study_id, None)
+        try:
+            if workers is None:
+                return _in_process(store, study_id, f"{owners[0]}/{os.getpid()}", watch, stop)
+            return _on_pool(store, study_id, settings, workers, watch, stop)
+        finally:
+            for owner in owners:
+                store.batches.give_back(owner)
 
 
-def _look(store: Store, study_id: int, watch: Watch | None) -> StudyRecord:
-    """The study now, shown to ``watch``."""
+def _look(store: Store, study_id: int, watch: Watch | None, stop: Interrupts) -> StudyRecord:
+    """The study now, shown to ``watch``; KeyboardInterrupt if Ctrl-C was pressed."""
+    stop.check()
     study = store.studies.get(study_id)
     if watch is not None:
         watch(store, study)
     return study
 
 
-def _in_process(store: Store, study_id: int, me: str, watch: Watch | None) -> StudyRecord:
+def _in_process(
+    store: Store, study_id: int, me: str, watch: Watch | None, stop: Interrupts
+) -> StudyRecord:
     cache = ContextCache()
-    while (study := _look(store, study_id, watch)).status in ACTIVE:
+    while (study := _look(store, study_id, watch, stop)).status in ACTIVE:
         stage = int(study.current_stage or 0)
         batches = store.batches.list(study_id, stage)
         pending = [b.key for b in batches if b.status == "pending"]
         if pending:
             try:
-                execute_batch(store, pending[0], cache, None, worker=me)
+                execute_batch(store, pending[0], cache, None, worker=me, interruptible=stop.open)
             except Exception:  # logged and given back: tried again up to the attempt cap
                 continue
         elif batches and all(b.status == "done" for b in batches):
@@ -99,14 +106,20 @@ def _in_process(store: Store, study_id: int, me: str, watch: Watch | None) -> St
 
 
 def _on_pool(
-    store: Store, study_id: int, settings: Settings, workers: int, watch: Watch | None
+    store: Store,
+    study_id: int,
+    settings: Settings,
+    workers: int,
+    watch: Watch | None,
+    stop: Interrupts,
 ) -> StudyRecord:
     runtime = LocalRuntime(settings, store, workers).start()
     try:
-        while (study := _look(store, study_id, watch)).status in ACTIVE:
+        while (study := _look(store, study_id, watch, stop)).status in ACTIVE:
             if not runtime.alive:
                 raise RuntimeError(runtime.health().detail)
-            time.sleep(POLL_S)
+            with stop.open():
+                time.sleep(POLL_S)
         return study
     finally:
         runtime.stop()

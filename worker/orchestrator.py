@@ -105,16 +105,21 @@ class _Heartbeat:
 
 
 class _TimedLikelihood(WrappedLikelihood):
-    """The study likelihood, timing the model evaluations (simulator time) it does."""
+    """The study likelihood, timing the model evaluations (simulator time) it does, each in
+    ``section()`` (a run's Ctrl-C section, :meth:`worker.interrupt.Interrupts.open`)."""
 
-    def __init__(self, func) -> None:
+    def __init__(
+        self, func, section: Callable[[], contextlib.AbstractContextManager[None]] | None = None
+    ) -> None:
         super().__init__(func)
         self.seconds = 0.0
+        self._section = section or contextlib.nullcontext
 
     def around(self, evaluate):
         t0 = time.perf_counter()
         try:
-            return evaluate()
+            with self._section():
+                return evaluate()
         finally:
             self.seconds += time.perf_counter() - t0
 
@@ -138,11 +143,13 @@ def execute_batch(
     dispatcher: Dispatcher | None,
     worker: str | None = None,
     heartbeat_every: float | None = None,
+    interruptible: Callable[[], contextlib.AbstractContextManager[None]] | None = None,
 ) -> str:
     """Claim, run and store one work batch; advance its stage if it was the last one.
 
     Idempotent: a batch already done or leased elsewhere is skipped ("skipped"); a second
-    result is not counted ("duplicate"). Returns the outcome.
+    result is not counted ("duplicate"). Returns the outcome. ``interruptible``: the section
+    the batch's simulations run in (a command's Ctrl-C, :class:`worker.interrupt.Interrupts`).
     """
     lease = store.batches.claim(key, worker or worker_id())
     if lease is None:
@@ -152,7 +159,7 @@ def execute_batch(
     beat = _Heartbeat(store, lease, every)
     try:
         ctx = cache.get(store, key.study_id)
-        timed = _TimedLikelihood(ctx.model_function)
+        timed = _TimedLikelihood(ctx.model_function, interruptible)
         with beat:
             result = ctx.compute(store, lease, timed)
     except Exception as exc:
