@@ -1,10 +1,12 @@
-"""The dashboard's figures, drawn by ``services.plots`` from what the store holds.
+"""The dashboard's figures, made by ``services.plots`` from what the store holds.
 
 Each figure is a function of stored, immutable data (a finished stage's samples, a completed
-study's result, an uploaded log), so it is rendered once per (study, stage, figure, options,
+study's result, an uploaded log), so it is made once per (study, stage, figure, options,
 format) and kept in a small in-memory LRU cache (:class:`FigureCache`); the schedule, which
-grows with the study, is keyed by the study's version. Scatter layers are thinned and
-rasterised (``services.plots.posterior.pairs_figure``): a figure stays small whatever the
+grows with the study, is keyed by the study's version. Most are charts
+(:mod:`services.plots.chart`): served as their data for the page to draw (``json``) or drawn by
+matplotlib for a download (``svg``, ``png``); the others are matplotlib figures. Scatter layers
+are thinned (``services.plots.posterior.pairs_chart``): a figure stays small whatever the
 number of samples.
 """
 
@@ -274,17 +276,17 @@ def _pairs(
 MATRIX_MAX = 6
 
 
-#: what each of a stage's page figures takes to draw, roughly [s] (medians of
-#: ``benchmarks/bench_figures.py``, a two-parameter study of two logs, one core): the warmer
-#: draws them longest first and the page asks for them in the same order (``data-cost``), so
-#: that its requests find them being drawn
+#: what each of a stage's page charts takes to make, roughly [s] (medians of
+#: ``benchmarks/bench_figures.py --fmt json``, a two-parameter study of two logs, one core): the
+#: warmer makes them longest first and the page asks for them in the same order
+#: (``data-cost``), so that its requests find them being made
 DRAW_SECONDS = {
-    "fit": 0.7,
-    "schedule": 0.35,
-    "prior_posterior": 0.2,
-    "matrix": 0.17,
-    "trace": 0.12,
-    "pairs": 0.1,
+    "fit": 0.065,
+    "pairs": 0.011,
+    "matrix": 0.009,
+    "trace": 0.008,
+    "prior_posterior": 0.003,
+    "schedule": 0.001,
 }
 
 
