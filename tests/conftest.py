@@ -2,6 +2,7 @@
 
 import contextlib
 import os
+import signal
 
 import pytest
 
@@ -23,6 +24,16 @@ def _file_lock(path):
             yield
         finally:
             fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Ctrl-C as in a terminal: a shell's background job (``pytest &`` in a script) starts with
+    SIGINT ignored, and every process it starts inherits that, so the Ctrl-C tests' commands
+    would never see their SIGINT. Python's own handler is put back (the child processes then
+    start with the default disposition); a run in a terminal already has it."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        with contextlib.suppress(ValueError):  # not the main thread: nothing to put back
+            signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session", autouse=True)
