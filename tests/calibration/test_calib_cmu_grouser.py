@@ -90,8 +90,9 @@ def test_the_joint_case_reads_both_wheels_with_one_soil() -> None:
 
 def test_the_grousered_wheel_does_not_see_the_rims_friction() -> None:
     """Its trapped soil shears soil on soil (at phi): the grousered case's runs are the same bit
-    for bit at either end of interface_friction's prior, so its posterior of it is its prior
-    (what a prediction of a smooth wheel from this soil carries), whatever its tests say."""
+    for bit at either end of interface_friction's prior and with or without the stuck soil's
+    rule (locked and at slip 0.5), so its posterior of it is its prior (what a prediction of a
+    smooth wheel from this soil carries), whatever its tests say."""
     from scm_core.calibration import StudyModel
     from services.studies.kinds.checks import prior_medians
 
@@ -108,3 +109,13 @@ def test_the_grousered_wheel_does_not_see_the_rims_friction() -> None:
         assert np.array_equal(runs[0][0].series[key], runs[1][0].series[key]), key
     # the smooth rim at slip 0.5 shears on its surface: half the friction, a weaker wheel
     assert runs[0][1].means.F < runs[1][1].means.F - 1.0
+    # nor where a smooth rim's soil would stick (stuck_shear): bit for bit either way
+    sliding = case.with_changes(simulator={**case.simulator, "stuck_shear": "interface"})
+    other = StudyModel(sliding, [load_dataset(case.data_paths()[k]) for k in (0, 3)])
+    theta = prior_medians(case)
+    theta[k] = 0.5
+    for d in (0, 1):
+        here = StudyModel(case, [load_dataset(case.data_paths()[j]) for j in (0, 3)])
+        a, b = here.simulate_at(theta, d), other.simulate_at(theta, d)
+        assert np.array_equal(a.series["F"], b.series["F"]), d
+        assert np.array_equal(a.series["z"], b.series["z"]), d
