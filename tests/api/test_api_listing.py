@@ -272,15 +272,21 @@ def test_figures_of_a_stopped_study_say_it_is_not_a_posterior(env) -> None:
         assert "not a posterior" not in done, name
 
 
+def _completed_study(client, url: str, seed: int) -> int:
+    """A tiny calibration of one summary dataset, run to its end: its id."""
+    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
+    sid = client.post(
+        "/studies", json={"case": tiny_case(seed=seed), "dataset_ids": [ds]}, headers=AUTH
+    ).json()["id"]
+    assert run_inline(url, sid) == "completed"
+    return sid
+
+
 def test_figure_urls_name_their_content_and_are_kept(env) -> None:
     """The results fragment links the schedule of the study's current version and each stage
     figure by its stage: those URLs are cached for good; another version's for a minute."""
     client, url = env
-    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
-    sid = client.post(
-        "/studies", json={"case": tiny_case(seed=6), "dataset_ids": [ds]}, headers=AUTH
-    ).json()["id"]
-    assert run_inline(url, sid) == "completed"
+    sid = _completed_study(client, url, seed=6)
     version = client.get(f"/studies/{sid}").json()["version"]
     page = client.get(f"/ui/f/studies/{sid}/results").text
     assert f"/ui/figures/studies/{sid}/schedule.svg?v={version}" in page
@@ -303,11 +309,7 @@ def test_the_page_draws_each_stage_figure_from_the_chart_the_download_draws(env)
     (matplotlib) show the same title and axis labels; a figure drawn only as an image refuses
     the JSON, naming why; the JSON travels compressed."""
     client, url = env
-    ds = client.post("/datasets", json=summary_doc(), headers=AUTH).json()["id"]
-    sid = client.post(
-        "/studies", json={"case": tiny_case(seed=7), "dataset_ids": [ds]}, headers=AUTH
-    ).json()["id"]
-    assert run_inline(url, sid) == "completed"
+    sid = _completed_study(client, url, seed=7)
     for name in ("schedule", "prior_posterior", "trace", "pairs", "matrix", "fit"):
         r = client.get(
             f"/ui/figures/studies/{sid}/{name}.json", headers={"Accept-Encoding": "gzip"}
