@@ -111,11 +111,12 @@ def test_the_grousered_wheel_does_not_see_the_rims_friction() -> None:
     assert runs[0][1].means.F < runs[1][1].means.F - 1.0
     # nor where a smooth rim's soil would stick (stuck_shear): bit for bit either way
     sliding = case.with_changes(simulator={**case.simulator, "stuck_shear": "interface"})
-    other = StudyModel(sliding, [load_dataset(case.data_paths()[k]) for k in (0, 3)])
+    locked_and_driven = [load_dataset(case.data_paths()[j]) for j in (0, 3)]
+    here = StudyModel(case, locked_and_driven)
+    other = StudyModel(sliding, locked_and_driven)
     theta = prior_medians(case)
     theta[k] = 0.5
     for d in (0, 1):
-        here = StudyModel(case, [load_dataset(case.data_paths()[j]) for j in (0, 3)])
         a, b = here.simulate_at(theta, d), other.simulate_at(theta, d)
         assert np.array_equal(a.series["F"], b.series["F"]), d
         assert np.array_equal(a.series["z"], b.series["z"]), d
