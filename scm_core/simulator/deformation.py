@@ -38,7 +38,9 @@ wheel surface sliding over the soil):
   pockets take the ground's top layer from v to omega r_p (continuity: it thins, the wheel digs
   in by h_g s_p) or, with ``SoilParams.pocket_fill`` f, carry off h_g u_p (f + (1 - f) v /
   (omega r_p)) per width and time (f = 1: full pockets), cut from the top of the front wall
-  (each row's front-most loaded node, where the grousers enter the soil) to behind the wheel.
+  (each row's front-most loaded node, where the grousers enter the soil) to behind the wheel;
+  with ``RigConfig.pocket_carry = "kept"`` only what the pockets keep as they leave the
+  contact, h_g u_p f (no continuity floor: what they spill falls back under the wheel).
 
 Soil is deposited only on free nodes and never inside the circle swept by the wheel's outer
 surface (as Chrono's SCMTerrain clamps deposits at the body's hit level): what does not fit
@@ -70,6 +72,7 @@ from .layout import (
     P_PLOUGH,
     P_POCKET,
     P_POCKETFILL,
+    P_POCKETKEEP,
     P_R,
     P_SHEARDISP,
     P_SHEARSCALE,
@@ -532,6 +535,7 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
     pocket = prm[P_POCKET]
     u_pocket = omega * (r_shear - 0.5 * pocket) - v
     fill = prm[P_POCKETFILL]
+    kept_only = prm[P_POCKETKEEP] > 0.5  # no continuity floor: only the soil the pockets keep
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
@@ -580,8 +584,12 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                 # the trapped soil moves with the rim, backwards over the ground at u_pocket
                 # whatever the shear: by continuity the pocket layer thins under the wheel
                 # (fill 0: net flux pocket u_pocket v / (v + u_pocket)), up to pockets that
-                # leave the contact full (fill 1: pocket u_pocket)
-                q = pocket * u_pocket * (fill + (1.0 - fill) * v / (v + u_pocket))
+                # leave the contact full (fill 1: pocket u_pocket); pocket_carry 'kept': only
+                # the fraction fill the pockets keep as they leave, the rest spilled back
+                if kept_only:
+                    q = pocket * u_pocket * fill
+                else:
+                    q = pocket * u_pocket * (fill + (1.0 - fill) * v / (v + u_pocket))
                 a_pocket = q * dt / dx
             a = flux * dt / dx
             if sgn > 0:

@@ -62,8 +62,9 @@ from .rig import ResolvedRig, resolve_rig
     P_SHEARSCALE,  # radius of the surface shearing the soil / the contact envelope's (1: same)
     P_SLIPV,  # carriage speed the shearing surface's slip sees / the carriage's (1: the same)
     P_STUCKSOIL,  # 1: where the wheel's surface sticks to the soil, the soil shears (at phi)
+    P_POCKETKEEP,  # 1: the pockets carry off only the soil they keep (pocket_fill), no floor
     N_PARAMS,
-) = range(48)
+) = range(49)
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -138,4 +139,5 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_SHEARSCALE] = (wheel.R + h_g) / wheel.R if rim_bearing else 1.0
     p[P_SLIPV] = p[P_SHEARSCALE] if rim_bearing and rig.grouser_slip == "rim" else 1.0
     p[P_STUCKSOIL] = 1.0 if rig.stuck_shear == "soil" else 0.0
+    p[P_POCKETKEEP] = 1.0 if rig.pocket_carry == "kept" else 0.0
     return p

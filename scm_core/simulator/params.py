@@ -286,6 +286,16 @@ class RigConfig(_Frozen):
         "a skidding wheel or a blunt blade, and fails in the soil, at phi); the same unless "
         "SoilParams.interface_friction < 1",
     )
+    pocket_carry: Literal["continuity", "kept"] = Field(
+        "continuity",
+        description="What a driven grousered wheel's pockets carry out of the contact "
+        "(grouser_contact 'tip_circle' or 'rim_bearing'; docs/simulator.md step 1), per width "
+        "and time with u_p the pockets' speed over the ground and f = SoilParams.pocket_fill: "
+        "'continuity' (at least the trapped layer thinned by continuity, h_g u_p (f + (1 - f) "
+        "v / (v + u_p)), up to full pockets) or 'kept' (only the soil the pockets keep as "
+        "they leave the contact, h_g u_p f; what they spill falls back under the wheel); "
+        "a smooth wheel is the same under both",
+    )
     sinkage_datum: Literal["outer", "rim"] = Field(
         "outer",
         description="Where the reported sinkage z is zero: 'outer' (the axle height at which "

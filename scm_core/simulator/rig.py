@@ -76,6 +76,7 @@ class ResolvedRig:
     sinkage_datum: str
     grouser_slip: str
     stuck_shear: str
+    pocket_carry: str
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -155,4 +156,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         sinkage_datum=rig.sinkage_datum,
         grouser_slip=rig.grouser_slip,
         stuck_shear=rig.stuck_shear,
+        pocket_carry=rig.pocket_carry,
     )

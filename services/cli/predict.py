@@ -67,6 +67,38 @@ def study_geometry(summary: dict[str, Any]) -> dict[str, float | int]:
     return out
 
 
+def describe_wheel(geometry: dict[str, float | int | None]) -> str:
+    """A wheel as a title names it, e.g. "R 58 mm, b 50 mm, 12 grousers of 5 mm" (lengths in
+    m in ``geometry``, keys of :data:`_GEOMETRY`; those missing are left out)."""
+    parts = [f"{k} {geometry[k] * 1000:.4g} mm" for k in ("R", "b") if geometry.get(k)]
+    n, h = geometry.get("n_grousers"), geometry.get("grouser_height")
+    if n and h:
+        parts.append(f"{n} grousers of {h * 1000:.4g} mm")
+    elif n == 0 or h == 0:
+        parts.append("smooth")
+    return ", ".join(parts)
+
+
+def _wheel_key(conditions: dict[str, Any]) -> tuple[Any, ...]:
+    """A wheel's geometry as a comparable key (no grousers and zero grousers alike)."""
+    n, h = conditions.get("n_grousers") or 0, conditions.get("grouser_height") or 0
+    return conditions.get("R"), conditions.get("b"), n if h else 0, h if n else 0
+
+
+def prediction_title(
+    case: CaseDefinition, summary: dict, datasets: list[SWTDataset], draws: int
+) -> str:
+    """The predictions figure's title: the study's case, and the predicted datasets' wheel
+    where the study saw no test of it (a cross-wheel check names the wheel it predicts)."""
+    title = f"{case.name}: posterior predictions ({draws} draws)"
+    wheels = {_wheel_key(d.conditions.to_sim_config()) for d in datasets}
+    own = {_wheel_key(d.get("conditions") or {}) for d in summary.get("datasets", [])}
+    if len(wheels) != 1 or wheels <= own:
+        return title
+    wheel = dict(zip(_GEOMETRY, wheels.pop(), strict=True))
+    return f"{case.name}'s posterior on another wheel ({describe_wheel(wheel)}), {draws} draws"
+
+
 def parse_at(specs: tuple[str, ...], geometry: dict[str, float | int]) -> list[DatasetTerms]:
     """``--at W=25,slip=0.3`` -> test conditions with no measurement (metadata keys and units as
     in a lab file's ``# key: value`` lines, docs/data-formats.md); the wheel geometry it leaves
@@ -249,7 +281,7 @@ def predict_cmd(
             preds + untested,
             swept,
             out / "predictions.png",
-            title=f"{case.name}: posterior predictions ({draws} draws)",
+            title=prediction_title(case, summary, datasets, draws),
             responses=_shown_responses(case, preds),
         )
     if as_json:

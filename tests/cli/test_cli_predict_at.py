@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-from services.cli.predict import parse_at, study_geometry
+from pathlib import Path
+
+from scm_core.calibration import load_case
+from scm_core.signals import load_dataset
+from services.cli.predict import describe_wheel, parse_at, prediction_title, study_geometry
 
 
 def test_predict_at_takes_the_study_wheel_unless_told_otherwise() -> None:
@@ -24,3 +28,28 @@ def test_predict_at_takes_the_study_wheel_unless_told_otherwise() -> None:
     assert other.conditions["n_grousers"] == 12 and other.conditions["grouser_height"] == 0.005
     mixed = {"datasets": [{"conditions": {"R": 0.058}}, {"conditions": {"R": 0.1}}]}
     assert study_geometry(mixed) == {}
+
+
+def test_a_cross_wheel_prediction_is_titled_by_the_wheel_it_predicts() -> None:
+    """``predict --data``: the figure of a study's posterior on datasets of a wheel it never saw
+    names that wheel (the cross-wheel check of docs/calibration.md); on its own wheel, or on a
+    wheel among a joint study's, it keeps the plain title."""
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    case = load_case(examples / "cmu_grouser.toml")
+    smooth = [load_dataset(p) for p in sorted((examples / "cmu_smooth").glob("*.csv"))[:2]]
+    grousered = [load_dataset(p) for p in sorted((examples / "cmu_grouser").glob("*.csv"))[:2]]
+
+    def summary(data):
+        return {"datasets": [{"conditions": d.conditions.to_sim_config()} for d in data]}
+
+    assert prediction_title(case, summary(grousered), grousered, 200) == (
+        "cmu_grouser: posterior predictions (200 draws)"
+    )
+    assert prediction_title(case, summary(grousered), smooth, 200) == (
+        "cmu_grouser's posterior on another wheel (R 58 mm, b 50 mm, smooth), 200 draws"
+    )
+    assert prediction_title(case, summary(smooth + grousered), smooth, 200).endswith("(200 draws)")
+    assert prediction_title(case, summary(smooth), grousered, 50).endswith(
+        "(R 58 mm, b 50 mm, 12 grousers of 5 mm), 50 draws"
+    )
+    assert describe_wheel({"R": 0.125}) == "R 125 mm"

@@ -8,7 +8,10 @@ trapped soil is not carried faster than the ground (skid, the locked wheel: the 
 wheels brake and sink alike there, -38.9 and -38.8 N, 49 and 50 mm locked); when driven, the
 pocket layer of depth h_g, accelerated from the ground speed v to omega r_p (r_p its mean
 radius), thins to h_g v / (omega r_p) by continuity, so the wheel digs in by h_g s_p with
-s_p = 1 - v / (omega r_p); soil volume is conserved.
+s_p = 1 - v / (omega r_p); soil volume is conserved. With ``pocket_carry = "kept"`` the pockets
+carry off only what they keep, h_g u_p f (no continuity floor): the wheel digs in by that over v
+(mass balance), full pockets and smooth wheels are the same under both forms, and empty pockets
+leave the smooth wheel of the tip radius.
 """
 
 from __future__ import annotations
@@ -22,10 +25,11 @@ from scm_core.simulator.layout import P_MAXSINK, P_POCKET, P_SHEARSCALE, P_ZDATU
 R, H_G, V = 0.058, 0.005, 0.01
 GROUSERED = WheelGeometry(R=R, b=0.05, n_grousers=12, grouser_height=H_G)
 TIP_RADIUS = WheelGeometry(R=R + H_G, b=0.05, n_grousers=0)
+SMOOTH = WheelGeometry(R=R, b=0.05, n_grousers=0)
 SOIL = SoilParams(k_phi=5e6, n=1.2, phi=30.0, J=0.012, shear_band=0.01)
 
 
-def _rig(slip: float, contact: str = "tip_circle") -> RigConfig:
+def _rig(slip: float, contact: str = "tip_circle", carry: str = "continuity") -> RigConfig:
     return RigConfig(
         W=22.0,
         slip=slip,
@@ -36,6 +40,7 @@ def _rig(slip: float, contact: str = "tip_circle") -> RigConfig:
         drive_digging="mobilised",
         skid_ploughing="sliding_face",
         grouser_contact=contact,
+        pocket_carry=carry,
     )
 
 
@@ -235,3 +240,66 @@ def test_grouser_slip_changes_only_a_rim_bearing_grousered_wheel():
     a = pack(SOIL, GROUSERED, _rig(0.5, "rim_bearing"))
     b = pack(SOIL, GROUSERED, _rig(0.5, "rim_bearing").model_copy(update={"grouser_slip": "rim"}))
     assert set(np.flatnonzero(a != b)) == {P_SLIPV} and b[P_SLIPV] == (R + H_G) / R
+
+
+# ---- pocket_carry = "kept": the pockets carry off only what they keep (no continuity floor)
+
+
+def test_a_smooth_wheel_and_full_pockets_are_the_same_under_both_forms():
+    """No pockets, nothing to carry: a smooth wheel runs bit for bit the same; pockets that
+    leave full (f = 1) carry h_g u_p under both forms."""
+    slips = (-0.5, 0.0, 0.25, 0.5)  # full pockets bottom the wheel out by slip 0.9
+    for wheel, soil in ((SMOOTH, SOIL), (GROUSERED, SOIL.replace(pocket_fill=1.0))):
+        for contact in ("tip_circle", "rim_bearing"):
+            kept = simulate_batch([soil] * 4, wheel, [_rig(s, contact, "kept") for s in slips])
+            cont = simulate_batch([soil] * 4, wheel, [_rig(s, contact) for s in slips])
+            assert kept.ok.all() and cont.ok.all()
+            np.testing.assert_array_equal(kept.means, cont.means)
+
+
+def test_pockets_that_keep_nothing_leave_the_smooth_wheel_of_the_tip_radius():
+    """f = 0 with 'kept': the trapped soil is carried round and spilled back under the wheel,
+    nothing is excavated, so the trapped-soil wheel is the smooth wheel of radius r + h_g bit
+    for bit (driven as in skid), where continuity digs it in by h_g s_p."""
+    slips = (0.25, 0.5, 0.9)
+    grousered = simulate_batch([SOIL] * 3, GROUSERED, [_rig(s, carry="kept") for s in slips])
+    smooth = simulate_batch([SOIL] * 3, TIP_RADIUS, [_rig(s) for s in slips])
+    cont = simulate_batch([SOIL] * 3, GROUSERED, [_rig(s) for s in slips])
+    assert grousered.ok.all() and smooth.ok.all() and cont.ok.all()
+    np.testing.assert_array_equal(grousered.means, smooth.means)
+    assert np.all(cont.means[:, 2] > grousered.means[:, 2] + 0.5 * H_G * 0.25)
+
+
+def test_kept_pockets_dig_in_by_what_they_carry_off():
+    """'kept', fill f: the net excavation is h_g u_p f per width and time, so the wheel digs in
+    by h_g f u_p / v more than the smooth wheel of its tip radius (mass balance: the rut under
+    the wheel is what was carried off per unit travel), u_p = omega r_p - v, r_p = r + h_g / 2.
+    Within a quarter, as the continuity form's test (the dug layer lowers the loaded nodes
+    alike; the bearing needs the same depth below it to first order), at slips and fills where
+    the wheel does not bottom out; fuller pockets dig deeper."""
+    slips = (0.5, 0.75)
+    fills = (0.25, 0.5, 1.0)
+    soils = [SOIL.replace(pocket_fill=f) for f in fills for _ in slips]
+    rigs = [_rig(s, carry="kept") for _ in fills for s in slips]
+    grousered = simulate_batch(soils, GROUSERED, rigs)
+    smooth = simulate_batch([SOIL] * 2, TIP_RADIUS, [_rig(s) for s in slips])
+    assert grousered.ok.all() and smooth.ok.all()
+    dig = grousered.means[:, 2].reshape(3, 2) - smooth.means[:, 2]
+    omega = V / (R * (1.0 - np.array(slips)))
+    u_p = omega * (R + 0.5 * H_G) - V
+    expected = np.array([H_G * f * u_p / V for f in fills])
+    print("dig [mm]", 1e3 * dig, "expected", 1e3 * expected)
+    assert np.all(np.diff(dig, axis=0) > 0)
+    np.testing.assert_allclose(dig, expected, rtol=0.25)
+
+
+@pytest.mark.parametrize(("slip", "fill"), [(0.5, 0.25), (0.9, 0.25)])
+def test_kept_pocket_transport_conserves_volume(slip: float, fill: float) -> None:
+    """The kept soil moves from under the wheel to behind it: only compaction (and spill)
+    removes volume."""
+    d = simulate_swt(
+        SOIL.replace(pocket_fill=fill), GROUSERED, _rig(slip, carry="kept")
+    ).diagnostics
+    balance = d["volume_final"] - d["volume_initial"] + d["compacted_volume"] + d["volume_spilled"]
+    assert abs(balance) / d["compacted_volume"] < 1e-9
+    assert d["volume_spilled"] <= 1e-3 * d["compacted_volume"]
