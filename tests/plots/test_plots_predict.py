@@ -36,3 +36,21 @@ def test_each_dataset_shows_its_median_and_interval_with_a_legend() -> None:
         (float(s[:, 1].min()), float(s[:, 1].max())) for c in segments for s in c.get_segments()
     )
     assert (-18.0, -13.0) in spans and (-0.8, 4.2) in [(round(a, 6), round(b, 6)) for a, b in spans]
+
+
+def test_a_long_title_is_wrapped_inside_the_figure() -> None:
+    """A cross-wheel check's title (the case and the wheel it predicts) fits the figure's width
+    on the page it is saved to: nothing is cut at either edge."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    title = (
+        "cmu_smooth's posterior on another wheel (R 58 mm, b 50 mm, 12 grousers of 5 mm), 200 draws"
+    )
+    chart = predictions_chart([_condition("a", 0.5, 1.2, 2.8, "predicted")], [], title, ("F",))
+    fig = draw(chart)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    (text,) = [t for t in fig.texts if t.get_text().replace("\n", " ") == title]
+    assert "\n" in text.get_text()
+    box = text.get_window_extent(canvas.get_renderer())
+    assert box.x0 >= 0.0 and box.x1 <= fig.bbox.width
