@@ -17,6 +17,7 @@ import sys
 import time
 import uuid
 import warnings
+import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -314,3 +315,11 @@ def serving(
                 pytest.fail("serve did not stop within 30 s of SIGINT")
         log.close()
     assert proc.returncode == 0, log_path.read_text()
+
+
+def svg_text(svg: str) -> str:
+    """The words an SVG figure shows (matplotlib's text kept as text), its lines joined by single
+    spaces: a title wrapped over two lines reads as one."""
+    root = ET.fromstring(svg.encode())
+    words = (t for el in root.iter() if el.tag.endswith("}text") for t in el.itertext())
+    return " ".join(" ".join(words).split())
