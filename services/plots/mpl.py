@@ -37,18 +37,16 @@ def draw(chart: Chart) -> Figure:
             _panel(ax, panel)
     for ax in axes[len(chart.panels) :]:
         ax.set_visible(False)
-    fig.suptitle(fitted_title(chart.title, chart.size[0]))
+    fig.suptitle(_fitted_title(chart.title, chart.size[0]))
     return fig
 
 
-def fitted_title(title: str, width: float) -> str:
+def _fitted_title(title: str, width: float) -> str:
     """``title`` broken at spaces into lines that fit a figure ``width`` [in] wide at the
     figure title's font size (a glyph taken as 0.6 em: DejaVu Sans averages about 0.55)."""
-    if not title:
-        return title
     size = FontProperties(size=rcParams["figure.titlesize"]).get_size_in_points()
     chars = max(16, int(0.95 * width * 72.0 / (0.6 * size)))
-    return "\n".join(textwrap.wrap(title, chars, break_long_words=False)) or title
+    return "\n".join(textwrap.wrap(title, chars, break_long_words=False))
 
 
 def _panel(ax: Any, panel: Panel) -> None:
