@@ -292,21 +292,22 @@ def evaluate_contact(
     nyw: int,
     res: np.ndarray,
     freeze: bool,
+    surcharge: float,
 ) -> None:
     """Stresses and resultant soil forces for the axle at height zw moving down at -vz.
 
     Fills ``res`` (see R_* indices), ``pflag`` (0 free, 1 elastic contact, 2 yielding) and ``psig``
-    (untapered stress of eq. (7) per patch, Pa). The plate width of Bekker's law is b_eff = 2A/L of
-    the *tip circle's footprint*, a rectangle of the wheel's width w and the length l over which
-    ``eb``, the circle through the grouser tips (the rim for a smooth wheel), is below the ground
-    ``gtop``: b_eff = l w / (l + w). The soil between grousers is trapped and moves with the wheel
-    (Wong & Reece's effective radius r + h_g), so a grousered wheel presses on the soil as one
-    plate of that footprint, not as a few grouser tips one grid cell wide; l is interpolated
-    between columns (tip_footprint_length), so k* = k_c / b_eff + k_phi is continuous in the axle
-    height and the parameters instead of stepping with node counts. The border taper
-    gamma_i (separable half sines over the bounding box of the loaded nodes, normalised to mean one
-    over them) is evaluated on the loaded footprint.
-    eq. (9)-(10) with the node's cell area dA = dx dy.
+    (untapered stress of eq. (7) per patch, Pa). Bekker's plate width is b_eff = l w / (l + w) of
+    the *tip circle's footprint*, w the wheel's width and l the length over which ``eb``, the
+    circle through the grouser tips (the rim for a smooth wheel), is below the ground ``gtop``:
+    the trapped soil moves with the wheel (Wong & Reece's effective radius r + h_g), so a
+    grousered wheel presses on the soil as one plate, not as grouser tips one cell wide; l is
+    interpolated between columns, so k* = k_c / b_eff + k_phi is continuous in the axle height.
+    The border taper gamma_i (separable half sines over the loaded nodes' bounding box, mean one
+    over them) is evaluated on the loaded footprint. eq. (9)-(10) with the cell area dA = dx dy.
+    ``surcharge`` [Pa]: the bow wave's passive pressure (deformation.heap_passive_pressure), a
+    horizontal stress on the front (normal stress surcharge nx^2 where nx < 0), outside Bekker's
+    law (it moves no node's yield).
 
     With ``freeze`` the footprint quantities (k*, taper extent and normalisation) of the previous
     call are kept: G(z) is then smooth apart from contact kinks, which lets the vertical solve
@@ -314,8 +315,7 @@ def evaluate_contact(
     """
     pc, pj0, pj1, pst, pflag, psig = patches
     xi, e, fx, fz, gx, gyc = cols.xi, cols.e, cols.fx, cols.fz, cols.gx, cols.gyc
-    for i in (R_FX, R_FZ, R_T, R_DFZ):
-        res[i] = 0.0
+    res[R_FX] = res[R_FZ] = res[R_T] = res[R_DFZ] = 0.0
     n_exp = prm[P_N]
     tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
     tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8)), at phi where it
@@ -327,9 +327,7 @@ def evaluate_contact(
     v = prm[P_V]
     # the surface that shears the soil turns at omega and lies kin times farther out than the
     # contact circle (rim bearing: the grouser tips), so it moves as omega * kin at the circle;
-    # its slip over the ground sees the axle's velocity sv times (grouser_slip 'rim': sv = kin,
-    # so the slip velocity is kin times the rim's, Ding et al. 2011's j = r_s [(theta_1 -
-    # theta) - (1 - s)(sin theta_1 - sin theta)] with the rim's slip s; else 1: the tips')
+    # its slip over the ground sees the axle's velocity sv times (layout._slip_velocity_scale)
     kin = prm[P_SHEARSCALE]
     omega = prm[P_OMEGA] * kin
     sv = prm[P_SLIPV]
@@ -406,6 +404,8 @@ def evaluate_contact(
         else:
             gam = float(rows)
         sig_sum = gam * sb + rows * sd  # sum over the patch's rows of eq. (7) [Pa]
+        if nx < 0.0:
+            sig_sum += rows * surcharge * nx * nx  # the heap ahead, horizontal on the face
         tau_sum = fsh * (coh * rows + mu * sig_sum)  # eq. (8)
         dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding
         dfz = (sig_sum * nz - tau_sum * tz) * dA

@@ -178,6 +178,53 @@ def commit_contact(
 
 
 @njit(cache=True)
+def bow_wave(
+    ground: Ground, c_ax: int, n_ahead: int, jw0: int, nyw: int, top: float
+) -> tuple[float, float]:
+    """The loose soil heaped ahead of the wheel: (h, base) [m], the mean over the wheel's rows
+    of the thickest loose layer hl in the ``n_ahead`` columns from the axle's column ``c_ax``
+    on, and the mean ground level h0 - sp beneath it; h at most ``top`` - base (the rim's
+    highest point). What the heap weighs on the wheel is :func:`heap_passive_pressure`'s."""
+    h0, sp, hl = ground.h0, ground.sp, ground.hl
+    nx = hl.shape[0]
+    h_sum = 0.0
+    base_sum = 0.0
+    for j in range(jw0, jw0 + nyw):
+        best = 0.0
+        base = h0[min(c_ax, nx - 1), j] - sp[min(c_ax, nx - 1), j]
+        for c in range(max(c_ax, 0), min(c_ax + n_ahead, nx)):
+            if hl[c, j] > best:
+                best = hl[c, j]
+                base = h0[c, j] - sp[c, j]
+        h_sum += best
+        base_sum += base
+    base = base_sum / nyw
+    return min(h_sum / nyw, max(top - base, 0.0)), base
+
+
+@njit(cache=True)
+def passive_coefficient(tan_phi: float) -> float:
+    """Rankine's passive earth pressure coefficient K_p = (1 + sin phi) / (1 - sin phi) [-]."""
+    sin_phi = tan_phi / math.sqrt(1.0 + tan_phi * tan_phi)
+    return (1.0 + sin_phi) / (1.0 - sin_phi)
+
+
+@njit(cache=True)
+def heap_passive_pressure(
+    gamma: float, tan_phi: float, tan_repose: float, h: float
+) -> tuple[float, float]:
+    """Rankine's passive resistance of a cohesionless heap of height h [m] and unit weight gamma
+    [N/m^3] pushed by a wall: (sigma_q, F_b), the surcharge K_p(phi) gamma h [Pa] its weight
+    puts on the wall below its base, where the ground fails at phi, and the force of its own
+    wedge, 0.5 K_p(repose) gamma h^2 [N/m] (Bekker's bulldozing resistance with c = 0, for loose
+    soil, whose friction angle is its angle of repose)."""
+    return (
+        passive_coefficient(tan_phi) * gamma * h,
+        0.5 * passive_coefficient(tan_repose) * gamma * h * h,
+    )
+
+
+@njit(cache=True)
 def _is_loaded(c: int, j: int, c0: int, ncw: int, cflag: np.ndarray) -> bool:
     k = c - c0 + 1
     if k < 0 or k > ncw + 1:
@@ -395,8 +442,8 @@ def _survey(prm, zw, vz, cols, marks, window, scratch):
     ncw, jw0, nyw = window.ncw, window.jw0, window.nyw
     work, iwork = scratch.work, scratch.iwork
     ny = scratch.inq.shape[1]
-    # the shearing surface's slip over the ground (rim bearing with grouser_slip 'rim': the
-    # rim's slip velocity times r_s / r, contact.evaluate_contact)
+    # the shearing surface's slip over the ground (rim bearing: layout._slip_velocity_scale,
+    # contact.evaluate_contact)
     sv = prm[P_SLIPV]
     v = prm[P_V] * sv
     vz = vz * sv

@@ -35,7 +35,14 @@ from .contact import (
     evaluate_contact,
 )
 from .cycles import cycles
-from .deformation import commit_contact, erode, erosion_scratch, flow_and_deposit
+from .deformation import (
+    bow_wave,
+    commit_contact,
+    erode,
+    erosion_scratch,
+    flow_and_deposit,
+    heap_passive_pressure,
+)
 from .geometry import tip_circle, wheel_envelope
 from .layout import (
     P_B,
@@ -45,6 +52,7 @@ from .layout import (
     P_DX,
     P_DYDX,
     P_EROSIONEVERY,
+    P_GAMMA,
     P_HG,
     P_K,
     P_KC,
@@ -60,6 +68,7 @@ from .layout import (
     P_OUTEVERY,
     P_R,
     P_SETTLE,
+    P_TANPHI,
     P_TANREPOSE,
     P_TG,
     P_V,
@@ -101,7 +110,9 @@ D_CYC_SOLVE = 14  # vertical solve (contact evaluations)
 D_CYC_COMMIT = 15  # node update
 D_CYC_FLOW = 16  # flow fields and deposits
 D_CYC_EROSION = 17
-N_DIAG = 18
+D_HEAP_H = 18  # the bow wave's height at the last step [m] (bulk_density > 0)
+D_HEAP_F = 19  # the horizontal force of its own wedge on the rim at the last step [N]
+N_DIAG = 20
 
 # convergence of the axle height [m]: where G jumps (a patch entering contact carries its damping
 # stress at once) the root is the jump, bracketed to the height change whose inertia m dz / dt^2
@@ -145,8 +156,11 @@ def grid_shape(prm: np.ndarray):
 #: the time step dt and the height tolerance z_tol
 Vertical = namedtuple("Vertical", ["zn", "zpred", "z_free", "ztop", "c_in", "W", "dt", "z_tol"])
 #: what an evaluation of the contact reads: the packed parameters, the step's patch count, the
-#: grid (dx, dy, rows under the wheel), work = (patches, columns, res) and the diagnostics
-ContactCall = namedtuple("ContactCall", ["prm", "npatch", "dx", "dy", "nyw", "work", "diag"])
+#: grid (dx, dy, rows under the wheel), work = (patches, columns, res), the diagnostics and the
+#: bow wave's surcharge on the wheel's front [Pa]
+ContactCall = namedtuple(
+    "ContactCall", ["prm", "npatch", "dx", "dy", "nyw", "work", "diag", "surcharge"]
+)
 
 
 @njit(cache=True)
@@ -156,14 +170,14 @@ def _evaluate(z, zn, dt, call, freeze):
     patches, cols, res = call.work
     evaluate_contact(
         z, (z - zn) / dt, call.prm, call.npatch, patches, cols, call.dx, call.dy, call.nyw, res,
-        freeze,
+        freeze, call.surcharge,
     )  # fmt: skip
     call.diag[D_ITERATIONS] += 1
     return res[R_FZ]
 
 
 @njit(cache=True)
-def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
+def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag, surcharge):
     """Backward-Euler axle height for this step; leaves the contact state evaluated there.
 
     Root of G(z) = m (z - z_n - dt v_n) / dt^2 + W - Fz(z) in the bracket [free fall, last
@@ -180,7 +194,7 @@ def _solve_vertical(zn, vn, prm, npatch, ztop, dx, dy, nyw, work, diag):
     c_in = m / (dt * dt)
     zpred = zn + dt * vn
     z_free = zpred - W / c_in  # free fall: no soil force
-    call = ContactCall(prm, npatch, dx, dy, nyw, work, diag)
+    call = ContactCall(prm, npatch, dx, dy, nyw, work, diag, surcharge)
     if z_free >= ztop:  # the wheel touches nothing at the free-fall height
         _evaluate(z_free, zn, dt, call, np.bool_(False))
         return z_free, True
@@ -323,6 +337,20 @@ def _work_space(nx: int, ny: int, nyw: int, ncw_max: int):
     return cols, patches, marks, scratch
 
 
+@njit(cache=True, nogil=True)
+def _heap_load(prm, ground, c_ax, n_margin, nyw, zw, diag):
+    """The bow wave's load on the wheel this step: (surcharge [Pa] on the contact's front, its
+    wedge's horizontal force [N], that force's height [m], a third up the heap), from the loose
+    soil within a wheel radius ahead of the rim (the axle's column ``c_ax`` to two radii on)."""
+    r_out = prm[P_R] + prm[P_HG]
+    n_ahead = int(math.ceil(2.0 * r_out / prm[P_DX])) + 1
+    h_b, base = bow_wave(ground, c_ax, n_ahead, n_margin, nyw, zw + r_out)
+    surcharge, f_b = heap_passive_pressure(prm[P_GAMMA], prm[P_TANPHI], prm[P_TANREPOSE], h_b)
+    diag[D_HEAP_H] = h_b
+    diag[D_HEAP_F] = f_b * prm[P_B]
+    return surcharge, f_b * prm[P_B], base + h_b / 3.0
+
+
 @njit(cache=True, nogil=True)  # batches run it on several threads (swt.simulate_packed)
 def run_swt(prm: np.ndarray):
     """Simulate one SWT. Returns (series (n_out, N_SERIES), n_out, status, surface, diag).
@@ -376,6 +404,7 @@ def run_swt(prm: np.ndarray):
     work = (patches, cols, res)
     ground = Ground(h0, sp, sy, ke, js, hl)
     bulldoze = prm[P_BULLDOZE] > 0.5
+    heap_weight = bulldoze and prm[P_GAMMA] > 0.0  # the bow wave weighs on the wheel's front
     tail = np.int64(0)  # erosion's work list: nodes that received soil since it last ran
     erode_every = int(prm[P_EROSIONEVERY])
     tan_repose = prm[P_TANREPOSE]
@@ -405,7 +434,14 @@ def run_swt(prm: np.ndarray):
         npatch, ztop = build_patches(ground, cols, patches, c0, ncw, n_margin, nyw, z_low)
         diag[D_PATCH_STEPS] += npatch
         tick = _lap(diag, np.int64(D_CYC_GEOMETRY), tick)
-        z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag)
+        surcharge, heap_force, heap_z = 0.0, 0.0, 0.0
+        if heap_weight:
+            c_ax = int(round((xw - x0) / dx))
+            surcharge, heap_force, heap_z = _heap_load(prm, ground, c_ax, n_margin, nyw, zw, diag)
+        z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag, surcharge)
+        if heap_force > 0.0:  # the heap's own wedge pushes the rim back above its base
+            res[R_FX] -= heap_force
+            res[R_T] += (heap_z - z_new) * heap_force  # eq. (10), the moment about the axle
         tick = _lap(diag, np.int64(D_CYC_SOLVE), tick)
         if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
             status = STATUS_UNSTABLE

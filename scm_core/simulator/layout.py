@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .params import RigConfig, SoilParams, WheelGeometry
+from .params import GRAVITY, RigConfig, SoilParams, WheelGeometry
 from .rig import ResolvedRig, resolve_rig
 
 # the packed vector's slots: one declaration, each name its index in order (a new slot goes
@@ -63,14 +63,29 @@ from .rig import ResolvedRig, resolve_rig
     P_SLIPV,  # carriage speed the shearing surface's slip sees / the carriage's (1: the same)
     P_STUCKSOIL,  # 1: where the wheel's surface sticks to the soil, the soil shears (at phi)
     P_POCKETKEEP,  # 1: the pockets carry off only the soil they keep (pocket_fill), no floor
+    P_GAMMA,  # unit weight of the soil, rho g [N/m^3] (0: weightless deposits, SCM)
     N_PARAMS,
-) = range(49)
+) = range(50)
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
 STATUS_BOTTOMED_OUT = 1
 STATUS_NONPOSITIVE_STIFFNESS = 2
 STATUS_UNSTABLE = 3
+
+
+def _slip_velocity_scale(kin: float, r: float, rig: ResolvedRig) -> float:
+    """sv, what the carriage speed counts for in the slip of a rim-bearing grousered wheel's
+    shearing surface, which turns at omega and lies kin = r_s / r times farther out than the rim
+    of radius r [m]: its slip at the bottom is kin omega r - sv v. 'tips': sv = 1 (the tips' own
+    velocity); 'rim': sv = kin (kin times the rim's slip velocity, Ding et al. 2011);
+    'rim_drive': kin in drive, and in skid 1 + (kin - 1) omega r / v, so the slip is the rim's
+    own, omega r - v (the carriage speed at lock), continuous through zero slip."""
+    if rig.grouser_slip == "rim":
+        return kin
+    if rig.grouser_slip == "rim_drive":
+        return 1.0 + (kin - 1.0) * min(rig.omega * r / rig.carriage_speed, 1.0)
+    return 1.0
 
 
 def pack(soil: SoilParams, wheel: WheelGeometry, rig: RigConfig) -> np.ndarray:
@@ -137,7 +152,8 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     outer = envelope + p[P_HG]  # the kernel's zero of z: first contact of this radius
     p[P_ZDATUM] = outer - (wheel.R if rig.sinkage_datum == "rim" else wheel.R + h_g)
     p[P_SHEARSCALE] = (wheel.R + h_g) / wheel.R if rim_bearing else 1.0
-    p[P_SLIPV] = p[P_SHEARSCALE] if rim_bearing and rig.grouser_slip == "rim" else 1.0
+    p[P_SLIPV] = _slip_velocity_scale(p[P_SHEARSCALE], wheel.R, rig) if rim_bearing else 1.0
     p[P_STUCKSOIL] = 1.0 if rig.stuck_shear == "soil" else 0.0
     p[P_POCKETKEEP] = 1.0 if rig.pocket_carry == "kept" else 0.0
+    p[P_GAMMA] = soil.bulk_density * GRAVITY
     return p

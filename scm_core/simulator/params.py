@@ -115,6 +115,18 @@ class SoilParams(_Frozen):
         "'tip_circle' or 'rim_bearing')",
     )
 
+    bulk_density: float = Field(
+        0.0,
+        ge=0.0,
+        le=5000.0,
+        description="Bulk density of the soil [kg/m^3], for the weight of the bow wave: the loose "
+        "soil heaped ahead of the wheel resists with its Rankine passive pressure, its own "
+        "wedge on the face above the ground (Bekker's bulldozing resistance with c = 0, "
+        "0.5 K_p gamma h^2 per width, K_p at the angle of repose) and its weight as a "
+        "surcharge on the face below (K_p gamma h, K_p at phi); 0 = weightless deposits, the "
+        "paper's SCM",
+    )
+
     @property
     def tan_phi(self) -> float:
         return math.tan(math.radians(self.phi))
@@ -266,15 +278,18 @@ class RigConfig(_Frozen):
         "as in 'tip_circle'; Ding et al. 2011's shearing radius r + h_g); a smooth wheel is "
         "the same under all three",
     )
-    grouser_slip: Literal["tips", "rim"] = Field(
+    grouser_slip: Literal["tips", "rim", "rim_drive"] = Field(
         "tips",
         description="With grouser_contact 'rim_bearing', the slip of the surface through the "
         "grouser tips over the soil below (docs/simulator.md step 1): 'tips' (the tips' own "
         "velocity, omega (r + h_g) - v at the bottom: the trapped soil slides over the ground "
-        "even at zero rim slip) or 'rim' (Ding et al. 2011, J. Terramechanics 48: shear "
+        "even at zero rim slip), 'rim' (Ding et al. 2011, J. Terramechanics 48: shear "
         "displacement j = r_s [(theta_1 - theta) - (1 - s)(sin theta_1 - sin theta)] with "
         "r_s = r + h_g and s the rim's slip, i.e. the rim's slip velocity times r_s / r: the "
-        "soil below the tips moves with them until the rim slips); ignored otherwise",
+        "soil below the tips moves with them until the rim slips) or 'rim_drive' (that while "
+        "driving, where Ding et al. measured it; in skid the rim's own slip velocity, so a "
+        "locked wheel slides over the ground at the carriage speed, as a rigid body "
+        "translating at v does whatever the radius of its shearing surface); ignored otherwise",
     )
     stuck_shear: Literal["interface", "soil"] = Field(
         "interface",

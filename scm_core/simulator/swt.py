@@ -121,6 +121,8 @@ _DIAG_NAMES = (
     "cycles_commit",
     "cycles_flow",
     "cycles_erosion",
+    "bow_wave_height",
+    "bow_wave_force",
 )
 
 

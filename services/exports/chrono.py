@@ -21,10 +21,11 @@ Conversions (this tool's units on the left, Chrono's on the right):
 
 What Chrono cannot represent is refused (:class:`ChronoExportError`) unless ``lossy``, which
 lists it as dropped: the velocity-form J, the inclination factor (``bearing_inclination`` > 0),
-a skidding wheel's ploughing (``ploughing`` > 0, ``skid_ploughing = "sliding_face"``) and the
-mobilised-depth digging of a driven wheel (``drive_digging = "mobilised"``) and the trapped soil
-of a grousered wheel (``grouser_contact = "tip_circle"``), and a wheel surface whose friction is
-below the soil's (``interface_friction`` < 1). The rim-dragged
+a skidding wheel's ploughing (``ploughing`` > 0, ``skid_ploughing = "sliding_face"``), the
+bow wave's passive pressure (``bulk_density`` > 0), the mobilised-depth digging of a driven
+wheel (``drive_digging = "mobilised"``) and the trapped soil of a grousered wheel
+(``grouser_contact = "tip_circle"``), and a wheel surface whose friction is below the soil's
+(``interface_friction`` < 1). The rim-dragged
 layer (``shear_band``, ``slip_flow``) is this tool's flow model; Chrono's bulldozing has none.
 """
 
@@ -89,6 +90,11 @@ def _extensions(soil: SoilParams, rig: RigConfig) -> list[str]:
         out.append(f"bearing_inclination = {soil.bearing_inclination:g} (inclination factor)")
     if soil.ploughing > 0:
         out.append(f"ploughing = {soil.ploughing:g} (a skidding wheel's blade)")
+    if soil.bulk_density > 0:
+        out.append(
+            f"bulk_density = {soil.bulk_density:g} kg/m^3 (the bow wave's passive pressure on "
+            "the wheel)"
+        )
     if rig.skid_ploughing == "sliding_face":
         out.append('skid_ploughing = "sliding_face" (a skidding wheel\'s dragged layer)')
     if rig.drive_digging == "mobilised":

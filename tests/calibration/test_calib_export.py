@@ -132,6 +132,7 @@ def test_chrono_takes_each_parameter_in_its_units() -> None:
         ({"shear": "velocity"}, "J = 0.012 m/s"),
         ({"bearing_inclination": 2.0}, "bearing_inclination"),
         ({"ploughing": 0.2}, "ploughing = 0.2"),
+        ({"bulk_density": 1330.0}, "bulk_density = 1330 kg/m^3"),
         ({"skid_ploughing": "sliding_face"}, "sliding_face"),
         ({"drive_digging": "mobilised"}, "mobilised"),
         ({"grouser_contact": "tip_circle"}, "tip_circle"),

@@ -242,6 +242,45 @@ def test_grouser_slip_changes_only_a_rim_bearing_grousered_wheel():
     assert set(np.flatnonzero(a != b)) == {P_SLIPV} and b[P_SLIPV] == (R + H_G) / R
 
 
+@pytest.mark.parametrize(("slip", "expected"), [(-1.0, 0.0), (-0.5, 0.5), (0.0, 1.0), (0.5, 1.0)])
+def test_rim_drive_scales_the_rims_slip_in_drive_and_keeps_it_in_skid(slip, expected):
+    """'rim_drive': the carriage speed counts sv = 1 + (kin - 1) min(omega r / v, 1) times, so
+    the tips' slip at the bottom, kin omega r - sv v, is kin times the rim's while driving (and
+    zero at zero slip, as 'rim') and the rim's own omega r - v in skid (at lock -v)."""
+    from scm_core.simulator.layout import P_OMEGA, P_SLIPV
+
+    kin = (R + H_G) / R
+    rig = _rig(slip, "rim_bearing").model_copy(update={"grouser_slip": "rim_drive"})
+    p = pack(SOIL, GROUSERED, rig)
+    assert p[P_SLIPV] == pytest.approx(1.0 + (kin - 1.0) * expected, rel=1e-12)
+    rim_slip = p[P_OMEGA] * R - V
+    tips_slip = kin * p[P_OMEGA] * R - p[P_SLIPV] * V
+    assert tips_slip == pytest.approx(kin * rim_slip if slip >= 0 else rim_slip, abs=1e-15)
+
+
+def test_a_locked_rim_drive_wheel_is_the_smooth_rim_but_for_its_torque():
+    """A locked wheel translates at v whatever the radius of its shearing surface: with
+    'rim_drive' the rim-bearing grousered wheel (trapped soil at phi, its sinkage read from the
+    rim) brakes and sinks as the smooth rim of friction phi bit for bit, the whole model on
+    (flows, erosion, sliding face), and its torque is r_s / r times the rim's."""
+    kin = (R + H_G) / R
+    locked = _rig(-1.0, "rim_bearing").model_copy(update={"steady_tolerance": None})
+    g = simulate_swt(
+        SOIL,
+        GROUSERED,
+        locked.model_copy(update={"grouser_slip": "rim_drive", "sinkage_datum": "rim"}),
+    )
+    s = simulate_swt(SOIL, WheelGeometry(R=R, b=0.05, n_grousers=0), locked)
+    assert g.ok and s.ok
+    np.testing.assert_array_equal(g.series["F"], s.series["F"])
+    np.testing.assert_array_equal(g.series["z"], s.series["z"])
+    np.testing.assert_allclose(g.series["T"], kin * s.series["T"], rtol=1e-9, atol=1e-12)
+    ding = simulate_swt(
+        SOIL, GROUSERED, locked.model_copy(update={"grouser_slip": "rim", "sinkage_datum": "rim"})
+    )
+    assert ding.means.F < s.means.F - 0.5  # 'rim' slides the locked tips at kin v
+
+
 # ---- pocket_carry = "kept": the pockets carry off only what they keep (no continuity floor)
 
 
