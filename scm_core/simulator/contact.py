@@ -404,7 +404,7 @@ def evaluate_contact(
         else:
             gam = float(rows)
         sig_sum = gam * sb + rows * sd  # sum over the patch's rows of eq. (7) [Pa]
-        if nx < 0.0:
+        if surcharge > 0.0 and nx < 0.0:
             sig_sum += rows * surcharge * nx * nx  # the heap ahead, horizontal on the face
         tau_sum = fsh * (coh * rows + mu * sig_sum)  # eq. (8)
         dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding

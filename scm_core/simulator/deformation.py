@@ -187,12 +187,13 @@ def bow_wave(
     highest point). What the heap weighs on the wheel is :func:`heap_passive_pressure`'s."""
     h0, sp, hl = ground.h0, ground.sp, ground.hl
     nx = hl.shape[0]
+    c0 = min(max(c_ax, 0), nx - 1)
     h_sum = 0.0
     base_sum = 0.0
     for j in range(jw0, jw0 + nyw):
         best = 0.0
-        base = h0[min(c_ax, nx - 1), j] - sp[min(c_ax, nx - 1), j]
-        for c in range(max(c_ax, 0), min(c_ax + n_ahead, nx)):
+        base = h0[c0, j] - sp[c0, j]
+        for c in range(c0, min(c_ax + n_ahead, nx)):
             if hl[c, j] > best:
                 best = hl[c, j]
                 base = h0[c, j] - sp[c, j]

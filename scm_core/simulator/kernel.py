@@ -346,9 +346,10 @@ def _heap_load(prm, ground, c_ax, n_margin, nyw, zw, diag):
     n_ahead = int(math.ceil(2.0 * r_out / prm[P_DX])) + 1
     h_b, base = bow_wave(ground, c_ax, n_ahead, n_margin, nyw, zw + r_out)
     surcharge, f_b = heap_passive_pressure(prm[P_GAMMA], prm[P_TANPHI], prm[P_TANREPOSE], h_b)
+    force = f_b * prm[P_B]
     diag[D_HEAP_H] = h_b
-    diag[D_HEAP_F] = f_b * prm[P_B]
-    return surcharge, f_b * prm[P_B], base + h_b / 3.0
+    diag[D_HEAP_F] = force
+    return surcharge, force, base + h_b / 3.0
 
 
 @njit(cache=True, nogil=True)  # batches run it on several threads (swt.simulate_packed)
