@@ -12,6 +12,7 @@ driven wheel, which pushes no heap ahead, left alone.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -97,3 +98,28 @@ def test_a_locked_wheel_brakes_harder_by_its_heaps_passive_pressure_and_a_driven
     # a driven wheel leaves its soil behind: no heap to push, the same within 1 % of the load
     assert runs[0.5, RHO].diagnostics["bow_wave_height"] < 0.002
     assert abs(runs[0.5, RHO].means.F - runs[0.5, 0.0].means.F) < 0.01 * 20.0
+
+
+@pytest.mark.parametrize("rho", [-1.0, 5001.0])
+def test_a_bulk_density_outside_its_range_is_refused_naming_the_field(rho):
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="bulk_density"):
+        SoilParams(bulk_density=rho)
+
+
+def test_a_case_with_a_negative_bulk_density_stops_before_anything_is_written(tmp_path):
+    """The CLI's message names the case's field; no results folder is made."""
+    from click.testing import CliRunner
+
+    from services.cli.main import cli
+
+    case = Path(__file__).resolve().parents[2] / "examples" / "cmu_joint.toml"
+    text = case.read_text().replace("bulk_density = 1330.0", "bulk_density = -5.0")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('    "cmu_', f'    "{case.parent}/cmu_'))  # the data, absolute
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["calibrate", str(bad), "--out", str(out)])
+    assert res.exit_code != 0
+    assert "nominal.bulk_density" in res.output and "Traceback" not in res.output
+    assert not out.exists()
