@@ -31,9 +31,10 @@ from typing import IO
 
 from services.config import Settings
 from services.store import Store
+from services.store.engine import is_transient
 from services.store.records import BatchKey
 
-from .local_pool import Health, PoolEvent, SupervisedPool
+from .local_pool import Health, PoolEvent, SupervisedPool, death_reason
 from .orchestrator import ContextCache, reap_once
 from .runtime import pool_process_main
 
@@ -43,6 +44,37 @@ log = logging.getLogger(__name__)
 LOOP_INTERVAL_S = 2.0
 #: the loop counts as hung when its last pass is older than this
 LOOP_STALE_S = 30.0
+
+
+class _OutageLog:
+    """One line when a loop's passes start failing on the storage (not a traceback every
+    pass), one when they pass again; any other error is logged in full."""
+
+    def __init__(self, what: str) -> None:
+        self._what = what
+        self._since: float | None = None
+
+    def failed(self, exc: BaseException) -> None:
+        if not is_transient(exc):
+            log.exception("%s pass failed", self._what)
+            return
+        if self._since is None:
+            self._since = time.monotonic()
+            text = " ".join(str(getattr(exc, "orig", None) or exc).split())
+            log.warning(
+                "%s: the database is unavailable (%s: %s); retrying every %.0f s",
+                self._what,
+                type(exc).__name__,
+                text,
+                LOOP_INTERVAL_S,
+            )
+
+    def passed(self) -> None:
+        if self._since is not None:
+            log.warning(
+                "%s: the database is back after %.1f s", self._what, time.monotonic() - self._since
+            )
+            self._since = None
 
 
 def _runtime_lock(database_url: str) -> IO[bytes] | None:
@@ -84,6 +116,8 @@ class LocalRuntime:
         self._last_pass = time.monotonic()
         self._health = Health(False, "the local pool is starting")
         self._error: str | None = None
+        self._reclaimed = False
+        self._outage = _OutageLog("local runtime")
         self._thread = threading.Thread(target=self._run, name="scm-calib-local", daemon=True)
 
     # ---- any thread ----------------------------------------------------------------------
@@ -142,7 +176,6 @@ class LocalRuntime:
                 self.size, pool_process_main, (self._store_args, self.owner)
             )
             self._lock_file = _runtime_lock(self._store_args[0])
-            self._reclaim_previous()
             self._loop()
         except Exception as exc:
             log.exception("the local runtime stopped")
@@ -154,6 +187,9 @@ class LocalRuntime:
                 self._lock_file.close()
 
     def _reclaim_previous(self) -> None:
+        """Take back the leases of the server before this one (once; a pass that cannot
+        write, a storage outage at start, raises and the next pass tries again)."""
+        self._reclaimed = True
         if self._lock_file is None:
             log.warning(
                 "another embedded server runs on this database on this machine: leases of "
@@ -163,8 +199,8 @@ class LocalRuntime:
         try:
             report = self.store.batches.reclaim(f"local/{self.host}", keep=self.owner)
         except Exception:
-            log.exception("taking back the leases of the previous server failed")
-            return
+            self._reclaimed = False
+            raise
         if report.requeued or report.failed:
             log.warning(
                 "took back %d batch(es) leased by the previous server here (%d failed at the "
@@ -180,11 +216,15 @@ class LocalRuntime:
         while not self._stop.is_set():
             try:
                 self._pass(pool)
-            except Exception:  # a pass that failed (database gone...) is retried
-                log.exception("local runtime pass failed")
+            except Exception as exc:  # a pass that failed (database gone...) is retried
+                self._outage.failed(exc)
                 self._stop.wait(LOOP_INTERVAL_S)
+            else:
+                self._outage.passed()
 
     def _pass(self, pool: SupervisedPool) -> None:
+        if not self._reclaimed:
+            self._reclaim_previous()
         pool.ensure()
         now = time.monotonic()
         if now >= self._next_reap:
@@ -219,9 +259,9 @@ class LocalRuntime:
     def _handle(self, event: PoolEvent) -> None:
         if event.died:
             log.warning(
-                "local pool process %s died (exit code %s)%s; replacing it",
+                "local pool process %s died (%s)%s; replacing it",
                 event.pid,
-                event.exitcode,
+                death_reason(event.exitcode),
                 f" while running batch {event.key.astuple()}" if event.key else "",
             )
             try:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import multiprocessing
+import signal
 import time
 from collections import deque
 from collections.abc import Callable
@@ -34,6 +35,23 @@ RESTART_BACKOFF_S = 0.5
 RESTART_BACKOFF_MAX_S = 30.0
 #: a process that ran this long is healthy again: its slot's backoff is reset
 HEALTHY_AFTER_S = 60.0
+
+
+def death_reason(exitcode: int | None) -> str:
+    """A dead process's exit code in words: the signal that killed it, with what a SIGBUS
+    means here."""
+    if exitcode is None or exitcode >= 0:
+        return f"exit code {exitcode}"
+    try:
+        name = signal.Signals(-exitcode).name
+    except ValueError:
+        return f"killed by signal {-exitcode}"
+    if -exitcode == signal.SIGBUS:
+        return (
+            f"killed by {name}: a mapped page of the database's files could not be written, "
+            "the storage under it failed"
+        )
+    return f"killed by {name}"
 
 
 @dataclass
@@ -132,7 +150,7 @@ class SupervisedPool:
         slot.process, slot.conn, slot.ready, slot.key = None, None, False, None
         self.restarts += 1
         self._deaths.append(time.monotonic())
-        self.last_death = f"process {event.pid} exited with code {event.exitcode}" + (
+        self.last_death = f"process {event.pid}: {death_reason(event.exitcode)}" + (
             f" while running batch {event.key.astuple()}" if event.key else ""
         )
         return event

@@ -62,6 +62,12 @@ class ReadyOut(BaseModel):
     checks: dict[str, CheckOut]
 
 
+class LiveOut(BaseModel):
+    status: Literal["live", "not live"]
+    detail: str
+    checks: dict[str, CheckOut]
+
+
 # ---------------------------------------------------------------------------- datasets
 
 

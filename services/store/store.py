@@ -85,12 +85,18 @@ class Store:
             check=check,
         )
 
+    def check_schema(self) -> str:
+        """The head revision if the database is at it; raises
+        :class:`~services.store.migrate.SchemaVersionError` otherwise."""
+        with self.db.fault_reset.use():
+            return check_revision(self.engine)
+
     def check_writable(self, name: str = "ready") -> str:
         """Prove the database takes writes: commit a beat of the heartbeat row ``name`` (fails
         on a read-only SQLite file, a full disk, a read-only PostgreSQL replica, role or
         session, whichever of statement or commit it fails at). Returns the schema revision;
         raises otherwise."""
-        head = check_revision(self.engine)
+        head = self.check_schema()
         for attempt in range(2):
             now = self.db.now()
             try:

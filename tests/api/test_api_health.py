@@ -165,3 +165,40 @@ def test_openapi_and_docs(tmp_path) -> None:
         assert "StudyCreate" in spec["components"]["schemas"]
         docs = client.get("/docs")
         assert docs.status_code == 200 and "swagger" in docs.text.lower()
+
+
+def test_live_fails_when_the_connections_cannot_be_renewed(tmp_path, monkeypatch) -> None:
+    """Issue 73: /health/live answers 503 (restart me) when a renewal of the database
+    connections after a storage fault waits for a transaction that never ends, and 200 again
+    once it ends; a database that is merely down is no reason (readiness says that)."""
+    import threading
+
+    from services.api.routes import health
+
+    monkeypatch.setattr(health, "STUCK_RENEWAL_S", 0.3)
+    with fresh_database("sqlite", tmp_path) as url, api_client(url) as client:
+        r = client.get("/health/live")
+        assert r.status_code == 200 and r.json()["status"] == "live", r.text
+        reset = client.app.state.store.db.fault_reset
+        held, release = threading.Event(), threading.Event()
+
+        def hold() -> None:  # a transaction that does not end
+            with reset.use():
+                held.set()
+                release.wait(30)
+
+        t = threading.Thread(target=hold)
+        t.start()
+        held.wait(10)
+        reset.fault()
+        threading.Event().wait(0.5)
+        r = client.get("/health/live")
+        assert r.status_code == 503, r.text
+        assert r.json()["status"] == "not live"
+        assert "restart the server" in r.json()["detail"]
+        release.set()
+        t.join()
+        client.get("/studies")  # the next transaction renews the connections
+        r = client.get("/health/live")
+        assert r.status_code == 200, r.text
+        assert "renewed 1 time(s)" in r.json()["checks"]["database"]["detail"]

@@ -1,5 +1,6 @@
-"""``GET /health`` (liveness) and ``GET /health/ready`` (database writable; local pool complete
-or broker reachable)."""
+"""``GET /health`` (the process answers), ``GET /health/live`` (it can still recover by itself:
+a supervisor restarts it when not) and ``GET /health/ready`` (database writable; local pool
+complete or broker reachable)."""
 
 from __future__ import annotations
 
@@ -9,16 +10,18 @@ from fastapi.responses import JSONResponse
 from services.config import Settings
 from services.store import SchemaVersionError, Store
 from services.store.engine import safe_url
-from services.store.migrate import check_revision
 
 from ..deps import SettingsDep, token_ok
-from ..schemas import CheckOut, HealthOut, ReadyOut
+from ..schemas import CheckOut, HealthOut, LiveOut, ReadyOut
 from ..upload_slots import upload_slots
 from . import errors
 
 router = APIRouter(prefix="/health", tags=["health"])
 
 BROKER_TIMEOUT_S = 2.0
+#: a renewal of the database connections that has waited this long for the transactions in
+#: flight to end will not come: the process cannot recover from the storage fault by itself
+STUCK_RENEWAL_S = 60.0
 
 
 def _one_line(exc: BaseException) -> str:
@@ -41,7 +44,7 @@ def check_database(store: Store | None, reveal: bool = True) -> CheckOut:
         return CheckOut(ok=False, detail="the store is not open (server starting or stopping)")
     where = f"{safe_url(store.engine.url)} " if reveal else ""
     try:
-        head = check_revision(store.engine)
+        head = store.check_schema()
     except SchemaVersionError as exc:
         text = (
             str(exc)
@@ -102,6 +105,57 @@ def check_broker(settings: Settings, reveal: bool = True) -> CheckOut:
 def health(request: Request) -> HealthOut:
     """The process is up (no dependency is checked)."""
     return HealthOut(version=request.app.version, mode=request.app.state.mode)
+
+
+def check_connections(store: Store | None) -> CheckOut:
+    """The store's connections can be renewed after a storage fault (none held for good)."""
+    if store is None:
+        return CheckOut(ok=True, detail="the store is not open (server starting or stopping)")
+    stuck = store.db.fault_reset.stuck_for()
+    if stuck > STUCK_RENEWAL_S:
+        return CheckOut(
+            ok=False,
+            detail=(
+                f"the database connections wait {stuck:.0f} s for a renewal after a storage "
+                "fault (a transaction never ended): restart the server"
+            ),
+        )
+    renewed = store.db.fault_reset.resets
+    return CheckOut(ok=True, detail=f"connections renewed {renewed} time(s) after storage faults")
+
+
+def check_runtime(runtime) -> CheckOut:
+    """The embedded server's local runtime loop runs (it stops only on an error it cannot
+    pass, or with the server)."""
+    if runtime is None:
+        return CheckOut(ok=True, detail="no local workers")
+    if runtime.alive:
+        return CheckOut(ok=True, detail="the local runtime's loop runs")
+    return CheckOut(ok=False, detail=runtime.health().detail)
+
+
+@router.get(
+    "/live",
+    response_model=LiveOut,
+    summary="Liveness",
+    responses={503: {"model": LiveOut, "description": "Restart me: what failed."}, **errors()},
+)
+def live(request: Request):
+    """Whether the server can still recover by itself: 503 when it cannot (the database
+    connections cannot be renewed after a storage fault; the embedded server's local runtime
+    has stopped), for a supervisor to restart it (Kubernetes' liveness probe). A database or
+    broker that is down is not a reason (``/health/ready`` says so): the server recovers when
+    it returns."""
+    state = request.app.state
+    checks = {
+        "database": check_connections(getattr(state, "store", None)),
+        "runtime": check_runtime(getattr(state, "runtime", None)),
+    }
+    failed = [f"{name}: {c.detail}" for name, c in checks.items() if not c.ok]
+    if failed:
+        body = LiveOut(status="not live", detail="; ".join(failed), checks=checks)
+        return JSONResponse(body.model_dump(), status_code=503)
+    return LiveOut(status="live", detail="ok", checks=checks)
 
 
 @router.get(

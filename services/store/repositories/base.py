@@ -16,7 +16,8 @@ from datetime import datetime, timedelta
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
-from ..engine import make_sessionmaker, read_session, write_session
+from ..engine import is_sqlite, make_sessionmaker, read_session, write_session
+from ..fault_reset import FaultReset
 from ..types import utcnow
 
 __all__ = ["Database"]
@@ -37,6 +38,7 @@ class Database:
     lease_seconds: float = 300.0
     max_attempts: int = 3
     sessions: sessionmaker[Session] = field(init=False)
+    fault_reset: FaultReset = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.lease_seconds <= 0:
@@ -44,6 +46,7 @@ class Database:
         if self.max_attempts < 1:
             raise ValueError(f"max_attempts must be >= 1, got {self.max_attempts!r}")
         self.sessions = make_sessionmaker(self.engine)
+        self.fault_reset = FaultReset(self.engine, enabled=is_sqlite(self.engine))
 
     @property
     def dialect(self) -> str:
@@ -62,11 +65,11 @@ class Database:
     @contextmanager
     def write(self) -> Iterator[Session]:
         """A read-write transaction (BEGIN IMMEDIATE on SQLite)."""
-        with write_session(self.sessions) as session:
+        with self.fault_reset.use(), write_session(self.sessions) as session:
             yield session
 
     @contextmanager
     def read(self) -> Iterator[Session]:
         """A read-only transaction."""
-        with read_session(self.sessions) as session:
+        with self.fault_reset.use(), read_session(self.sessions) as session:
             yield session
