@@ -117,6 +117,7 @@ class LocalRuntime:
         self._health = Health(False, "the local pool is starting")
         self._error: str | None = None
         self._reclaimed = False
+        self._orphans: set[str] = set()  # lease holders (dead processes) not yet taken back
         self._outage = _OutageLog("local runtime")
         self._thread = threading.Thread(target=self._run, name="scm-calib-local", daemon=True)
 
@@ -225,6 +226,7 @@ class LocalRuntime:
     def _pass(self, pool: SupervisedPool) -> None:
         if not self._reclaimed:
             self._reclaim_previous()
+        self._reclaim_orphans()
         pool.ensure()
         now = time.monotonic()
         if now >= self._next_reap:
@@ -264,15 +266,25 @@ class LocalRuntime:
                 death_reason(event.exitcode),
                 f" while running batch {event.key.astuple()}" if event.key else "",
             )
-            try:
-                report = self.store.batches.reclaim(f"{self.owner}/{event.pid}")
-            except Exception:
-                log.exception("taking back the lease of process %s failed", event.pid)
-                return
-            if report.requeued:
-                self.dispatch(report.requeued)
+            self._orphans.add(f"{self.owner}/{event.pid}")
+            self._reclaim_orphans()
         elif event.outcome and event.outcome.startswith("error"):
             log.warning("local batch %s: %s", event.key.astuple(), event.outcome)
+
+    def _reclaim_orphans(self) -> None:
+        """Take back the leases of dead pool processes at once; one the database does not
+        take now (a storage outage) is tried again every pass until it does."""
+        for holder in sorted(self._orphans):
+            try:
+                report = self.store.batches.reclaim(holder)
+            except Exception as exc:
+                if not is_transient(exc):
+                    log.exception("taking back the leases of %s failed", holder)
+                    self._orphans.discard(holder)
+                continue
+            self._orphans.discard(holder)
+            if report.requeued:
+                self.dispatch(report.requeued)
 
     def _drain_wake(self) -> None:
         try:

@@ -149,7 +149,8 @@ class SupervisedPool:
             slot.conn.close()
         slot.process, slot.conn, slot.ready, slot.key = None, None, False, None
         self.restarts += 1
-        self._deaths.append(time.monotonic())
+        if event.exitcode != -signal.SIGBUS:  # a storage fault, not a crash loop: the
+            self._deaths.append(time.monotonic())  # database's check reports it
         self.last_death = f"process {event.pid}: {death_reason(event.exitcode)}" + (
             f" while running batch {event.key.astuple()}" if event.key else ""
         )

@@ -35,6 +35,9 @@ T = TypeVar("T")
 #: return), for as long as the batch's lease holds
 RETRY_FIRST_S = 0.1
 RETRY_LONGEST_S = 2.0
+#: how long a claim is retried while the database takes no writes (then the batch stays
+#: pending, and the reaper dispatches it again)
+CLAIM_RETRY_S = 4.0
 
 #: seconds a study may stay queued before the reaper starts it (a submission stores and starts
 #: a study within milliseconds; only a submitter that died in between leaves it queued)
@@ -151,7 +154,11 @@ def execute_batch(
     result is not counted ("duplicate"). Returns the outcome. ``interruptible``: the section
     the batch's simulations run in (a command's Ctrl-C, :class:`worker.interrupt.Interrupts`).
     """
-    lease = store.batches.claim(key, worker or worker_id())
+    lease = retry_while_transient(  # the first write after a storage outage may renew
+        lambda: store.batches.claim(key, worker or worker_id()),
+        time.monotonic() + CLAIM_RETRY_S,
+        f"claiming batch {key}",
+    )
     if lease is None:
         return "skipped"
     t0 = time.perf_counter()

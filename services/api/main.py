@@ -338,7 +338,8 @@ def create_app(
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         own = store is None
-        st = Store.from_settings(settings) if own else store
+        # no connection held between transactions: no SIGBUS from a read-only filesystem
+        st = Store.from_settings(settings, keep_connections=False) if own else store
         runtime = None
         try:
             if settings.embedded:

@@ -110,10 +110,14 @@ def _discard_faulty_connections(engine: Engine) -> None:
             ctx.is_disconnect = True
 
 
-def make_engine(url: str | URL, *, echo: bool = False, **kwargs: Any) -> Engine:
-    """An engine for ``url`` set up as described in the module docstring."""
+def make_engine(url: str | URL, *, echo: bool = False, keep: bool = True, **kwargs: Any) -> Engine:
+    """An engine for ``url`` set up as described in the module docstring. keep: False closes
+    each SQLite connection when its transaction ends (no pool; see
+    :meth:`services.store.Store.open`)."""
     u = normalise_url(url)
     if u.get_backend_name() == "sqlite":
+        if not keep:
+            kwargs.setdefault("poolclass", sa.pool.NullPool)
         engine = _sqlite_engine(u, echo=echo, **kwargs)
     else:
         kwargs.setdefault("pool_pre_ping", True)

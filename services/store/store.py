@@ -57,9 +57,17 @@ class Store:
         max_attempts: int = 3,
         clock: Callable[[], datetime] = utcnow,
         check: bool = True,
+        keep_connections: bool = True,
     ) -> Store:
-        """A store on ``url`` (or an existing engine); checks the schema revision."""
-        engine = url if isinstance(url, Engine) else make_engine(url)
+        """A store on ``url`` (or an existing engine); checks the schema revision.
+
+        keep_connections: False opens a SQLite connection per transaction and closes it at
+        the end (the API server's store): a process that holds no connection between its
+        transactions holds no map of the database's shared-memory index, and cannot be
+        killed by a SIGBUS when the storage under it stops taking writes (a page of a
+        read-write map written while the file is immutable or the filesystem read-only).
+        """
+        engine = url if isinstance(url, Engine) else make_engine(url, keep=keep_connections)
         if check:
             try:
                 check_revision(engine)
@@ -72,8 +80,15 @@ class Store:
         )
 
     @classmethod
-    def from_settings(cls, settings: Settings | None = None, *, check: bool = True) -> Store:
-        """A store configured by the service settings (default: :func:`get_settings`)."""
+    def from_settings(
+        cls,
+        settings: Settings | None = None,
+        *,
+        check: bool = True,
+        keep_connections: bool = True,
+    ) -> Store:
+        """A store configured by the service settings (default: :func:`get_settings`);
+        ``keep_connections`` as for :meth:`open`."""
         if settings is None:
             from services.config import get_settings
 
@@ -83,6 +98,7 @@ class Store:
             lease_seconds=settings.lease_seconds,
             max_attempts=settings.max_attempts,
             check=check,
+            keep_connections=keep_connections,
         )
 
     def check_schema(self) -> str:
