@@ -530,7 +530,7 @@ def test_a_killed_worker_is_replaced_and_the_run_ends_the_same(work: Path, refer
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
     assert "Traceback" not in err, err
-    assert "died (exit code -9)" in err and "replacing it" in err, err
+    assert "died (killed by SIGKILL)" in err and "replacing it" in err, err
     assert stage_files(work / "killed") == stage_files(reference)
 
 

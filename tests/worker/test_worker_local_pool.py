@@ -125,3 +125,15 @@ def test_pool_process_exits_with_its_parent(tmp_path) -> None:
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_a_death_is_told_in_words() -> None:
+    """Issue 73: the pool's log line says which signal killed a process, and what a SIGBUS
+    means here (a mapped page of the database's files could not be written)."""
+    from worker.local_pool import death_reason
+
+    assert death_reason(-signal.SIGKILL) == "killed by SIGKILL"
+    bus = death_reason(-signal.SIGBUS)
+    assert bus.startswith("killed by SIGBUS: a mapped page of the database's files")
+    assert "storage" in bus and "\n" not in bus
+    assert death_reason(3) == "exit code 3"
