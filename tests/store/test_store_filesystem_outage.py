@@ -17,8 +17,6 @@ write-ahead log and the index in place.
 
 from __future__ import annotations
 
-import os
-import shutil
 import subprocess
 import sys
 import threading
@@ -28,6 +26,7 @@ from pathlib import Path
 
 import pytest
 import sqlalchemy as sa
+from test_store_write_outage import chattr_works
 
 from services.store import Store, upgrade
 from services.store.engine import is_write_fault
@@ -38,19 +37,9 @@ from services.store.models import Event
 RECOVERY_S = 5.0
 
 
-def _chattr_ok(tmp: Path) -> bool:
-    if shutil.which("chattr") is None or os.geteuid() != 0:
-        return False
-    probe = tmp / "probe"
-    probe.write_bytes(b"")
-    ok = subprocess.run(["chattr", "+i", str(probe)], capture_output=True).returncode == 0
-    subprocess.run(["chattr", "-i", str(probe)], capture_output=True)
-    return ok
-
-
 @pytest.fixture
 def database(tmp_path: Path) -> Iterator[Path]:
-    if not _chattr_ok(tmp_path):
+    if not chattr_works(tmp_path):
         pytest.skip("a filesystem outage needs root and chattr on this filesystem")
     path = tmp_path / "outage.db"
     upgrade(f"sqlite:///{path}")

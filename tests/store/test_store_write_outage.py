@@ -48,7 +48,8 @@ from worker.orchestrator import (
 WRITE_MARGIN_S = 1.5
 
 
-def _chattr_works(tmp: Path) -> bool:
+def chattr_works(tmp: Path) -> bool:
+    """Root, chattr, and a filesystem that takes the immutable flag (tmp: a folder on it)."""
     if shutil.which("chattr") is None or os.geteuid() != 0:
         return False
     probe = tmp / "chattr-probe"
@@ -65,7 +66,7 @@ class Outage:
         self.url = sa.make_url(db_url)
         self.sqlite = self.url.get_backend_name() == "sqlite"
         if self.sqlite:
-            if not _chattr_works(tmp):
+            if not chattr_works(tmp):
                 pytest.skip("a SQLite write outage needs root and chattr on this filesystem")
             self.admin = None
         else:
