@@ -35,7 +35,7 @@ from services.store.engine import is_transient
 from services.store.records import BatchKey
 
 from .local_pool import Health, PoolEvent, SupervisedPool, death_reason
-from .orchestrator import ContextCache, reap_once
+from .orchestrator import ContextCache, OutageLog, reap_once
 from .runtime import pool_process_main
 
 log = logging.getLogger(__name__)
@@ -44,37 +44,6 @@ log = logging.getLogger(__name__)
 LOOP_INTERVAL_S = 2.0
 #: the loop counts as hung when its last pass is older than this
 LOOP_STALE_S = 30.0
-
-
-class _OutageLog:
-    """One line when a loop's passes start failing on the storage (not a traceback every
-    pass), one when they pass again; any other error is logged in full."""
-
-    def __init__(self, what: str) -> None:
-        self._what = what
-        self._since: float | None = None
-
-    def failed(self, exc: BaseException) -> None:
-        if not is_transient(exc):
-            log.exception("%s pass failed", self._what)
-            return
-        if self._since is None:
-            self._since = time.monotonic()
-            text = " ".join(str(getattr(exc, "orig", None) or exc).split())
-            log.warning(
-                "%s: the database is unavailable (%s: %s); retrying every %.0f s",
-                self._what,
-                type(exc).__name__,
-                text,
-                LOOP_INTERVAL_S,
-            )
-
-    def passed(self) -> None:
-        if self._since is not None:
-            log.warning(
-                "%s: the database is back after %.1f s", self._what, time.monotonic() - self._since
-            )
-            self._since = None
 
 
 def _runtime_lock(database_url: str) -> IO[bytes] | None:
@@ -118,7 +87,7 @@ class LocalRuntime:
         self._error: str | None = None
         self._reclaimed = False
         self._orphans: set[str] = set()  # lease holders (dead processes) not yet taken back
-        self._outage = _OutageLog("local runtime")
+        self._outage = OutageLog("local runtime", LOOP_INTERVAL_S)
         self._thread = threading.Thread(target=self._run, name="scm-calib-local", daemon=True)
 
     # ---- any thread ----------------------------------------------------------------------

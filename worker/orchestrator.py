@@ -44,6 +44,41 @@ CLAIM_RETRY_S = 4.0
 QUEUED_GRACE_S = 10.0
 
 
+def _line(exc: BaseException) -> str:
+    """A database error in one line: the driver's message, without SQLAlchemy's SQL."""
+    orig = getattr(exc, "orig", None) or exc
+    return f"{type(exc).__name__}: {' '.join(str(orig).split())}"
+
+
+class OutageLog:
+    """One line when a loop's passes start failing on the storage (not a traceback every
+    pass), one when they pass again; any other error is logged in full."""
+
+    def __init__(self, what: str, every: float) -> None:
+        self._what, self._every = what, every
+        self._since: float | None = None
+
+    def failed(self, exc: BaseException) -> None:
+        if not is_transient(exc):
+            log.exception("%s pass failed", self._what)
+            return
+        if self._since is None:
+            self._since = time.monotonic()
+            log.warning(
+                "%s: the database is unavailable (%s); retrying every %.0f s",
+                self._what,
+                _line(exc),
+                self._every,
+            )
+
+    def passed(self) -> None:
+        if self._since is not None:
+            log.warning(
+                "%s: the database is back after %.1f s", self._what, time.monotonic() - self._since
+            )
+            self._since = None
+
+
 def build_context(store: Store, study_id: int) -> StudyRun:
     """The computation of study ``study_id``, built by its kind's plug-in."""
     study = store.studies.get(study_id)
@@ -95,8 +130,11 @@ class _Heartbeat:
                 if not self._store.batches.heartbeat(self._lease):
                     return
                 self.renewed = beat
-            except Exception:  # the next beat retries; the reaper covers a dead worker
-                log.exception("heartbeat failed for %s", self._lease.key)
+            except Exception as exc:  # the next beat retries; the reaper covers a dead worker
+                if is_transient(exc):
+                    log.warning("heartbeat of %s not stored: %s", self._lease.key, _line(exc))
+                else:
+                    log.exception("heartbeat failed for %s", self._lease.key)
 
     def __enter__(self) -> _Heartbeat:
         self._thread.start()
@@ -293,11 +331,14 @@ def reap_forever(
     queued_after: float = QUEUED_GRACE_S,
 ) -> None:
     """The reaper loop (``scm-calib reaper``, or a thread of the embedded server)."""
+    outage = OutageLog("reaper", interval)
     while not stop.is_set():
         try:
             reap_once(store, cache, dispatcher, redispatch_after, queued_after)
-        except Exception:
-            log.exception("reaper pass failed")
+        except Exception as exc:
+            outage.failed(exc)
+        else:
+            outage.passed()
         stop.wait(interval)
 
 
