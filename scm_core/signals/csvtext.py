@@ -180,6 +180,14 @@ class TableReader:
             self._delimiter = _delimiter(line)
             self.header = [h.strip() for h in _split(line, self._delimiter)]
             self.header_line = self._number
+            if all(_is_number(h) for h in self.header):
+                shown = line.strip()
+                shown = shown if len(shown) <= 40 else shown[:40] + "..."
+                raise LogFormatError(
+                    f"line {self._number}: no header row: the first row after the metadata "
+                    f"holds numbers ({shown}); name the columns first, e.g. "
+                    "'time [s],F [N],T [N m],z [mm]' for a log"
+                )
             return
         what = "only metadata lines" if self.metadata_lines else "nothing"
         raise LogFormatError(f"empty file: {what}, no header row")
@@ -222,6 +230,14 @@ class TableReader:
                 )
             rows.append(fields)
         return rows
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def split_table(data: bytes | str) -> CsvTable:

@@ -208,6 +208,11 @@ def load_dataset(
     name = log_options.pop("name", None)
     with _open(source) as (stream, path):
         label = _label(path, name, "dataset")
+        if path is not None and path.suffix.lower() == ".toml":
+            raise LogFormatError(
+                f"{label}: a case file (TOML), not a lab file: `scm-calib calibrate {path}` "
+                "runs it; check the logs and summaries it names"
+            )
         head = stream.read(4096)
         if _is_json(head, path):
             stream.seek(0)

@@ -118,7 +118,10 @@ def check(files: tuple[Path, ...], as_json: bool) -> None:
     for path in files:
         try:
             ds = load_dataset(path)
-        except (LogFormatError, ValueError, OSError) as exc:
+        except OSError as exc:  # the file itself: one line, not Python's "[Errno 2] ..."
+            errors.append(f"{path}: {(exc.strerror or str(exc)).lower()}")
+            continue
+        except (LogFormatError, ValueError) as exc:
             text = " ".join(str(exc).split())
             errors.append(text if path.name in text else f"{path}: {text}")
             continue

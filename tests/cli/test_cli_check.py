@@ -74,3 +74,22 @@ def test_a_file_that_does_not_load_fails_with_its_name(tmp_path: Path) -> None:
     assert res.exit_code == 1
     assert "broken.csv" in res.output and "error:" in res.output
     assert "Traceback" not in res.output
+
+
+def test_what_is_not_a_lab_file_is_said_in_words(tmp_path: Path) -> None:
+    """Issue 69: a file whose header row is missing, a case file and a missing file each get
+    one line saying what they are (not "no response", a field count, or Python's Errno)."""
+    numbers = tmp_path / "noheader.csv"
+    numbers.write_text("# W: 315\n0,1,2,3\n1,1,2,3\n")
+    doc, code = _json(numbers, ROOT / "examples" / "quick.toml", tmp_path / "missing.csv")
+    assert code == 1 and doc["datasets"] == []
+    header, case, missing = doc["errors"]
+    assert header.startswith("noheader.csv: line 2: no header row: the first row after the")
+    assert "(0,1,2,3)" in header and "time [s],F [N]" in header
+    assert header.count("\n") == 0
+    assert case.startswith("quick.toml: a case file (TOML), not a lab file")
+    assert "scm-calib calibrate" in case
+    assert missing == f"{tmp_path / 'missing.csv'}: no such file or directory"
+    assert not any("Errno" in e or "fields, but" in e or "no response" in e for e in doc["errors"])
+    res = _run(numbers)
+    assert res.exit_code == 1 and "Traceback" not in res.output
