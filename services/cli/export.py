@@ -22,7 +22,7 @@ from services.stages import FolderStages, StageStoreError, run_population
 
 from .common import CLIError
 from .results import load_results, write_json
-from .runs import RUNS_FILE, diagnose_folders, run_folders
+from .runs import diagnose_folders, group_folders, pooled_posterior
 
 FORMATS = ("netcdf", "chrono")
 
@@ -59,9 +59,8 @@ def results_inference_data(results: Path):
     group's folder (``calibrate --runs K``: one chain per run, the verdict in the attributes)."""
     from services.exports.inference_data import inference_data
 
-    group = results / RUNS_FILE
-    if group.is_file():
-        folders = run_folders(results, int(json.loads(group.read_text(encoding="utf-8"))["runs"]))
+    folders = group_folders(results)
+    if folders is not None:
         _, verdict = diagnose_folders(folders)
     else:
         folders, verdict = [results], None
@@ -114,10 +113,16 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
         soils_document,
     )
 
-    case, samples, summary = load_results(results)
+    folders = group_folders(results)
+    if folders is None:
+        case, samples, summary = load_results(results)
+        map_values = (summary.get("posterior") or {}).get("map")
+        status = summary.get("status")
+    else:  # a run group: the pooled posterior of its runs (all completed, one study)
+        case, samples, map_values = pooled_posterior(folders)
+        status = f"completed, {len(folders)} runs pooled"
     names = list(case.parameter_names)
     points = {"posterior median": dict(zip(names, np.median(samples, axis=0), strict=True))}
-    map_values = (summary.get("posterior") or {}).get("map")
     if map_values:
         points = {"MAP": {k: float(v) for k, v in map_values.items()}, **points}
     rng = np.random.default_rng(seed)
@@ -140,9 +145,9 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
         sets[label], dropped = soil_at(values)
     draw_sets = [soil_at(v)[0] for v in draw_points]
     doc = soils_document(sets, dropped, draw_sets)
-    doc["study"] = {"case": case.name, "status": summary.get("status"), "results": str(results)}
+    doc["study"] = {"case": case.name, "status": status, "results": str(results)}
     write_json(out, doc, indent=2)
-    what = f"{case.name} ({summary.get('status')})"
+    what = f"{case.name} ({status})"
     cpp = "".join(cpp_call(s, comment=f"{what}: {label}") for label, s in sets.items())
     py = "".join(python_call(s, comment=f"{what}: {label}") for label, s in sets.items())
     out.with_suffix(".cpp").write_text(cpp, encoding="utf-8")
@@ -171,8 +176,9 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
 @click.option("--lossy", is_flag=True,
               help="chrono: export what Chrono can take and list what was dropped.")  # fmt: skip
 def export(results: Path, fmt: str, out: Path | None, draws: int, seed: int, lossy: bool) -> None:
-    """Export the calibration in RESULTS (a `scm-calib calibrate` folder; for netcdf also a
-    `--runs` group's folder, one chain per run) for other tools."""
+    """Export the calibration in RESULTS (a `scm-calib calibrate` folder, or a `--runs`
+    group's folder: one chain per run in netcdf, the pooled posterior for chrono) for other
+    tools."""
     if fmt == "chrono":
         write_chrono(results, out or results / "chrono_soil.json", draws, seed, lossy)
         return

@@ -28,6 +28,7 @@ from services.studies.kinds.calibration import KIND as CALIBRATION
 
 from .common import CLIError, read_datasets
 from .folder_store import FolderStore
+from .runs import group_folders
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,11 @@ def load_parent(results: Path, option: str = "--update-of") -> ParentStudy:
     """The completed study in the ``calibrate`` results folder ``results``; CLIError naming
     the file (and ``option``) for anything missing or unfinished."""
     summary_path = results / "summary.json"
+    if not summary_path.is_file() and group_folders(results) is not None:
+        raise CLIError(
+            f"{option} {results}: a group of runs (`calibrate --runs`); give one run's folder, "
+            f"e.g. {results / 'run_1'} (a prediction or an update starts from one study)"
+        )
     if not summary_path.is_file():
         raise CLIError(
             f"{option} {results}: no summary.json; give the output folder of a finished "

@@ -10,19 +10,22 @@ R-hat, bulk and tail ESS, pooled and per-run means, the runs' log evidences) and
 from __future__ import annotations
 
 import csv
+import json
 from collections.abc import Sequence
 from pathlib import Path
 
 import click
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import CaseDefinition
 from scm_core.calibration.convergence import RunsVerdict, diagnose_runs
 from scm_core.calibration.report import not_a_posterior
+from scm_core.inference.posterior import map_sample
 
 from .common import CLIError
-from .results import load_results, write_json
+from .results import load_results, read_population, write_json
 
 RUNS_FILE = "runs.json"
 POOLED_FILE = "posterior_pooled.csv"
@@ -31,6 +34,42 @@ POOLED_FILE = "posterior_pooled.csv"
 def run_folders(out: Path, runs: int) -> list[Path]:
     """The folders of a group's runs: ``out/run_1`` ... ``out/run_K``."""
     return [out / f"run_{k + 1}" for k in range(runs)]
+
+
+def group_folders(path: Path) -> list[Path] | None:
+    """The run folders of a run group's folder (``calibrate --runs K --out PATH``: its
+    ``runs.json``), or None when ``path`` is not one."""
+    doc = path / RUNS_FILE
+    if not doc.is_file():
+        return None
+    try:
+        runs = int(json.loads(doc.read_text(encoding="utf-8"))["runs"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise CLIError(f"{doc}: unreadable run group ({exc})") from None
+    return run_folders(path, runs)
+
+
+def expand_groups(folders: Sequence[Path]) -> list[Path]:
+    """``folders`` with every run group's folder replaced by its runs' folders."""
+    out: list[Path] = []
+    for folder in folders:
+        out.extend(group_folders(folder) or [folder])
+    return out
+
+
+def pooled_posterior(
+    folders: Sequence[Path],
+) -> tuple[CaseDefinition, np.ndarray, dict[str, float]]:
+    """(case, every run's posterior samples stacked, the MAP sample of them all by name) of
+    the runs of one study (:func:`diagnose_folders` checks that they are)."""
+    case, _ = diagnose_folders(folders)
+    names = list(case.parameter_names)
+    parts = [read_population(f / "posterior.csv", names) for f in folders]
+    samples = np.concatenate([p[0] for p in parts])
+    best, _ = map_sample(
+        samples, np.concatenate([p[2] for p in parts]), np.concatenate([p[1] for p in parts])
+    )
+    return case, samples, dict(zip(names, map(float, best), strict=True))
 
 
 def _same_study(case: CaseDefinition) -> str:
@@ -131,7 +170,8 @@ def print_verdict(verdict: RunsVerdict, console: Console | None = None) -> None:
     help=f"Also write {RUNS_FILE} and {POOLED_FILE} (the pooled posterior) to this folder.",
 )
 def diagnose(folders: tuple[Path, ...], out: Path | None) -> None:
-    """Do the runs in the results FOLDERS (one study, different seeds) agree? Prints per
+    """Do the runs in the results FOLDERS (one study, different seeds; a `calibrate --runs`
+    group's folder stands for its runs) agree? Prints per
     parameter the rank-normalised split R-hat and the bulk and tail ESS across the runs
     (ArviZ; each run's posterior a chain), and a verdict; exit status 1 when they disagree
     (an R-hat above 1.01).
@@ -139,7 +179,7 @@ def diagnose(folders: tuple[Path, ...], out: Path | None) -> None:
     for folder in folders:
         if not folder.is_dir():
             raise CLIError(f"{folder}: no such results folder")
-    _, verdict = diagnose_folders(list(folders))
+    _, verdict = diagnose_folders(expand_groups(folders))
     print_verdict(verdict)
     if out is not None:
         write_group(out, list(folders), verdict)

@@ -850,6 +850,26 @@ def test_runs_give_a_verdict_and_a_pooled_posterior(work: Path, reference: Path)
             assert np.array_equal(idata.posterior[name].values[k], expected)
             assert float(rhat[name]) == pytest.approx(doc["parameters"][name]["rhat"], rel=1e-12)
     assert idata.posterior.attrs["verdict"] == doc["verdict"]
+    # issue 69: every command that takes a results folder takes the group: diagnose its runs,
+    # the Chrono export of the pooled posterior (median, and the MAP of all runs' samples);
+    # predict says in one line which folder it wants
+    diag = run_cli_here("diagnose", "grp", cwd=work)
+    assert diag.returncode == (0 if doc["converged"] else 1), diag.stderr
+    assert doc["verdict"][:40] in diag.stdout.replace("\n", " ")
+    chrono = run_cli_here("export", "grp", "--to", "chrono", "--lossy", "--out", "g.json", cwd=work)
+    assert chrono.returncode == 0, chrono.stderr
+    soil = json.loads((work / "g.json").read_text())
+    assert soil["study"]["status"] == "completed, 2 runs pooled"
+    header = runs[0][0].split(",")
+    rows = [[float(v) for v in r.split(",")] for k in (0, 1) for r in runs[k][1:]]
+    post = [r[header.index("log_likelihood")] + r[header.index("log_prior")] for r in rows]
+    best = rows[int(np.argmax(post))]
+    n_col = header.index("n")
+    assert soil["sets"]["MAP"]["Bekker_n"] == pytest.approx(best[n_col], rel=1e-12)
+    median_n = float(np.median([r[n_col] for r in rows]))
+    assert soil["sets"]["posterior median"]["Bekker_n"] == pytest.approx(median_n, rel=1e-12)
+    wants = one_line_error(run_cli_here("predict", "grp", "log.csv", cwd=work))
+    assert "a group of runs" in wants and str(Path("grp") / "run_1") in wants
     # a re-run finds every run finished and gives the same verdict
     rerun = run_cli("calibrate", "tiny.toml", "--runs", "2", "--out", "grp", "--no-plots", cwd=work)
     assert rerun.returncode == 0, rerun.stderr
