@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.arviz_import import arviz
+
 __all__ = ["RHAT_LIMIT", "ParameterAgreement", "RunsVerdict", "diagnose_runs"]
 
 #: largest R-hat of a converged parameter (Vehtari et al. 2021)
@@ -159,7 +161,7 @@ def diagnose_runs(
         raise ValueError(f"populations of {n} samples of {d} columns for {len(names)} parameters")
     if not np.all(np.isfinite(chains)):
         raise ValueError("a run's population holds non-finite values")
-    import arviz as az  # slow to import; only here
+    az = arviz()  # slow to import; only here
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)  # ArviZ 0.23's notice of its 1.0

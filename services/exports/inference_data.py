@@ -34,6 +34,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.arviz_import import arviz
+
 __all__ = ["RunPopulation", "StageRow", "inference_data"]
 
 RESPONSES = ("F", "T", "z")
@@ -126,7 +128,7 @@ def inference_data(
     None values as NaN). ``predictive``: dataset name -> {response: each draw's value} (one
     chain; needs ``observed`` for its datasets). Raises ValueError for runs of different
     sizes."""
-    import arviz as az
+    az = arviz()  # slow to import; only here
     import xarray as xr
 
     if not runs:

@@ -11,6 +11,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from scm_core.arviz_import import arviz
+
 __all__ = ["rank_figure"]
 
 
@@ -24,7 +26,7 @@ def rank_figure(
     (``chains`` (K, n, d): K runs of n equally weighted samples; Vehtari et al. 2021). Runs of
     one posterior give flat, overlapping histograms (the dashed line is the uniform count);
     a run whose bars rise at one end sits higher or lower than the others."""
-    import arviz as az  # slow to import; only here
+    az = arviz()  # slow to import; only here
 
     k, _, d = chains.shape
     ncols = min(4, d)

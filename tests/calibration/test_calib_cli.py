@@ -813,6 +813,7 @@ def test_runs_give_a_verdict_and_a_pooled_posterior(work: Path, reference: Path)
     the runs' posteriors one after the other."""
     proc = run_cli("calibrate", "tiny.toml", "--runs", "2", "--out", "grp", "--no-plots", cwd=work)
     assert proc.returncode == 0, proc.stderr
+    assert "Warning" not in proc.stderr, proc.stderr  # no dependency's notice (issue 69)
     grp = work / "grp"
     assert stage_files(grp / "run_1") == stage_files(reference)
     assert json.loads((grp / "run_2" / "summary.json").read_text())["case"]["seed"] == 5
