@@ -129,21 +129,22 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
     picks = rng.choice(samples.shape[0], size=draws, replace=True) if draws else []
     draw_points = [dict(zip(names, samples[i], strict=True)) for i in picks]
 
-    def soil_at(values: dict) -> tuple:
+    def soil_at(values: dict, label: str) -> tuple:
         try:
             soil, _, rig = build_configs(case.nominal, case.simulator, {}, values)
         except (ValidationError, ValueError) as exc:
-            raise CLIError(f"{results}: the soil does not build ({exc})") from None
+            raise CLIError(f"{results}: the {label} soil does not build ({exc})") from None
         try:
             return chrono_soil(soil, rig, lossy=lossy)
-        except ChronoExportError as exc:
-            raise CLIError(str(exc)) from None
+        except ChronoExportError as exc:  # the values quoted are this set's: say which
+            raise CLIError(f"the {label} soil: {exc}") from None
 
     sets = {}
-    dropped: list[str] = []
+    dropped: list[str] = []  # what each named set lost, said with the set's name
     for label, values in points.items():
-        sets[label], dropped = soil_at(values)
-    draw_sets = [soil_at(v)[0] for v in draw_points]
+        sets[label], lost = soil_at(values, label)
+        dropped += [f"{label}: {item}" for item in lost]
+    draw_sets = [soil_at(v, f"draw {k + 1}")[0] for k, v in enumerate(draw_points)]
     doc = soils_document(sets, dropped, draw_sets)
     doc["study"] = {"case": case.name, "status": status, "results": str(results)}
     write_json(out, doc, indent=2)

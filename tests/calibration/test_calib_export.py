@@ -202,13 +202,15 @@ def test_chrono_export_of_a_results_folder(reference: Path, tmp_path: Path) -> N
     assert proc.returncode == 2  # a bad input (CLIError)
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "m/s" in lines[0] and "--lossy" in lines[0], proc.stderr
+    assert lines[0].startswith("error: the MAP soil: ")  # which set's J (issue 69)
     assert not (tmp_path / "c.json").exists()
     proc = run_cli(
         "export", reference, "--to", "chrono", "--out", tmp_path / "c.json", "--lossy",
         "--draws", "5", cwd=tmp_path,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    assert "warning: dropped (--lossy): J =" in proc.stderr
+    assert "warning: dropped (--lossy): MAP: J =" in proc.stderr
+    assert "warning: dropped (--lossy): posterior median: J =" in proc.stderr
     doc = json.loads((tmp_path / "c.json").read_text())
     post = _columns(reference / "posterior.csv")
     median = doc["sets"]["posterior median"]
