@@ -141,8 +141,8 @@ class Axis:
 class Panel:
     """A pair of axes with its layers, drawn in order. ``legend``: where the legend of the
     labelled layers goes ("best", "upper right", "lower right" ...; None: none). ``top``: a
-    second x axis on top, (label, a, b) with top value = (x - a) / b (Fig. 3's simulated time
-    over the measured time)."""
+    second x axis on top, (label, a, b) with top value = (x - a) / b (e.g. another unit of the
+    same quantity)."""
 
     x: Axis
     y: Axis

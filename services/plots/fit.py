@@ -74,14 +74,19 @@ def decimated(
     return t[keep], y[keep]
 
 
-def _window_map(
-    measured: tuple[float, float], simulated: tuple[float, float]
-) -> tuple[float, float]:
-    """(a, b) with measured time = a + b * simulated time, mapping the simulation's averaging
-    window onto the measured one (their steady windows overlay)."""
-    (lo, hi), (s0, s1) = measured, simulated
-    b = (hi - lo) / (s1 - s0) if s1 > s0 else 1.0
-    return lo - b * s0, b
+_UNITS = {"F": "N", "T": "N m", "z": "mm"}
+
+
+def _steady_range(values: Sequence[np.ndarray], means: Sequence[float]) -> tuple[float, float]:
+    """The y range that shows the misfit: the steady parts of the signals (inside their
+    averaging windows, 1st to 99th percentile) and the means, with a sixth of the span as
+    margin; the transients before the windows may run off it."""
+    finite = [v[np.isfinite(v)] for v in values if v.size]
+    pts = [np.percentile(v, [1.0, 99.0]) for v in finite if v.size]
+    lo = min([*(p[0] for p in pts), *means])
+    hi = max([*(p[1] for p in pts), *means])
+    pad = (hi - lo) / 6.0 or max(abs(hi), 1.0) * 0.05
+    return lo - pad, hi + pad
 
 
 def fit_chart(
@@ -93,11 +98,15 @@ def fit_chart(
 ) -> Chart:
     """One column per dataset, one row per response of ``responses`` that some dataset
     measured: the filtered measured signal with its steady mean over the experimental window,
-    and the simulated signal with its mean over the simulation's windows (both windows
-    shaded). Summary datasets (no series) show their mean +- sd as a band; a response a
-    dataset did not measure shows the simulation only. ``offsets`` (response -> value in SI)
-    are measurement offsets added to the simulated signal (e.g. a calibrated sinkage datum).
-    A column's panels share their time axis (tick labels under the bottom one)."""
+    and the simulated signal with its mean over the simulation's window, both against the
+    carriage's travel x = v t [m], which the lab and the model share (a 25 s simulation of a
+    180 s log covers the first 25 s of travel: grouser periods agree). Summary datasets (no
+    series) show their mean +- sd as a band; a response a dataset did not measure shows the
+    simulation only. Each panel states both means with their units; the y range is that of
+    the steady signals, so that a millimetre's misfit shows; one legend, in the first panel.
+    ``offsets`` (response -> value in SI) are measurement offsets added to the simulated
+    signal (e.g. a calibrated sinkage datum). Without a carriage speed (none in the dataset,
+    no simulation) the axis is time."""
     rows = [
         row for row in _ROWS if row[0] in responses and any(row[0] in d.responses for d in datasets)
     ]
@@ -106,37 +115,40 @@ def fit_chart(
     offsets = offsets or {}
     ncols = len(datasets)
     grid: list[list[Panel]] = [[] for _ in rows]
-    for ds, sim in zip(datasets, sims, strict=True):
-        t_start, t_end = 0.0, 0.0  # the time axis drawn [s]
-        window = None  # the measured steady window, where the dataset has a time axis
+    for c, (ds, sim) in enumerate(zip(datasets, sims, strict=True)):
+        rig = sim.rig if sim is not None else None
+        v = ds.conditions.carriage_speed or (rig.carriage_speed if rig is not None else None)
+        xscale, xlabel = (v, "carriage travel x [m]") if v else (1.0, "time t [s]")
+        x_end = 0.0
+        window = None  # the measured steady window [s], where the dataset has a time axis
         if ds.series is not None and ds.series.t.size:
             t_meas = ds.series.t
             window = ds.window if ds.window is not None else (float(t_meas[0]), float(t_meas[-1]))
-            t_end = float(t_meas[-1])
+            x_end = float(t_meas[-1]) * xscale
         column: list[Panel] = []
         for r, (key, col, ylabel, scale, offset_name) in enumerate(rows):
-            bottom = r == len(rows) - 1
             panel = Panel(
-                Axis(
-                    ("time t [s]" if window is None else "measured time t [s]") if bottom else "",
-                    tick_labels=bottom,
-                ),
+                Axis(xlabel if r == len(rows) - 1 else "", tick_labels=r == len(rows) - 1),
                 Axis(ylabel),
                 title=f"{ds.name} ({condition_label(ds.conditions)})" if r == 0 else None,
-                legend="lower right",
+                legend="lower right" if (r, c) == (0, 0) else None,
             )
             stat = ds.responses.get(key)
+            steady: list[np.ndarray] = []
+            means: list[float] = []
+            said: list[str] = []
             if stat is None:
-                panel.add(text("not measured"))
+                panel.add(text("not measured", fy=0.08))
             elif window is not None:  # a measured time axis
-                t, y = decimated(ds.series.t, ds.series.filtered[col] * scale)
+                y_all = ds.series.filtered[col] * scale
+                t, y = decimated(ds.series.t, y_all)
                 lo, hi = window
+                inside = (ds.series.t >= lo) & (ds.series.t <= hi)
+                steady.append(y_all[inside])
                 panel.add(
-                    line(t, y, "mid", width=0.7, label="measured (filtered)"),
-                    vspan(lo, hi, label="measured window"),
-                    segment(
-                        lo, hi, stat.mean * scale, label=f"measured mean {stat.mean * scale:.4g}"
-                    ),
+                    line(t * xscale, y, "mid", width=0.7, label="measured (filtered)"),
+                    vspan(lo * xscale, hi * xscale, label="measured window"),
+                    segment(lo * xscale, hi * xscale, stat.mean * scale, label="measured mean"),
                 )
             else:
                 panel.add(
@@ -147,16 +159,26 @@ def fit_chart(
                     ),
                     hline(stat.mean * scale, "black", width=2.0),
                 )
-            if sim is not None and sim.rig is not None:
-                first, last = _simulated(panel, sim, key, scale, offset_name, offsets, ds, window)
-                t_start, t_end = min(t_start, first), max(t_end, last)
-                if window is not None and r == 0:
-                    a, b = _window_map(window, (getattr(sim.rig, offset_name), sim.rig.duration))
-                    panel.top = ("simulated time [s]", a, b)
+                means += [(stat.mean - stat.sd) * scale, (stat.mean + stat.sd) * scale]
+            if stat is not None:
+                means.append(stat.mean * scale)
+                said.append(f"measured {stat.mean * scale:.4g} {_UNITS[key]}")
+            if rig is not None:
+                ys, m, last = _simulated(panel, sim, key, scale, offset_name, offsets, ds, xscale)
+                steady.append(ys)
+                if m is not None:
+                    means.append(m)
+                    said.append(f"simulated {m:.4g} {_UNITS[key]}")
+                x_end = max(x_end, last)
+            if said:
+                panel.add(text(", ".join(said)))
+            if steady or means:
+                lo_y, hi_y = _steady_range(steady, means)
+                panel.y = replace(panel.y, lo=lo_y, hi=hi_y)
             column.append(panel)
         for r, panel in enumerate(column):
-            if t_end > 0:
-                panel.x = replace(panel.x, lo=t_start, hi=t_end)
+            if x_end > 0:
+                panel.x = replace(panel.x, lo=0.0, hi=x_end)
             grid[r].append(panel)
     return Chart(
         title or "Measured vs simulated at the MAP sample",
@@ -175,31 +197,30 @@ def _simulated(
     offset_name: str,
     offsets: dict[str, float],
     ds: SWTDataset,
-    window: tuple[float, float] | None,
-) -> tuple[float, float]:
+    xscale: float,
+) -> tuple[np.ndarray, float | None, float]:
     """The simulated signal of ``key`` on ``panel``, raw and filtered, with its averaging
-    window and steady mean. Where the dataset has a measured time axis (``window``: its steady
-    window), the simulation's time is mapped linearly so that its averaging window lies over
-    the measured one (a 12 s simulation of a 180 s log then spans the log's window instead of
-    the first 7 % of the axis; the panel's top axis gives the simulated time). Returns the
-    first and last times drawn, on the measured axis [s]."""
+    window and steady mean, against x = ``xscale`` t. Returns the filtered signal inside the
+    window, the mean (None if the run has none) and the last x drawn."""
     rig = sim.rig
     off = getattr(rig, offset_name)
-    a, b = (0.0, 1.0) if window is None else _window_map(window, (off, rig.duration))
     ts = sim.series["t"]
     ys = (sim.series[key] + offsets.get(key, 0.0)) * scale
+    filtered = _filtered(ts, ys, ds.cutoff_hz)
     t_raw, y_raw = decimated(ts, ys)
-    t_f, y_f = decimated(ts, _filtered(ts, ys, ds.cutoff_hz))
-    w0, w1 = a + b * off, a + b * rig.duration
+    t_f, y_f = decimated(ts, filtered)
+    w0, w1 = off * xscale, rig.duration * xscale
     panel.add(
-        line(a + b * t_raw, y_raw, "blue", width=0.5, opacity=0.3),
-        line(a + b * t_f, y_f, "blue", width=0.9, label="simulated (filtered)"),
+        line(t_raw * xscale, y_raw, "blue", width=0.5, opacity=0.3),
+        line(t_f * xscale, y_f, "blue", width=0.9, label="simulated (filtered)"),
         vspan(w0, w1, "blue", opacity=0.07, label="simulated window"),
     )
+    mean = None
     if sim.means is not None:
-        m = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale
-        panel.add(segment(w0, w1, m, "red", label=f"simulated mean {m:.4g}"))
-    return a + b * float(ts[0]) if ts.size else w0, w1
+        mean = (getattr(sim.means, key) + offsets.get(key, 0.0)) * scale
+        panel.add(segment(w0, w1, mean, "red", label="simulated mean"))
+    last = float(ts[-1]) * xscale if ts.size else w1
+    return filtered[(ts >= off) & (ts <= rig.duration)], mean, last
 
 
 def plot_fit(

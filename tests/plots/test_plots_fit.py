@@ -1,4 +1,4 @@
-"""Figure 3 (measured vs simulated signals): decimation and the simulated time axis."""
+"""Figure 3 (measured vs simulated signals): decimation and the shared travel axis."""
 
 from __future__ import annotations
 
@@ -48,35 +48,51 @@ def test_short_curves_are_drawn_as_they_are() -> None:
     assert np.array_equal(td, t) and np.array_equal(yd, t**2)
 
 
-def test_a_short_simulation_spans_the_measured_window() -> None:
-    """A 12 s simulation of a longer lab log: its averaging window is drawn over the log's
-    window (not over the first seconds of the axis), with the simulated time on a top axis,
-    and the figure stays light."""
+def test_measured_and_simulated_share_the_carriage_travel_axis() -> None:
+    """Issue 69: a 12 s simulation of a 180 s lab log is drawn on the carriage's travel
+    x = v t, as the log is (not stretched over the log's window on a second time axis): its
+    last point at v x 12 s, the log's at v x 180 s; one legend (the first panel's, with no
+    values in it), each panel's means stated with units; the sinkage axis spans the steady
+    signals, not 0, so that a millimetre's misfit shows; the figure stays light."""
     ds = load_dataset(LOG)
-    lo, hi = ds.window
+    lo, _ = ds.window
     sim = simulate_swt(
         rig=RigConfig(duration=12.0, dt=0.02, offset_F=4.0, offset_T=4.0, offset_z=1.0)
     )
+    v = ds.conditions.carriage_speed or sim.rig.carriage_speed
     chart = fit_chart([ds], [sim], responses=("F", "T", "z"))
-    panel = chart.panels[0]  # F
-    simulated = [la for la in panel.layers if la.get("label") == "simulated (filtered)"]
-    x = np.array(simulated[0]["x"])
-    # the simulated window [4, 12] s maps onto the measured window [lo, hi]
-    b = (hi - lo) / (12.0 - 4.0)
-    assert x[-1] == pytest.approx(hi, abs=b * 0.05)
-    assert x[0] == pytest.approx(lo - 4.0 * b, abs=b * 0.05)
-    assert panel.x.lo <= x[0]  # the simulation's start is on the axis
-    label, a, scale = panel.top  # the simulated time over the top
-    assert label == "simulated time [s]" and (x[-1] - a) / scale == pytest.approx(12.0, abs=0.05)
-    for p in chart.panels:
+    for p, offset in zip(chart.panels, (4.0, 4.0, 1.0), strict=True):
+        assert p.top is None
+        simulated = [la for la in p.layers if la.get("label") == "simulated (filtered)"]
+        measured = [la for la in p.layers if la.get("label") == "measured (filtered)"]
+        assert simulated[0]["x"][-1] == pytest.approx(v * 12.0, rel=1e-9)
+        assert measured[0]["x"][-1] == pytest.approx(v * float(ds.series.t[-1]), rel=1e-9)
+        windows = [la for la in p.layers if la["kind"] == "vspan"]
+        assert windows[0]["x0"] == pytest.approx(v * lo)
+        assert windows[1]["x0"] == pytest.approx(v * offset)
+        assert (p.x.lo, p.x.hi) == (0.0, pytest.approx(v * float(ds.series.t[-1])))
         for layer in p.layers:
             assert len(layer.get("x", ())) <= MAX_POINTS + 2
+    assert chart.panels[-1].x.label == "carriage travel x [m]"
+    assert [p.legend is not None for p in chart.panels] == [True, False, False]
+    labels = {la.get("label") for p in chart.panels for la in p.layers} - {None}
+    assert labels == {
+        "measured (filtered)",
+        "measured window",
+        "measured mean",
+        "simulated (filtered)",
+        "simulated window",
+        "simulated mean",
+    }
+    notes = [la["text"] for p in chart.panels for la in p.layers if la["kind"] == "text"]
+    assert notes[0].startswith("measured ") and notes[0].count(" N") == 2
+    assert notes[1].count(" N m") == 2 and notes[2].count(" mm") == 2
+    z = chart.panels[2]
+    z_mean = ds.responses["z"].mean * 1000.0
+    assert z.y.lo > 0.5 * z_mean and z.y.hi - z.y.lo < 0.5 * z_mean  # the steady part, not 0
     fig = draw(chart)
-    ax = fig.axes[0]
-    assert any(
-        getattr(child, "get_xlabel", lambda: "")() == "simulated time [s]"
-        for child in ax.child_axes
-    )
+    assert sum(ax.get_legend() is not None for ax in fig.axes) == 1
+    assert {ax.get_xlabel() for ax in fig.axes} == {"", "carriage travel x [m]"}
     buf = io.BytesIO()
     fig.savefig(buf, format="svg")
     assert buf.tell() < 400_000
