@@ -36,7 +36,7 @@ def simulate(
     if plot is not None:
         from services.plots.swt import plot_swt
 
-        plot_swt(result, plot)
+        plot_swt(result, plot, wheel=wheel)
     summary = result_summary(result)
     if as_json:
         summary["config"] = {

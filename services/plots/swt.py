@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from scm_core.signals import SWTDataset
-from scm_core.simulator import SWTResult
+from scm_core.simulator import SWTResult, WheelGeometry
 
 from .chart import Axis, Chart, Panel, line, segment, vspan
 from .fit import decimated
@@ -17,11 +17,29 @@ _PANELS = (
 )
 
 
-def plot_swt(result: SWTResult, path: str | Path, title: str | None = None) -> Path:
-    """Draw F, T and z against time with the averaging windows shaded and the means marked."""
+_UNITS = {"F": "N", "T": "N m", "z": "mm"}
+
+
+def conditions_text(result: SWTResult, wheel: WheelGeometry | None = None) -> str:
+    """'slip 0.2, W 315 N, v 10 mm/s; wheel R 125 mm, b 112 mm, 12 grousers of 9 mm'."""
+    rig = result.rig
+    kin = "locked" if rig.slip_symmetric <= -1.0 else f"slip {rig.slip_symmetric:.3g}"
+    text = f"{kin}, W {rig.W:g} N, v {1000 * rig.carriage_speed:.3g} mm/s"
+    if wheel is not None:
+        grousers = (
+            f", {wheel.n_grousers} grousers of {1000 * wheel.grouser_height:.3g} mm"
+            if wheel.n_grousers and wheel.grouser_height > 0
+            else ", smooth"
+        )
+        text += f"; wheel R {1000 * wheel.R:.4g} mm, b {1000 * wheel.b:.4g} mm{grousers}"
+    return text
+
+
+def swt_figure(result: SWTResult, title: str | None = None, wheel: WheelGeometry | None = None):
+    """F, T and z against time with the averaging windows shaded and the means marked (with
+    their units); the title gives the test conditions (and the wheel, when given)."""
     from matplotlib.figure import Figure
 
-    path = Path(path)
     rig = result.rig
     fig = Figure(figsize=(8, 7.5), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
@@ -33,14 +51,33 @@ def plot_swt(result: SWTResult, path: str | Path, title: str | None = None) -> P
         if result.means is not None:
             mean = getattr(result.means, key) * scale
             ax.hlines(
-                mean, offset, rig.duration, colors="tab:red", lw=2.0, label=f"mean {mean:.3g}"
+                mean,
+                offset,
+                rig.duration,
+                colors="tab:red",
+                lw=2.0,
+                label=f"mean {mean:.4g} {_UNITS[key]}",
             )
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.legend(loc="lower right", fontsize=8)
     axes[-1].set_xlabel("time t [s]")
-    axes[0].set_title(title or f"SCM single-wheel test ({result.status})")
-    fig.savefig(path, dpi=120)
+    axes[0].set_title(
+        title or f"SCM single-wheel test ({result.status})\n{conditions_text(result, wheel)}",
+        fontsize=10,
+    )
+    return fig
+
+
+def plot_swt(
+    result: SWTResult,
+    path: str | Path,
+    title: str | None = None,
+    wheel: WheelGeometry | None = None,
+) -> Path:
+    """:func:`swt_figure` saved to ``path`` (PNG)."""
+    path = Path(path)
+    swt_figure(result, title, wheel).savefig(path, dpi=120)
     return path
 
 

@@ -61,3 +61,20 @@ def test_bad_overrides_one_line_exit_2(arg, needle):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0]
     assert "Traceback" not in proc.stderr
+
+
+def test_the_swt_figure_states_its_units_and_test_conditions():
+    """Issue 69: the means in swt.png's legends carry their units and the title the test
+    conditions and the wheel (it said "mean 126" under "SCM single-wheel test (ok)")."""
+    from scm_core.simulator import RigConfig, WheelGeometry, simulate_swt
+    from services.plots.swt import swt_figure
+
+    result = simulate_swt(rig=RigConfig(duration=4.0, dt=0.02, offset_F=2.0, offset_T=2.0))
+    fig = swt_figure(result, wheel=WheelGeometry())
+    title = fig.axes[0].get_title()
+    assert "slip 0.2, W 315 N" in title and "wheel R 125 mm, b 112 mm, 12 grousers" in title
+    texts = [t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()]
+    means = [t for t in texts if "mean" in t]
+    assert [m.rsplit(" ", 1)[-1] for m in means] == ["N", "m", "mm"]  # N, N m, mm
+    assert means[1].endswith(" N m")
+    assert float(means[0].split()[1]) == pytest.approx(result.means.F, rel=1e-3)
