@@ -35,7 +35,27 @@ _LABELS = {
 }
 
 
+#: SI units drawn in a handier one, so that no axis needs an exponent beside its unit (the
+#: pair plot's J axis read "1e-3" beside "[m/s]"): values in mm/s and mm
+_SHOWN_AS = {"m/s": ("mm/s", 1e3), "m": ("mm", 1e3)}
+
+
+def _si_unit(name: str, units: Mapping[str, str] | None) -> str | None:
+    if units and name in units:
+        return units[name]
+    known = _LABELS.get(name, "")
+    return known[known.index("[") + 1 : -1] if known.endswith("]") else None
+
+
+def shown_scale(name: str, units: Mapping[str, str] | None = None) -> float:
+    """The factor from a parameter's SI value to the value drawn (1e3 for m/s and m)."""
+    return _SHOWN_AS.get(_si_unit(name, units) or "", ("", 1.0))[1]
+
+
 def label(name: str, units: Mapping[str, str] | None = None) -> str:
+    si = _si_unit(name, units)
+    if si in _SHOWN_AS:
+        return f"{name} [{_SHOWN_AS[si][0]}]"
     if units and name in units and units[name] not in ("", "-"):
         return f"{name} [{units[name]}]"
     return _LABELS.get(name, name)
@@ -45,10 +65,11 @@ def _log(name: str, log_params: Collection[str]) -> bool:
     return name in log_params
 
 
-def _tx(name: str, x, log_params: Collection[str]):
-    """Values on the plotting scale: log10 for parameters with a log-uniform prior."""
+def _tx(name: str, x, log_params: Collection[str], units: Mapping[str, str] | None = None):
+    """Values on the plotting scale: log10 for parameters with a log-uniform prior, else in
+    the unit drawn (:func:`shown_scale`)."""
     if not _log(name, log_params):
-        return x
+        return np.asarray(x, dtype=float) * shown_scale(name, units)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.log10(np.asarray(x, dtype=float))
 
@@ -137,10 +158,10 @@ def prior_posterior_chart(
     for j, name in enumerate(names):
         log = _log(name, log_params)
         back = _from_plot_scale(log)
-        pr = _tx(name, prior_samples[:, j], log_params)
-        po = _tx(name, posterior_samples[:, j], log_params)
+        pr = _tx(name, prior_samples[:, j], log_params, units)
+        po = _tx(name, posterior_samples[:, j], log_params, units)
         if bounds is not None:
-            lo, hi = _tx(name, bounds[j], log_params)
+            lo, hi = _tx(name, bounds[j], log_params, units)
         else:
             lo, hi = min(np.nanmin(pr), np.nanmin(po)), max(np.nanmax(pr), np.nanmax(po))
         if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
@@ -156,11 +177,28 @@ def prior_posterior_chart(
         else:
             panel.add(vline(float(back(p_lo)), "blue", width=2.0, label=labels[1]))
         if map_sample is not None:
-            panel.add(vline(float(map_sample[j]), "red", label="MAP"))
+            at = float(back(_tx(name, map_sample[j], log_params, units)))
+            panel.add(vline(at, "red", label="MAP"))
         if reference and name in reference:
-            panel.add(vline(reference[name], "black", width=1.0, dash="dotted", label="bevameter"))
+            at = float(back(_tx(name, reference[name], log_params, units)))
+            panel.add(vline(at, "black", width=1.0, dash="dotted", label="bevameter"))
         panels.append(panel)
+    _legend_where_all_are(panels)
     return _grid_chart(title or "Prior and posterior densities", panels)
+
+
+def _labels(panel: Panel) -> list[str]:
+    return [la["label"] for la in panel.layers if la.get("label")]
+
+
+def _legend_where_all_are(panels: list[Panel]) -> None:
+    """One legend, on the first panel that shows every labelled kind of layer of the chart
+    (the bevameter's dotted line is drawn only where a value is known: a legend on the first
+    panel left it out), else on the one that shows the most."""
+    everything = {lab for p in panels for lab in _labels(p)}
+    best = max(panels, key=lambda p: (set(_labels(p)) >= everything, len(set(_labels(p)))))
+    for p in panels:
+        p.legend = "best" if p is best else None
 
 
 def plot_prior_posterior(
@@ -236,8 +274,8 @@ def pairs_chart(
         # estimated on the plotting scale (log10 for log-uniform priors), drawn at the values
         log_a, log_b = _log(a, log_params), _log(b, log_params)
         bx, by = _from_plot_scale(log_a), _from_plot_scale(log_b)
-        x = _tx(a, samples[:, index[a]], log_params)
-        y = _tx(b, samples[:, index[b]], log_params)
+        x = _tx(a, samples[:, index[a]], log_params, units)
+        y = _tx(b, samples[:, index[b]], log_params, units)
         step = max(1, math.ceil(x.size / max_points))
         x, y = x[::step], y[::step]
         panel = Panel(
@@ -260,7 +298,8 @@ def pairs_chart(
             ref.setdefault("k_c", 0.0)
             ref.setdefault("k_phi", ref["k_star"])
         if a in ref and b in ref:
-            panel.add(marker(ref[a], ref[b], label="bevameter"))
+            ra, rb = (float(f(_tx(n, ref[n], log_params, units))) for n, f in ((a, bx), (b, by)))
+            panel.add(marker(ra, rb, label="bevameter"))
         panels.append(panel)
     return Chart(
         title or "Bivariate posterior densities",
@@ -297,13 +336,13 @@ def pair_matrix_chart(
     index = {n: j for j, n in enumerate(names)}
     d = len(chosen)
     step = max(1, math.ceil(samples.shape[0] / max_points))
-    cols = {n: _tx(n, samples[::step, index[n]], log_params) for n in chosen}
+    cols = {n: _tx(n, samples[::step, index[n]], log_params, units) for n in chosen}
 
     def name_of(n: str) -> str:
         return f"log10 {label(n, units)}" if _log(n, log_params) else label(n, units)
 
     ref = {
-        n: float(_tx(n, np.array([v]), log_params)[0])
+        n: float(_tx(n, np.array([v]), log_params, units)[0])
         for n, v in (reference or {}).items()
         if n in cols
     }
@@ -362,9 +401,9 @@ def compare_figure(
         ax = axes[j]
         log = _log(name, log_params)
         back = _from_plot_scale(log)
-        every = [_tx(name, x[:, j], log_params) for x in studies.values()]
+        every = [_tx(name, x[:, j], log_params, units) for x in studies.values()]
         if pooled is not None:
-            every.append(_tx(name, pooled[:, j], log_params))
+            every.append(_tx(name, pooled[:, j], log_params, units))
         lo = min(float(np.nanmin(v)) for v in every)
         hi = max(float(np.nanmax(v)) for v in every)
         if not hi > lo:
