@@ -21,6 +21,30 @@ _ROLE_STYLE = {
     "predicted": ("s", "red", "measured, held out"),
 }
 SLIP_LABEL = "slip (omega r - v) / max(v, omega r)  [-1 = locked]"
+#: colours of the wheels of a study with several (a joint study of two wheels)
+_WHEEL_COLORS = ("blue", "orange", "green", "purple", "brown")
+#: slip offset between the wheels' bars at one slip, so that neither hides the other
+DODGE = 0.02
+
+
+def wheel_label(conditions: dict[str, Any]) -> str:
+    """'R 125 mm, b 112 mm, 12 grousers of 9 mm' (or 'smooth'); '?' for what is unknown."""
+
+    def mm(key: str) -> str:
+        v = conditions.get(key)
+        return "?" if v is None else f"{1000 * v:.4g}"
+
+    n, h = conditions.get("n_grousers") or 0, conditions.get("grouser_height") or 0.0
+    rim = f"{n} grousers of {1000 * h:.3g} mm" if n and h > 0 else "smooth"
+    return f"R {mm('R')} mm, b {mm('b')} mm, {rim}"
+
+
+def _by_wheel(shown: Sequence[ConditionPrediction]) -> list[tuple[str, list[ConditionPrediction]]]:
+    """The datasets grouped by wheel (in order of appearance)."""
+    groups: dict[str, list[ConditionPrediction]] = {}
+    for c in shown:
+        groups.setdefault(wheel_label(c.conditions), []).append(c)
+    return list(groups.items())
 
 
 def predictions_chart(
@@ -32,7 +56,9 @@ def predictions_chart(
     """One panel per response against the symmetric lab slip (-1 = locked): the sweep's
     median and 95 % bands (simulated means, and with the prediction-error noise), each
     dataset's predicted median (a tick) and 95 % predictive interval (the bar), and its
-    measurement where it has one (circles: used in the calibration; squares: held out)."""
+    measurement where it has one (circles: used in the calibration; squares: held out). A
+    study of several wheels draws each wheel's bars and points in a colour of its own, set
+    apart by a small slip offset (``DODGE``), and names the wheel in the legend."""
     rows = [p for p in _PANELS if p[0] in responses]
     sw = sorted((c for c in sweep if c.slip_symmetric is not None), key=lambda c: c.slip_symmetric)
     shown = [c for c in datasets if c.slip_symmetric is not None]
@@ -55,40 +81,48 @@ def predictions_chart(
                 _band(s, sim, scale, 0.3, "95 % band of the simulated mean"),
                 line(s, [b.median * scale for b in sim], width=1.5, label="posterior median"),
             )
-        if shown:
-            bands = [c.responses[key].predictive or c.responses[key].simulated for c in shown]
+        wheels = _by_wheel(shown)
+        for w, (wheel, mine_w) in enumerate(wheels):
+            several = len(wheels) > 1
+            color = _WHEEL_COLORS[w % len(_WHEEL_COLORS)] if several else "blue"
+            dodge = (w - (len(wheels) - 1) / 2) * DODGE if several else 0.0
+            who = f"{wheel}: " if several else ""
+            bands = [c.responses[key].predictive or c.responses[key].simulated for c in mine_w]
             kind = (
                 "predictive interval"
-                if all(c.responses[key].predictive is not None for c in shown)
+                if all(c.responses[key].predictive is not None for c in mine_w)
                 else "band of the mean"
             )
             panel.add(
                 errorbars(
-                    [c.slip_symmetric for c in shown],
+                    [c.slip_symmetric + dodge for c in mine_w],
                     [b.median * scale for b in bands],
                     [b.lo * scale for b in bands],
                     [b.hi * scale for b in bands],
-                    label=f"predicted median, 95 % {kind}",
+                    color,
+                    label=f"{who}predicted median, 95 % {kind}",
                 )
             )
-        measured = [c for c in shown if c.responses[key].measured is not None]
-        for role, (symbol, color, name) in _ROLE_STYLE.items():
-            # a role without a style of its own (a dataset not in the posterior) is held out
-            mine = [
-                c for c in measured if (c.role if c.role in _ROLE_STYLE else "predicted") == role
-            ]
-            if mine:
-                panel.add(
-                    points(
-                        [c.slip_symmetric for c in mine],
-                        [c.responses[key].measured * scale for c in mine],
-                        color,
-                        size=3.5,
-                        opacity=1.0,
-                        symbol=symbol,
-                        label=name,
+            measured = [c for c in mine_w if c.responses[key].measured is not None]
+            for role, (symbol, role_color, name) in _ROLE_STYLE.items():
+                # a role without a style of its own (a dataset not in the posterior) is held out
+                mine = [
+                    c
+                    for c in measured
+                    if (c.role if c.role in _ROLE_STYLE else "predicted") == role
+                ]
+                if mine:
+                    panel.add(
+                        points(
+                            [c.slip_symmetric + dodge for c in mine],
+                            [c.responses[key].measured * scale for c in mine],
+                            color if several else role_color,
+                            size=3.5,
+                            opacity=1.0,
+                            symbol=symbol,
+                            label=f"{who}{name}",
+                        )
                     )
-                )
         if not any(c.responses[key].measured is not None for c in shown):
             panel.add(text("no measurement"))
         panels.append(panel)

@@ -54,3 +54,30 @@ def test_a_long_title_is_wrapped_inside_the_figure() -> None:
     assert "\n" in text.get_text()
     box = text.get_window_extent(canvas.get_renderer())
     assert box.x0 >= 0.0 and box.x1 <= fig.bbox.width
+
+
+def test_two_wheels_are_told_apart() -> None:
+    """Issue 69: a joint study of two wheels tested at the same slips: each wheel's bars and
+    points in a colour of its own, set apart by a small slip offset, the wheel named in the
+    legend (one marker on one slip axis before)."""
+    from services.plots.predict import DODGE
+
+    smooth = {"R": 0.1475, "b": 0.12, "n_grousers": 0, "grouser_height": 0.0}
+    grousered = {"R": 0.1475, "b": 0.12, "n_grousers": 12, "grouser_height": 0.012}
+    datasets = []
+    for slip in (-0.5, 0.5):
+        for wheel in (smooth, grousered):
+            c = _condition(f"{slip}", slip, 1.0, 1.5, "calibration")
+            datasets.append(ConditionPrediction(c.name, wheel, slip, 10, 0, c.responses, c.role))
+    chart = predictions_chart(datasets, [], responses=("F",))
+    bars = [la for la in chart.panels[0].layers if la["kind"] == "errorbars"]
+    assert len(bars) == 2 and bars[0]["color"] != bars[1]["color"]
+    assert bars[0]["x"] == [-0.5 - DODGE / 2, 0.5 - DODGE / 2]
+    assert bars[1]["x"] == [-0.5 + DODGE / 2, 0.5 + DODGE / 2]
+    assert bars[0]["label"].startswith("R 147.5 mm, b 120 mm, smooth: predicted median")
+    assert bars[1]["label"].startswith("R 147.5 mm, b 120 mm, 12 grousers of 12 mm: predicted")
+    pts = [la for la in chart.panels[0].layers if la["kind"] == "points"]
+    assert [p["color"] for p in pts] == [bars[0]["color"], bars[1]["color"]]
+    fig = draw(chart)
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert sum("smooth" in t for t in labels) == 2 and sum("grousers" in t for t in labels) == 2
