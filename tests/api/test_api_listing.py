@@ -233,6 +233,24 @@ def test_runs_make_a_group_whose_agreement_pooled_gives(env) -> None:
 
     alone = client.post("/studies", json={**body, "runs": 1, "seed": 9}, headers=AUTH).json()
     assert alone["runs"] == [] and alone["run_group"] is None
+    # issue 69: a study not yet run is shown as such, the others compared; a calibration with
+    # another sampler is compared (evidence, posteriors) but given no verdict on agreement
+    page = client.get("/ui/f/compare", params={"ids": f"{ids[0]},{ids[1]},{alone['id']}"})
+    assert page.status_code == 200, page.text
+    status = client.get(f"/studies/{alone['id']}").json()["status"]
+    assert status in ("queued", "running")
+    assert f"{alone['id']}: {alone['name']}</a> is {status}" in page.text
+    assert "joins the comparison when it completes" in page.text
+    assert "Do the runs agree?" in page.text
+    other = {**body, "runs": 1, "case": tiny_case(seed=5, n_samples=24)}
+    bigger = client.post("/studies", json=other, headers=AUTH).json()["id"]
+    assert run_inline(url, bigger) == "completed"
+    page = client.get("/ui/f/compare", params={"ids": f"{ids[0]},{bigger}"}).text
+    assert "Do the runs agree?" not in page and "NOT converged" not in page
+    assert f"No verdict on agreement: studies {ids[0]} and {bigger} differ in more than" in page
+    assert "sampler.n_samples 20 vs 24" in page
+    ranks = client.get("/ui/figures/ranks.svg", params={"ids": f"{ids[0]},{bigger}"})
+    assert ranks.status_code == 404 and "runs of one calibration" in detail(ranks)
     total = client.get("/studies").json()["total"]
     for bad in (
         {**body, "runs": 0},

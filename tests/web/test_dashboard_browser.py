@@ -501,7 +501,8 @@ def test_compare_page_of_two_runs_shows_their_agreement_and_rank_plots(server, b
         r = w.page.request.get(f"{base}/ui/figures/ranks.svg?ids={server['a']},{server['a2']}")
         assert r.status == 200 and ET.fromstring(r.body()).tag.endswith("svg")
         r = w.page.request.get(f"{base}/ui/figures/ranks.svg?ids={server['a']},{server['b']}")
-        assert r.status == 404 and "same parameters" in r.json()["detail"]
+        assert r.status == 404 and "not runs of one" in r.json()["detail"]
+        assert "parameters.J absent vs" in r.json()["detail"]
         w.shoot("compare_runs_1280x800")
         w.clean()
     finally:
@@ -512,6 +513,25 @@ def test_compare_page_of_two_runs_shows_their_agreement_and_rank_plots(server, b
         assert w.figures_loaded() == 2
         assert w.page.evaluate("document.documentElement.scrollWidth") <= 400
         w.shoot("compare_runs_400x800")
+        w.clean()
+    finally:
+        w.close()
+
+
+def test_compare_page_says_in_words_why_it_gives_no_verdict(server, browser) -> None:
+    """Issue 69: case A and its update (other data) are compared by evidence and posteriors,
+    but get no R-hat verdict, and the page says why in words."""
+    w = Watched(browser)
+    try:
+        w.goto(f"{server['base']}/ui/compare?ids={server['a']},{server['update']}")
+        w.page.wait_for_selector("table.evidence")
+        note = w.page.locator("p.note")
+        assert note.count() == 1
+        text = note.inner_text()
+        assert text.startswith("No verdict on agreement: studies") and "different data" in text
+        assert w.page.locator("table.agreement").count() == 0
+        assert "NOT converged" not in w.page.content()
+        w.figures_loaded()
         w.clean()
     finally:
         w.close()
@@ -606,6 +626,23 @@ def test_running_study_advances_on_screen_until_it_completes(server, browser) ->
             timeout=120_000,
         )
         w.shoot("studies_running")
+        # issue 69: a running study's log evidence is marked partial; the compare page shows
+        # it as running beside the completed runs it compares (no error page)
+        partial = w.page.locator(f"#study-row-{running} .partial")
+        assert partial.count() in (0, 1)  # 0 until its first stage has an evidence
+        c = Watched(browser)
+        try:
+            c.goto(f"{base}/ui/compare?ids={server['a']},{server['a2']},{running}")
+            note = c.page.locator("p.running")
+            if c.page.locator(f"#study-row-{running}[data-status=completed]").count() == 0:
+                assert note.count() == 1 and "watched</a>" in note.inner_html()
+                assert "joins the comparison when it completes" in note.inner_text()
+            assert c.page.locator("table.agreement").count() == 1  # a and a2 still compared
+            c.figures_loaded()
+            c.shoot("compare_with_a_running_study")
+            c.clean()
+        finally:
+            c.close()
         w.page.wait_for_selector(
             f"#study-row-{running}[data-status=completed]", timeout=int(TIMEOUT * 1000)
         )

@@ -30,6 +30,7 @@ from scm_core.signals import SWTDataset
 from services.plots.chart import Chart
 from services.plots.choices import default_pairs, mean_b_eff
 from services.store import StageRecord, Store, StudyRecord
+from services.studies.comparable import why_not_runs
 from services.studies.datasets import load_datasets, stored_log
 from services.studies.kinds import KINDS, KindPanel, kind_of, study_terms
 from services.studies.kinds.base import stored_case
@@ -565,6 +566,9 @@ def runs_as_chains(
 
 def ranks(store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureCache) -> bytes:
     """Rank plots of the studies' final populations, one run each (ArviZ's plot_rank)."""
+    why = why_not_runs(studies)
+    if why is not None:
+        raise FigureError(f"rank plots are of runs of one calibration: {why}")
     chains = runs_as_chains(studies, final_populations(store, studies))
     if chains is None:
         raise FigureError("rank plots need studies of the same parameters (runs of one case)")

@@ -31,6 +31,7 @@ from services.limits import INT64_MAX
 from services.plots.choices import default_pairs
 from services.plots.figures import FORMATS
 from services.store import NotFoundError, Store, StudyRecord
+from services.studies.comparable import why_not_runs
 from services.studies.kinds import KINDS, posterior_kinds
 
 from ..deps import StoreDep, require_read
@@ -350,19 +351,28 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
             for s in store.studies.list("completed", kind=k, limit=500).items
         ]
         completed.sort(key=lambda s: -s.id)
-        studies = []
+        studies, waiting = [], []
         for sid in chosen:
             try:
                 st = store.studies.get(sid)
             except NotFoundError:
                 raise HTTPException(422, f"ids: no study with id {sid}") from None
+            if _posterior(st) and st.status in ("queued", "running"):
+                waiting.append(st)  # shown as running; compared once it completes
+                continue
             if not _posterior(st) or st.status != "completed":
                 raise HTTPException(
                     422,
                     f"ids: study {sid} is a {st.status} {_title(st)}, not a completed calibration",
                 )
             studies.append(st)
-        ctx: dict[str, Any] = {"completed": completed, "chosen": chosen, "rows": [], "table": []}
+        ctx: dict[str, Any] = {
+            "completed": completed,
+            "chosen": chosen,
+            "rows": [],
+            "table": [],
+            "waiting": waiting,
+        }
         if len(studies) >= 2:
             ctx.update(_comparison(store, studies))
         return _fragment(templates, request, "_compare.html", None, **ctx)
@@ -560,8 +570,10 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         params, _, _ = parameter_summaries(samples, names, parameter_units(s))
         per[s.id] = {p.name: p for p in params}
         shared = names if shared is None else [n for n in shared if n in names]
-    # the runs' agreement (R-hat across them), on equal subsamples as /pooled takes them
-    chains = runs_as_chains(studies, finals)
+    # the runs' agreement (R-hat across them), on equal subsamples as /pooled takes them; only
+    # of runs of one calibration (two different calibrations "not converging" means nothing)
+    not_runs = why_not_runs(studies)
+    chains = None if not_runs else runs_as_chains(studies, finals)
     agreement = None if chains is None else agreement_of(chains[1], chains[0], studies)
     table = [
         {"name": n, "cells": [per[s.id][n] for s in studies], "unit": per[studies[0].id][n].unit}
@@ -570,6 +582,7 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
     same_data = len({tuple(sorted(s.dataset_ids)) for s in studies}) == 1
     return {
         "agreement": agreement,
+        "not_runs": not_runs,
         "rows": rows,
         "best": best,
         "table": table,
