@@ -11,8 +11,10 @@ not reachable the tests FAIL (they are not skipped): CI guarantees the server.
 from __future__ import annotations
 
 import os
+import threading
 import uuid
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 
 import numpy as np
@@ -339,3 +341,29 @@ def work_one(store: Store, toy, worker: str) -> bool:
         adv = store.stages.advance(key.study_id, key.stage_index, toy.reduce)
         assert adv.status == "advanced"
     return True
+
+
+@contextmanager
+def transaction_held_open(reset) -> Iterator[Callable[[], None]]:
+    """A use of ``reset`` (:class:`services.store.fault_reset.FaultReset`) held open by another
+    thread (a transaction that does not end) until the returned function is called or the
+    block ends."""
+    held, release = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with reset.use():
+            held.set()
+            release.wait(30)
+
+    thread = threading.Thread(target=hold)
+    thread.start()
+    held.wait(10)
+
+    def end() -> None:
+        release.set()
+        thread.join()
+
+    try:
+        yield end
+    finally:
+        end()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from scm_core.signals import SWTDataset, TestConditions, lowpass
-from scm_core.simulator import SWTResult
+from scm_core.simulator import ResolvedRig, SWTResult
 
 from .chart import Axis, Chart, Panel, hline, hspan, line, segment, text, vspan
 from .figures import save
@@ -26,7 +26,7 @@ _ROWS = (
 )
 
 
-def condition_label(c: TestConditions) -> str:
+def condition_label(c: TestConditions | ResolvedRig) -> str:
     """'slip 0.2, W 315 N' (the symmetric lab slip; 'locked' for a locked wheel)."""
     if c.slip_symmetric is None:
         kin = "slip ?"
@@ -35,6 +35,18 @@ def condition_label(c: TestConditions) -> str:
     else:
         kin = f"slip {c.slip_symmetric:.3g}"
     return f"{kin}, W {c.W:g} N"
+
+
+def wheel_label(conditions: Mapping[str, Any]) -> str:
+    """'R 125 mm, b 112 mm, 12 grousers of 9 mm' (or 'smooth'); '?' for what is unknown."""
+
+    def mm(key: str) -> str:
+        v = conditions.get(key)
+        return "?" if v is None else f"{1000 * v:.4g}"
+
+    n, h = conditions.get("n_grousers") or 0, conditions.get("grouser_height") or 0.0
+    rim = f"{n} grousers of {1000 * h:.3g} mm" if n and h > 0 else "smooth"
+    return f"R {mm('R')} mm, b {mm('b')} mm, {rim}"
 
 
 def _filtered(t: np.ndarray, y: np.ndarray, cutoff_hz: float | None) -> np.ndarray:
@@ -74,7 +86,8 @@ def decimated(
     return t[keep], y[keep]
 
 
-_UNITS = {"F": "N", "T": "N m", "z": "mm"}
+#: the units of the responses as drawn (F, T in SI; z in mm)
+UNITS = {"F": "N", "T": "N m", "z": "mm"}
 
 
 def _steady_range(values: Sequence[np.ndarray], means: Sequence[float]) -> tuple[float, float]:
@@ -162,13 +175,13 @@ def fit_chart(
                 means += [(stat.mean - stat.sd) * scale, (stat.mean + stat.sd) * scale]
             if stat is not None:
                 means.append(stat.mean * scale)
-                said.append(f"measured {stat.mean * scale:.4g} {_UNITS[key]}")
+                said.append(f"measured {stat.mean * scale:.4g} {UNITS[key]}")
             if rig is not None:
                 ys, m, last = _simulated(panel, sim, key, scale, offset_name, offsets, ds, xscale)
                 steady.append(ys)
                 if m is not None:
                     means.append(m)
-                    said.append(f"simulated {m:.4g} {_UNITS[key]}")
+                    said.append(f"simulated {m:.4g} {UNITS[key]}")
                 x_end = max(x_end, last)
             if said:
                 panel.add(text(", ".join(said)))

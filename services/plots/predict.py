@@ -10,6 +10,7 @@ from scm_core.calibration.predict import Band, ConditionPrediction
 
 from .chart import Axis, Chart, Panel, band, errorbars, line, points, text, vline
 from .figures import save
+from .fit import wheel_label
 
 _PANELS = (
     ("F", "drawbar pull F [N]", 1.0),
@@ -25,18 +26,6 @@ SLIP_LABEL = "slip (omega r - v) / max(v, omega r)  [-1 = locked]"
 _WHEEL_COLORS = ("blue", "orange", "green", "purple", "brown")
 #: slip offset between the wheels' bars at one slip, so that neither hides the other
 DODGE = 0.02
-
-
-def wheel_label(conditions: dict[str, Any]) -> str:
-    """'R 125 mm, b 112 mm, 12 grousers of 9 mm' (or 'smooth'); '?' for what is unknown."""
-
-    def mm(key: str) -> str:
-        v = conditions.get(key)
-        return "?" if v is None else f"{1000 * v:.4g}"
-
-    n, h = conditions.get("n_grousers") or 0, conditions.get("grouser_height") or 0.0
-    rim = f"{n} grousers of {1000 * h:.3g} mm" if n and h > 0 else "smooth"
-    return f"R {mm('R')} mm, b {mm('b')} mm, {rim}"
 
 
 def _by_wheel(shown: Sequence[ConditionPrediction]) -> list[tuple[str, list[ConditionPrediction]]]:

@@ -8,7 +8,7 @@ from scm_core.signals import SWTDataset
 from scm_core.simulator import SWTResult, WheelGeometry
 
 from .chart import Axis, Chart, Panel, line, segment, vspan
-from .fit import decimated
+from .fit import UNITS, condition_label, decimated, wheel_label
 
 _PANELS = (
     ("F", "drawbar pull F [N]", 1.0, "offset_F"),
@@ -17,22 +17,11 @@ _PANELS = (
 )
 
 
-_UNITS = {"F": "N", "T": "N m", "z": "mm"}
-
-
 def conditions_text(result: SWTResult, wheel: WheelGeometry | None = None) -> str:
     """'slip 0.2, W 315 N, v 10 mm/s; wheel R 125 mm, b 112 mm, 12 grousers of 9 mm'."""
     rig = result.rig
-    kin = "locked" if rig.slip_symmetric <= -1.0 else f"slip {rig.slip_symmetric:.3g}"
-    text = f"{kin}, W {rig.W:g} N, v {1000 * rig.carriage_speed:.3g} mm/s"
-    if wheel is not None:
-        grousers = (
-            f", {wheel.n_grousers} grousers of {1000 * wheel.grouser_height:.3g} mm"
-            if wheel.n_grousers and wheel.grouser_height > 0
-            else ", smooth"
-        )
-        text += f"; wheel R {1000 * wheel.R:.4g} mm, b {1000 * wheel.b:.4g} mm{grousers}"
-    return text
+    text = f"{condition_label(rig)}, v {1000 * rig.carriage_speed:.3g} mm/s"
+    return text if wheel is None else f"{text}; wheel {wheel_label(wheel.model_dump())}"
 
 
 def swt_figure(result: SWTResult, title: str | None = None, wheel: WheelGeometry | None = None):
@@ -56,7 +45,7 @@ def swt_figure(result: SWTResult, title: str | None = None, wheel: WheelGeometry
                 rig.duration,
                 colors="tab:red",
                 lw=2.0,
-                label=f"mean {mean:.4g} {_UNITS[key]}",
+                label=f"mean {mean:.4g} {UNITS[key]}",
             )
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)

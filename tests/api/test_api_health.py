@@ -173,6 +173,8 @@ def test_live_fails_when_the_connections_cannot_be_renewed(tmp_path, monkeypatch
     once it ends; a database that is merely down is no reason (readiness says that)."""
     import threading
 
+    from store_fixtures import transaction_held_open
+
     from services.api.routes import health
 
     monkeypatch.setattr(health, "STUCK_RENEWAL_S", 0.3)
@@ -180,24 +182,14 @@ def test_live_fails_when_the_connections_cannot_be_renewed(tmp_path, monkeypatch
         r = client.get("/health/live")
         assert r.status_code == 200 and r.json()["status"] == "live", r.text
         reset = client.app.state.store.db.fault_reset
-        held, release = threading.Event(), threading.Event()
-
-        def hold() -> None:  # a transaction that does not end
-            with reset.use():
-                held.set()
-                release.wait(30)
-
-        t = threading.Thread(target=hold)
-        t.start()
-        held.wait(10)
-        reset.fault()
-        threading.Event().wait(0.5)
-        r = client.get("/health/live")
-        assert r.status_code == 503, r.text
-        assert r.json()["status"] == "not live"
-        assert "restart the server" in r.json()["detail"]
-        release.set()
-        t.join()
+        with transaction_held_open(reset) as end:
+            reset.fault()
+            threading.Event().wait(0.5)
+            r = client.get("/health/live")
+            assert r.status_code == 503, r.text
+            assert r.json()["status"] == "not live"
+            assert "restart the server" in r.json()["detail"]
+            end()
         client.get("/studies")  # the next transaction renews the connections
         r = client.get("/health/live")
         assert r.status_code == 200, r.text

@@ -513,10 +513,15 @@ def _through_outages(server, reference_samples, outages: list[float]) -> str:
     assert bits == reference_samples.samples.tobytes()
     lost = {t: (n, counts.get(t, 0)) for t, n in counts_before.items() if counts.get(t, 0) < n}
     assert not lost, f"rows lost: {lost}"
+    # a pool process that died (a SIGBUS on the frozen index) is told in one line, replaced
+    deaths = [ln for ln in server.log().splitlines() if ln.startswith("local pool process")]
+    assert all(" died (" in ln and ln.endswith("replacing it") for ln in deaths), deaths
+    assert all("killed by SIGBUS: a mapped page" in ln for ln in deaths if "SIGBUS" in ln)
     return (
         "moved " + ", ".join(f"{m:.2f}" for m, _ in moves) + " s and ready "
         + ", ".join(f"{r:.2f}" for _, r in moves) + f" s after each; a study {plain_s:.1f} s "
-        f"before, {after_s:.1f} s right after; server deaths {sup.deaths}"
+        f"before, {after_s:.1f} s right after; {len(deaths)} pool process(es) died; server "
+        f"deaths {sup.deaths}"
     )  # fmt: skip
 
 

@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 import sqlalchemy as sa
+from store_fixtures import transaction_held_open
 
 from services.store import upgrade
 from services.store.engine import make_engine
@@ -63,24 +64,14 @@ def test_a_drain_that_does_not_come_lets_work_go_on_and_says_so(tmp_path: Path) 
     engine = _engine(tmp_path)
     reset = FaultReset(engine, drain_timeout=0.2)
     try:
-        held, release = threading.Event(), threading.Event()
-
-        def stuck() -> None:
-            with reset.use():
-                held.set()
-                release.wait(10)
-
-        t = threading.Thread(target=stuck)
-        t.start()
-        held.wait(10)
-        reset.fault()
-        t0 = time.monotonic()
-        with reset.use():  # not held up for good: goes on after the drain timeout
-            pass
-        assert 0.15 < time.monotonic() - t0 < 2.0
-        assert reset.resets == 0 and reset.stuck_for() > 0.15
-        release.set()
-        t.join()
+        with transaction_held_open(reset) as end:
+            reset.fault()
+            t0 = time.monotonic()
+            with reset.use():  # not held up for good: goes on after the drain timeout
+                pass
+            assert 0.15 < time.monotonic() - t0 < 2.0
+            assert reset.resets == 0 and reset.stuck_for() > 0.15
+            end()
         with reset.use():
             pass
         assert reset.resets == 1 and reset.stuck_for() == 0.0
