@@ -127,6 +127,15 @@ def load_parent(results: Path, option: str = "--update-of") -> ParentStudy:
     )
 
 
+def load_parents(results: Path, option: str) -> list[ParentStudy]:
+    """The completed studies of ``results``: a run group's runs (``calibrate --runs``, in
+    order), or the one study of a results folder (:func:`load_parent`)."""
+    runs = group_folders(results)
+    if runs is None or (results / "summary.json").is_file():
+        return [load_parent(results, option)]
+    return [load_parent(run, option) for run in runs]
+
+
 def stored_posterior(
     folder: FolderStore,
     parent: ParentStudy,

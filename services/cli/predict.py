@@ -46,7 +46,7 @@ from .common import (
     read_datasets,
 )
 from .folder_store import FolderStore, open_folder_store
-from .parent import load_parent, stored_posterior
+from .parent import load_parents, stored_posterior
 from .results import write_json
 
 _SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
@@ -86,17 +86,19 @@ def _wheel_key(conditions: dict[str, Any]) -> tuple[Any, ...]:
 
 
 def prediction_title(
-    case: CaseDefinition, summary: dict, datasets: list[SWTDataset], draws: int
+    case: CaseDefinition, summary: dict, datasets: list[SWTDataset], draws: int, runs: int = 1
 ) -> str:
-    """The predictions figure's title: the study's case, and the predicted datasets' wheel
-    where the study saw no test of it (a cross-wheel check names the wheel it predicts)."""
-    title = f"{case.name}: posterior predictions ({draws} draws)"
+    """The predictions figure's title: the study's case (with the number of runs pooled),
+    and the predicted datasets' wheel where the study saw no test of it (a cross-wheel check
+    names the wheel it predicts)."""
+    drawn = f"{draws} draws" + (f" of {runs} runs pooled" if runs > 1 else "")
+    title = f"{case.name}: posterior predictions ({drawn})"
     wheels = {_wheel_key(d.conditions.to_sim_config()) for d in datasets}
     own = {_wheel_key(d.get("conditions") or {}) for d in summary.get("datasets", [])}
     if len(wheels) != 1 or wheels <= own:
         return title
     wheel = dict(zip(_GEOMETRY, wheels.pop(), strict=True))
-    return f"{case.name}'s posterior on another wheel ({describe_wheel(wheel)}), {draws} draws"
+    return f"{case.name}'s posterior on another wheel ({describe_wheel(wheel)}), {drawn}"
 
 
 def parse_at(specs: tuple[str, ...], geometry: dict[str, float | int]) -> list[DatasetTerms]:
@@ -236,20 +238,21 @@ def predict_cmd(
     as_json: bool,
     no_plots: bool,
 ) -> None:
-    """Predict F, T, z of the study in RESULTS (a `calibrate` output folder) under the test
-    conditions of other datasets, with 95 % posterior bands.
+    """Predict F, T, z of the study in RESULTS (a `calibrate` output folder, or a run group's
+    folder: its runs' pooled posterior) under the test conditions of other datasets, with 95 %
+    posterior bands.
 
     The predictions are studies of RESULTS's database made by the service's prediction kind
     (one per kind of target: datasets, --at conditions, the sweep) and run by its batches."""
-    parent = load_parent(results, "predict")
-    case, summary = parent.case, parent.summary
+    parents = load_parents(results, "predict")
+    case, summary = parents[0].case, parents[0].summary
     targets = replace(targets, data=(*targets.data, *more_data))
     datasets, _, at_terms, sweep_terms = _conditions(case, summary, targets)
     compile_simulator_once(as_json)
     with open_folder_store(results, workers, "predict") as folder:
-        posterior = stored_posterior(folder, parent, "predict")
+        posterior = [stored_posterior(folder, p, "predict").id for p in parents]
         ids = folder.add_datasets(datasets, list(targets.data))
-        run = partial(_predict, folder, posterior.id, draws, seed, workers)
+        run = partial(_predict, folder, posterior, draws, seed, workers)
         preds = run(ids, None, "") if ids else []
         untested = run(None, at_terms, "untested") if at_terms else []
         swept = run(None, sweep_terms, "sweep") if sweep_terms else []
@@ -260,6 +263,7 @@ def predict_cmd(
             "case": case.name,
             "case_hash": summary.get("case_hash"),
             "results": str(results),
+            "runs": len(parents),
         },
         "draws": draws,
         "seed": seed,
@@ -281,7 +285,7 @@ def predict_cmd(
             preds + untested,
             swept,
             out / "predictions.png",
-            title=prediction_title(case, summary, datasets, draws),
+            title=prediction_title(case, summary, datasets, draws, len(parents)),
             responses=_shown_responses(case, preds),
         )
     if as_json:
@@ -296,7 +300,7 @@ _OPTIONS = {"draws": "--draws", "seed": "--seed", "dataset_ids": "--data", "cond
 
 def _predict(
     folder: FolderStore,
-    study_id: int,
+    study_ids: list[int],
     draws: int,
     seed: int,
     workers: int | None,
@@ -304,11 +308,13 @@ def _predict(
     conditions: list[DatasetTerms] | None,
     role: str,
 ) -> list[ConditionPrediction]:
-    """The predictions of the folder's study ``study_id`` under ``dataset_ids`` or
-    ``conditions`` (a prediction study of the folder, run here or found done); ``role``
-    labels those of conditions ("untested", "sweep")."""
+    """The predictions of the folder's study ``study_ids[0]`` (pooled with the other runs
+    ``study_ids[1:]`` of its calibration) under ``dataset_ids`` or ``conditions`` (a
+    prediction study of the folder, run here or found done); ``role`` labels those of
+    conditions ("untested", "sweep")."""
     body = PredictionRequest(
-        study_id=study_id,
+        study_id=study_ids[0],
+        pooled_with=study_ids[1:],
         dataset_ids=dataset_ids,
         conditions=None
         if conditions is None

@@ -25,6 +25,7 @@ from test_api_support import (
 
 from scm_core.calibration import CaseDefinition, DatasetTerms
 from scm_core.calibration.predict import predict
+from scm_core.inference.posterior import pool_samples
 from services.store import Store
 from services.studies.datasets import load_datasets
 
@@ -166,3 +167,40 @@ def test_collection_shows_only_its_kind(calibrated) -> None:
     assert r.status_code == 422 and "not a calibration" in detail(r)
     # writes need the token
     assert client.post("/predictions", json={"study_id": study_id}).status_code == 401
+
+
+def test_a_run_groups_pooled_posterior_is_predicted(calibrated) -> None:
+    """``pooled_with``: the draws come from the runs' final populations pooled with equal
+    weight (scm_core's pool_samples, the prediction's seed), as ``scm-calib predict`` on a run
+    group's folder; runs of another calibration are refused in words, storing nothing."""
+    client, url, study_id, ids = calibrated
+    case = tiny_case(params=("phi",))
+    r = client.post(
+        "/studies", json={"case": case, "dataset_ids": ids[:1], "runs": 2}, headers=AUTH
+    )
+    assert r.status_code == 201, r.text
+    runs = r.json()["runs"]
+    for sid in runs:
+        assert _wait(client, sid)["status"] == "completed"
+    body = {"study_id": runs[0], "pooled_with": runs[1:], "dataset_ids": ids[1:], "draws": 9}
+    r = client.post("/predictions", json={**body, "seed": 3}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    assert _wait(client, r.json()["id"])["status"] == "completed"
+    result = client.get(f"/predictions/{r.json()['id']}").json()["result"]
+    assert result["study_id"] == runs[0] and result["pooled_with"] == runs[1:]
+    pooled = pool_samples([_posterior(client, s) for s in runs], seed=3)
+    assert result["predictions"] == _expected(url, runs[0], pooled, ids[1:], 9, 3, ["predicted"])
+    # another calibration (other data) is no run of this one; nor is the study itself
+    other = client.post(
+        "/studies", json={"case": case, "dataset_ids": ids[1:]}, headers=AUTH
+    ).json()["id"]
+    assert _wait(client, other)["status"] == "completed"
+    for pooled_with, needle in [
+        ([other], f"pooled_with: studies {runs[0]} and {other} are calibrations of different"),
+        ([runs[0]], "pooled_with: a study is listed twice"),
+        ([999], "pooled_with: no study with id 999"),
+    ]:
+        before = row_counts(url)
+        r = client.post("/predictions", json={**body, "pooled_with": pooled_with}, headers=AUTH)
+        assert r.status_code == 422 and needle in detail(r), r.text
+        assert row_counts(url) == before

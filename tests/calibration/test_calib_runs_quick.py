@@ -1,5 +1,6 @@
-"""The quick case's verdict over four runs (issue 44's acceptance): the study default converges,
-the paper's leader form is caught stopping at different places along the k_phi-n ridge."""
+"""The quick case's verdict over four runs (issue 44's acceptance): the paper's leader form is
+caught stopping at different places along the k_phi-n ridge (that the study default converges
+is checked by the README walk, tests/calibration/test_calib_readme_walk.py)."""
 
 from __future__ import annotations
 
@@ -26,15 +27,6 @@ def _runs(tmp_path: Path, *extra: str) -> tuple[subprocess.CompletedProcess, dic
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     return proc, json.loads((out / "runs.json").read_text())
-
-
-def test_the_default_form_converges_on_the_quick_case(tmp_path: Path) -> None:
-    proc, doc = _runs(tmp_path)
-    rhat = {name: p["rhat"] for name, p in doc["parameters"].items()}
-    assert all(r <= 1.01 for r in rhat.values()), rhat
-    assert doc["converged"] and "converged: R-hat <= 1.01" in proc.stdout
-    for name in rhat:
-        assert name in proc.stdout  # the table is printed
 
 
 def test_the_leader_form_is_caught_on_the_ridge(tmp_path: Path) -> None:

@@ -3,7 +3,9 @@ conditions (paper section 5.3; DESIGN section 4), as ``scm-calib predict`` makes
 
 ``POST /predictions {"study_id", "dataset_ids" or "conditions", "draws", "seed"}``: ``draws``
 samples of the study's final population (:func:`scm_core.calibration.predict.choose_draws`) are
-the work batches' items; each batch simulates its draws under every target's test conditions
+the work batches' items (with ``"pooled_with"``: other runs of the same calibration, the
+draws come from the runs' final populations pooled with equal weight, as ``/pooled`` pools
+them); each batch simulates its draws under every target's test conditions
 (a stored dataset's, or a condition given as ``TestConditions`` fields with an optional
 ``name``). The reducer gives per target and response the median and 95 % bands of the steady
 means without and with the prediction noise, and the measured value with whether it falls
@@ -12,8 +14,8 @@ the draw only, so the result is the CLI's bit for bit however the draws were bat
 
 Stored: ``case`` the calibrated study's (its priors and settings derived from it), ``n_samples``
 the draws, ``seed`` the prediction seed, ``dataset_ids`` the target datasets, ``payload``
-``{"study_id", "conditions"}``; the stage's samples are the draws with their simulated F, T, z
-per target; ``result`` ``{"study_id", "draws", "seed", "level", "predictions": [...]}``.
+``{"study_id", "conditions", "pooled_with"}``; the stage's samples are the draws with their simulated F, T, z
+per target; ``result`` ``{"study_id", "pooled_with", "draws", "seed", "level", "predictions": [...]}``.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, dataset_terms
 from scm_core.calibration.predict import LEVEL, prediction_draws, summarize_predictions
 from scm_core.inference._serial import decode_array, encode_array
+from scm_core.inference.posterior import pool_samples
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError
 from scm_core.signals.conditions import make_conditions
@@ -51,6 +54,7 @@ from services.store import (
 from services.store.codec import decode
 
 from ..batching import batch_size_of
+from ..comparable import why_not_runs
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
 from ..request_model import RequestModel
@@ -72,6 +76,8 @@ __all__ = ["KIND", "PredictionRequest", "PredictionResult", "prediction_spec"]
 #: draws per work batch: ~1 min of simulator time for one target at the default numerics
 DEFAULT_DRAWS_PER_BATCH = 25
 MAX_CONDITIONS = 200
+#: most runs one prediction pools (a run group's most)
+MAX_POOLED = 64
 
 
 class PredictionRequest(RequestModel):
@@ -89,6 +95,13 @@ class PredictionRequest(RequestModel):
     )
 
     study_id: int = Field(ge=1, le=INT64_MAX, description="The completed calibration.")
+    pooled_with: list[Annotated[int, Field(ge=1, le=INT64_MAX)]] = Field(
+        default_factory=list,
+        max_length=MAX_POOLED - 1,
+        description="Other completed runs of the same calibration (the same case but for its "
+        "seed, the same data; e.g. the rest of a run group): the draws come from all the runs' "
+        "final populations pooled with equal weight, as GET /pooled pools them.",
+    )
     dataset_ids: list[Annotated[int, Field(ge=1, le=INT64_MAX)]] | None = Field(
         None,
         min_length=1,
@@ -141,6 +154,9 @@ class ConditionPredictionOut(BaseModel):
 
 class PredictionResult(BaseModel):
     study_id: int
+    pooled_with: list[int] = Field(
+        default_factory=list, description="The runs pooled with study_id (empty: none)."
+    )
     draws: int
     seed: int
     level: float
@@ -167,6 +183,7 @@ def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -
     parent = completed_calibration(
         store, body.study_id, "study_id", "has a posterior to predict from"
     )
+    _pooled_runs(store, parent, body.pooled_with)
     if (body.dataset_ids is None) == (body.conditions is None):
         raise StudyRequestError("dataset_ids: give exactly one of dataset_ids and conditions")
     ids = [int(d) for d in body.dataset_ids or ()]
@@ -195,8 +212,7 @@ def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -
     conditions = _conditions(body.conditions) if body.conditions is not None else None
     case = stored_case(parent.case)
     targets = _targets(store, case, ids, conditions)
-    _, population = store.stages.population(parent.id, int(parent.current_stage or 0))
-    theta = np.mean(population.samples, axis=0)
+    theta = np.mean(posterior_of(store, parent, body.pooled_with, int(body.seed)), axis=0)
     model = StudyModel(case, targets)
     problem = model.config_problem(theta)
     where = "dataset_ids" if ids else "conditions"
@@ -213,8 +229,39 @@ def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -
         n_samples=int(body.draws),
         batch_size=size,
         kind=KIND.name,
-        payload={"study_id": parent.id, "conditions": conditions},
+        payload={
+            "study_id": parent.id,
+            "conditions": conditions,
+            "pooled_with": [int(i) for i in body.pooled_with],
+        },
     )
+
+
+def _pooled_runs(store: Store, parent: StudyRecord, ids: Sequence[int]) -> list[StudyRecord]:
+    """The completed runs ``ids`` of ``parent``'s calibration; StudyRequestError naming
+    ``pooled_with`` when one is missing, listed twice, unfinished or another calibration."""
+    if len({parent.id, *ids}) != len(ids) + 1:
+        raise StudyRequestError("pooled_with: a study is listed twice (or is study_id itself)")
+    runs = [
+        completed_calibration(store, int(i), "pooled_with", "has a posterior to pool") for i in ids
+    ]
+    why = why_not_runs([parent, *runs])
+    if why is not None:
+        raise StudyRequestError(f"pooled_with: {why}; only runs of one calibration are pooled")
+    return runs
+
+
+def posterior_of(
+    store: Store, parent: StudyRecord, pooled_with: Sequence[int], seed: int
+) -> NDArray[np.float64]:
+    """The posterior samples a prediction draws from: ``parent``'s final population, or with
+    ``pooled_with`` the runs' final populations pooled with equal weight
+    (:func:`scm_core.inference.posterior.pool_samples`, seeded with the prediction's seed)."""
+    finals = [
+        store.stages.population(s.id, int(s.current_stage or 0))[1].samples
+        for s in [parent, *(store.studies.get(int(i)) for i in pooled_with)]
+    ]
+    return finals[0] if len(finals) == 1 else pool_samples(finals, seed=seed)
 
 
 def _targets(
@@ -258,6 +305,7 @@ class PredictionRun:
     seed: int
     roles: list[str]
     study_id: int
+    pooled_with: list[int]
 
     @cached_property
     def model_function(self):
@@ -304,6 +352,7 @@ class PredictionRun:
             )
             result = {
                 "study_id": self.study_id,
+                "pooled_with": self.pooled_with,
                 "draws": n,
                 "seed": self.seed,
                 "level": LEVEL,
@@ -344,16 +393,17 @@ class PredictionKind:
         case = stored_case(study.case)
         ids = list(study.dataset_ids)
         targets = _targets(store, case, ids, payload.get("conditions"))
-        _, population = store.stages.population(parent.id, int(parent.current_stage or 0))
+        posterior = posterior_of(store, parent, payload.get("pooled_with") or (), study.seed)
         used = set(old_dataset_ids(store, parent))
         return PredictionRun(
             case=case,
             targets=targets,
-            draws=prediction_draws(case, population.samples, study.n_samples, study.seed),
+            draws=prediction_draws(case, posterior, study.n_samples, study.seed),
             seed=study.seed,
             roles=["calibration" if d in used else "predicted" for d in ids]
             or ["predicted"] * len(targets),
             study_id=parent.id,
+            pooled_with=[int(i) for i in payload.get("pooled_with") or ()],
         )
 
     def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
