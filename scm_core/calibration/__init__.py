@@ -7,7 +7,6 @@ from scm_core.inference.tmcmc import PopulationStart, Resume, StageHooks, StageS
 
 from .case import (
     CALIBRATABLE,
-    PRESETS,
     RESPONSES,
     SIGMA_NAMES,
     CaseDefinition,
@@ -16,9 +15,9 @@ from .case import (
     PriorSpec,
     SamplerSettings,
     load_case,
-    preset_case,
 )
 from .model import DatasetTerms, StudyModel, build_configs, dataset_terms
+from .presets import PRESETS, PresetCost, preset_case, preset_cost
 from .report import stage_table, study_summary
 from .sensitivity import (
     DEFAULT_BOUNDS,
@@ -52,6 +51,7 @@ __all__ = [
     "MorrisSettings",
     "NoiseModel",
     "PopulationStart",
+    "PresetCost",
     "PriorSpec",
     "Resume",
     "SamplerSettings",
@@ -68,6 +68,7 @@ __all__ = [
     "dataset_terms",
     "load_case",
     "preset_case",
+    "preset_cost",
     "run_sensitivity",
     "run_tmcmc",
     "screening_factors",

@@ -67,10 +67,8 @@ from pydantic import (
 )
 
 from scm_core.inference.priors import (
-    TABLE2_NOMINAL,
     JointPrior,
     distribution_from_dict,
-    table2_prior,
 )
 from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc_stage import TMCMCSettings
@@ -81,7 +79,6 @@ from scm_core.validation_text import first_error, one_line
 
 __all__ = [
     "CALIBRATABLE",
-    "PRESETS",
     "RESPONSES",
     "SIGMA_NAMES",
     "CaseDefinition",
@@ -90,7 +87,6 @@ __all__ = [
     "PriorSpec",
     "SamplerSettings",
     "load_case",
-    "preset_case",
 ]
 
 RESPONSES = ("F", "T", "z")
@@ -656,48 +652,3 @@ def _validate_config(cls: type[BaseModel], values: dict[str, Any], label: str) -
         cls.model_validate(values)
     except ValidationError as exc:
         raise CaseError(one_line(exc, label)) from None
-
-
-# ---------------------------------------------------------------------- presets
-
-#: bevameter measurements of WF34 (paper section 4.1), drawn on the figures
-WF34_REFERENCE = {"k_star": 1.0e7, "n": 1.1, "phi": 30.0, "c": 0.0}
-
-#: the paper's application cases (section 5); 2a and 2b differ only by their seed
-PRESETS: dict[str, dict[str, Any]] = {
-    "1": {"seed": 1, "description": "Gallina et al. case 1: k_c, k_phi, n, phi, J + sigmas"},
-    "2a": {"seed": 2, "description": "Gallina et al. case 2a: k_c, k_phi, n, phi, R + sigmas"},
-    "2b": {"seed": 3, "description": "Gallina et al. case 2b: as 2a, another seed"},
-}
-
-
-def preset_case(case: str, data_files: tuple[str, ...] = ()) -> CaseDefinition:
-    """The paper's case "1", "2a" or "2b": Table 2 priors and nominal values, 2000 samples per
-    stage with leader moves (one model run per sample and stage, the paper's budget), the
-    paper's simulator settings (50 s runs; offsets 20 s for F and T, 1 s for z; experimental
-    offset 40 s) and the normalised likelihood eq. (12)-(15)."""
-    key = str(case).strip()
-    if key not in PRESETS:
-        raise CaseError(f"unknown preset {case!r}; presets: {', '.join(PRESETS)}")
-    prior = table2_prior(key)
-    params = {}
-    for entry in prior.to_dict()["parameters"]:
-        entry = dict(entry)
-        name = entry.pop("name")
-        if entry["dist"] == "truncated_normal":
-            entry["dist"] = "normal"
-        params[name] = entry
-    nominal = {k: v for k, v in TABLE2_NOMINAL.items() if k not in params}
-    doc = {
-        "name": f"case{key}",
-        "seed": PRESETS[key]["seed"],
-        "description": PRESETS[key]["description"],
-        "likelihood": "normalized",
-        "parameters": params,
-        "nominal": nominal,
-        "simulator": {"duration": 50.0, "offset_F": 20.0, "offset_T": 20.0, "offset_z": 1.0},
-        "sampler": {"n_samples": 2000, "moves": "leader"},
-        "data": {"files": list(data_files), "offset": 40.0},
-        "reference": dict(WF34_REFERENCE),
-    }
-    return CaseDefinition.from_dict(doc)

@@ -118,13 +118,21 @@ class SeriesOut(BaseModel):
 
 
 class PresetOut(BaseModel):
-    name: str = Field(description="Preset key: 1, 2a or 2b.")
+    name: str = Field(description="Preset key: quick, 1, 2a or 2b.")
     case_name: str
     description: str
     seed: int
     parameters: list[str]
     n_samples: int
     moves: str
+    expected_model_runs: int = Field(
+        description="Model runs one study is expected to make (the sampler's plan of a stage "
+        "times the measured number of stages)."
+    )
+    expected_minutes: float = Field(
+        description="Expected wall time of one study on two cores per dataset [min] (measured "
+        "seconds per simulation; benchmarks/bench_presets.py)."
+    )
 
 
 # ---------------------------------------------------------------------------- studies

@@ -21,7 +21,7 @@ def test_client_round_trip(api: SCMCalibClient) -> None:
     assert ds["created"] is True and ds["source_kind"] == "summary"
     assert api.upload_summary(summary_doc(1.0))["id"] == ds["id"]
     assert api.dataset(ds["id"])["means"]["F"] == pytest.approx(51.0)
-    assert [p["name"] for p in api.presets()] == ["1", "2a", "2b"]
+    assert [p["name"] for p in api.presets()] == ["quick", "1", "2a", "2b"]
     assert api.preset("2b")["seed"] == 3
 
     from_path = api.create_study(

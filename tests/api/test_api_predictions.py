@@ -173,7 +173,7 @@ def test_a_run_groups_pooled_posterior_is_predicted(calibrated) -> None:
     """``pooled_with``: the draws come from the runs' final populations pooled with equal
     weight (scm_core's pool_samples, the prediction's seed), as ``scm-calib predict`` on a run
     group's folder; runs of another calibration are refused in words, storing nothing."""
-    client, url, study_id, ids = calibrated
+    client, url, _, ids = calibrated
     case = tiny_case(params=("phi",))
     r = client.post(
         "/studies", json={"case": case, "dataset_ids": ids[:1], "runs": 2}, headers=AUTH

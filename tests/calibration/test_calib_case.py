@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from scm_core.calibration import CaseDefinition, CaseError, load_case, preset_case
+from scm_core.calibration.presets import PRESETS, preset_cost, stage_runs
 from scm_core.inference import TABLE2_NOMINAL, TMCMCSettings, table2_prior
 from scm_core.inference.tmcmc_moves import form_defaults
 
@@ -313,11 +314,38 @@ def test_presets_2a_2b_differ_only_by_seed() -> None:
         preset_case("3")
 
 
-@pytest.mark.parametrize(("key", "stem"), [("1", "case1"), ("2a", "case2a"), ("2b", "case2b")])
-def test_example_case_files_are_the_presets(key: str, stem: str) -> None:
+@pytest.mark.parametrize(
+    ("key", "stem", "files"),
+    [
+        ("quick", "quick", ("wf34_s020.csv", "wf34_s050.csv")),
+        ("1", "case1", ("wf34_s020.csv",)),
+        ("2a", "case2a", ("wf34_s020.csv",)),
+        ("2b", "case2b", ("wf34_s020.csv",)),
+    ],
+)
+def test_example_case_files_are_the_presets(key: str, stem: str, files: tuple[str, ...]) -> None:
     case = load_case(EXAMPLES / f"{stem}.toml")
-    assert case.to_dict() == preset_case(key, ("wf34_s020.csv",)).to_dict()
+    assert case.to_dict() == preset_case(key, files).to_dict()
     assert all(p.is_file() for p in case.data_paths())
+
+
+def test_preset_costs_follow_the_samplers_plan() -> None:
+    """The model runs of a preset's study: n_samples at the prior's stage, then the measured
+    share of what the moves plan per stage: the paper's leader form one run per sample
+    (2000), the quick case's waste-free chains of P = 5 states n - n/P = 400 (Dau & Chopin
+    2022); the measured stages and share are those of a real run (the README walk checks the
+    quick case's)."""
+    assert next(iter(PRESETS)) == "quick"  # offered first
+    assert stage_runs(preset_case("1")) == 2000
+    assert stage_runs(preset_case("quick")) == 400
+    for key, preset in PRESETS.items():
+        cost = preset_cost(key)
+        n = preset_case(key).sampler.n_samples
+        later = preset.stages * preset.share * stage_runs(preset_case(key))
+        assert cost.model_runs == n + round(later)
+        assert cost.minutes == pytest.approx(cost.model_runs * preset.run_s / 60)
+        assert cost.text().startswith(f"about {cost.model_runs:,} model runs, ")
+    assert preset_cost("1", n_samples=500).model_runs == 500 + round(6 * 0.64 * 500)
 
 
 def test_a_seed_a_study_cannot_store_is_refused_naming_it() -> None:

@@ -869,7 +869,9 @@ def test_runs_give_a_verdict_and_a_pooled_posterior(work: Path, reference: Path)
     assert soil["sets"]["MAP"]["Bekker_n"] == pytest.approx(best[n_col], rel=1e-12)
     median_n = float(np.median([r[n_col] for r in rows]))
     assert soil["sets"]["posterior median"]["Bekker_n"] == pytest.approx(median_n, rel=1e-12)
-    wants = one_line_error(run_cli_here("predict", "grp", "log.csv", cwd=work))
+    # an update starts from one study: the group's folder is refused in one line naming a run
+    upd = run_cli_here("calibrate", "--update-of", "grp", "--data", "log.csv", cwd=work)
+    wants = one_line_error(upd)
     assert "a group of runs" in wants and str(Path("grp") / "run_1") in wants
     # a re-run finds every run finished and gives the same verdict
     rerun = run_cli("calibrate", "tiny.toml", "--runs", "2", "--out", "grp", "--no-plots", cwd=work)

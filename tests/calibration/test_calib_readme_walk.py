@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from scm_core.calibration import preset_cost
+
 ROOT = Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 CLI = ".venv/bin/scm-calib"
@@ -69,8 +71,10 @@ def test_the_readme_walk_runs_in_order_on_a_fresh_folder(tmp_path: Path) -> None
         assert (tmp_path / path).exists(), path
     for name in ("runs.json", "posterior_pooled.csv", "chrono_soil.cpp", "chrono_soil.py"):
         assert (out / name).is_file(), name
+    expected = preset_cost("quick").model_runs  # what the dashboard shows beside the preset
     for k in range(1, 5):
-        assert (out / f"run_{k}" / "summary.json").is_file()
+        summary = json.loads((out / f"run_{k}" / "summary.json").read_text())
+        assert abs(summary["model_runs"] - expected) <= 0.25 * expected, summary["model_runs"]
         assert (out / f"run_{k}" / "figures" / "fit_map.png").is_file()
     pred = json.loads((out / "predictions" / "predictions.json").read_text())
     assert pred["study"]["runs"] == 4 and pred["draws"] == 200

@@ -893,13 +893,26 @@ def test_update_links_its_parent_and_shows_both_posteriors(server, browser) -> N
 
 
 def test_new_study_from_a_preset_and_chosen_datasets(server, browser) -> None:
+    """The studies page opens with the form shown, the quick case selected and a cost beside
+    every preset (the API's expected runs); without a token the form says where it goes; a
+    study starts from this page alone."""
     base, (d1, _) = server["base"], server["datasets"]
     w = Watched(browser)
     try:
         w.goto(f"{base}/")
-        w.page.click("details.new-study summary")
-        w.page.wait_for_selector("#new-study-form")
-        w.page.select_option("#new-study-form select[name=preset]", "1")
+        w.page.wait_for_selector("#new-study-form")  # shown without a click
+        assert w.page.is_checked("#new-study-form input[name=preset][value=quick]")
+        presets = httpx.get(f"{base}/presets").json()
+        assert presets[0]["name"] == "quick"
+        for p in presets:
+            label = w.page.locator(
+                f"#new-study-form label:has(input[name=preset][value='{p['name']}'])"
+            )
+            text = label.inner_text()
+            assert f"about {p['expected_model_runs']:,} model runs" in text, text
+            assert " on 2 cores per dataset" in text, text
+        hint = w.page.locator("#new-study-form .token-hint")
+        assert hint.is_visible() and "API token" in hint.inner_text()
         w.page.check(f"#new-study-form input[name=dataset_ids][value='{d1}']")
         w.page.fill("#new-study-form input[name=n_samples]", "10")
         w.page.fill("#new-study-form input[name=name]", "from the page")
@@ -907,12 +920,14 @@ def test_new_study_from_a_preset_and_chosen_datasets(server, browser) -> None:
         w.page.wait_for_selector("#new-study-form .write-result.error")
         assert "token" in w.page.inner_text("#new-study-form .write-result")
         _set_token(w.page)
+        assert not hint.is_visible()
         w.page.click("#new-study-form button")
         w.page.wait_for_url("**/ui/studies/*")
         sid = int(w.page.url.rsplit("/", 1)[1])
         study = httpx.get(f"{base}/studies/{sid}").json()
         assert study["name"] == "from the page" and study["dataset_ids"] == [d1]
         assert study["n_samples"] == 10
+        assert list(study["case"]["parameters"]) == ["k_phi", "n", "phi", "J"]  # the quick case
         w.page.wait_for_selector("#study-status")
         r = httpx.post(f"{base}/studies/{sid}/cancel", headers=AUTH)  # not to load the machine
         assert r.status_code in (200, 409)
@@ -957,7 +972,6 @@ def _studies_total(base: str) -> int:
 def _open_new_study_form(w: Watched, base: str) -> None:
     w.goto(f"{base}/")
     _set_token(w.page)
-    w.page.click("details.new-study summary")
     w.page.wait_for_selector("#new-study-form")
     w.page.click("details.case-file summary")
 

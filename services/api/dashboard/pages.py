@@ -24,7 +24,7 @@ from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
-from scm_core.calibration import PRESETS
+from scm_core.calibration import PRESETS, preset_cost
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals.conditions import condition_unit
 from services.limits import INT64_MAX
@@ -419,8 +419,12 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
     @reads.get("/ui/f/presets")
     def new_study_fragment(request: Request, store: StoreDep) -> Response:
         datasets = store.datasets.list(limit=200).items
+        presets = [
+            {"name": k, "description": p.description, "cost": preset_cost(k).text()}
+            for k, p in PRESETS.items()
+        ]
         return _fragment(
-            templates, request, "_new_study.html", None, presets=sorted(PRESETS), datasets=datasets
+            templates, request, "_new_study.html", None, presets=presets, datasets=datasets
         )
 
     return reads

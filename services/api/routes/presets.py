@@ -1,4 +1,5 @@
-"""The paper's calibration cases 1, 2a and 2b (Table 2 priors) as case documents."""
+"""The presets (the quick case, the paper's cases 1, 2a and 2b with Table 2 priors) as case
+documents, with what a study of each is expected to cost."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from typing import Any
 
 from fastapi import APIRouter, Depends, HTTPException
 
-from scm_core.calibration import PRESETS, CaseError, preset_case
+from scm_core.calibration import PRESETS, CaseError, preset_case, preset_cost
 
 from ..deps import require_read
 from ..schemas import PresetOut
@@ -26,7 +27,7 @@ def preset_or_404(name: str):
 def list_presets() -> list[PresetOut]:
     out = []
     for key in PRESETS:
-        case = preset_case(key)
+        case, cost = preset_case(key), preset_cost(key)
         out.append(
             PresetOut(
                 name=key,
@@ -36,6 +37,8 @@ def list_presets() -> list[PresetOut]:
                 parameters=list(case.parameter_names),
                 n_samples=case.sampler.n_samples,
                 moves=case.sampler.moves,
+                expected_model_runs=cost.model_runs,
+                expected_minutes=round(cost.minutes, 1),
             )
         )
     return out

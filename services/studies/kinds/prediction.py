@@ -14,8 +14,9 @@ the draw only, so the result is the CLI's bit for bit however the draws were bat
 
 Stored: ``case`` the calibrated study's (its priors and settings derived from it), ``n_samples``
 the draws, ``seed`` the prediction seed, ``dataset_ids`` the target datasets, ``payload``
-``{"study_id", "conditions", "pooled_with"}``; the stage's samples are the draws with their simulated F, T, z
-per target; ``result`` ``{"study_id", "pooled_with", "draws", "seed", "level", "predictions": [...]}``.
+``{"study_id", "conditions", "pooled_with"}``; the stage's samples are the draws with their
+simulated F, T, z per target; ``result`` ``{"study_id", "pooled_with", "draws", "seed", "level",
+"predictions": [...]}``.
 """
 
 from __future__ import annotations

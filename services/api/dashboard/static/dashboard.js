@@ -15,6 +15,8 @@
   function showTokenState() {
     const el = document.getElementById("token-state");
     if (el) el.textContent = token() ? "token set for this tab" : "no token";
+    // forms that write say where the token goes while there is none
+    document.querySelectorAll(".token-hint").forEach((hint) => { hint.hidden = !!token(); });
   }
 
   function say(el, text, bad) {
@@ -485,7 +487,7 @@
     }
   });
 
-  document.addEventListener("htmx:afterSettle", (ev) => loadFigures(ev.detail.elt));
+  document.addEventListener("htmx:afterSettle", (ev) => { loadFigures(ev.detail.elt); showTokenState(); });
   document.addEventListener("DOMContentLoaded", () => {
     showTokenState();
     loadFigures(document);
