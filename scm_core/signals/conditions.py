@@ -52,6 +52,12 @@ class TestConditions(BaseModel):
     b: float | None = Field(default=None, gt=0, description="m, wheel width")
     n_grousers: int | None = Field(default=None, ge=0)
     grouser_height: float | None = Field(default=None, ge=0, description="m")
+    slip_angle: float | None = Field(
+        default=None,
+        ge=-90,
+        le=90,
+        description="deg, between the wheel's heading and the carriage's travel (0: straight)",
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -133,10 +139,16 @@ class TestConditions(BaseModel):
         """Wheel angular velocity (rad/s) if it follows from the conditions."""
         return self.omega
 
+    def to_dict(self) -> dict[str, Any]:
+        """The fields as a dict, those added after datasets were first stored (``slip_angle``)
+        only when given, so that the content hash and the stored form of a dataset that does
+        not name them stay what they were."""
+        return self.model_dump(exclude={k for k in _LATER_FIELDS if getattr(self, k) is None})
+
     def to_sim_config(self) -> dict[str, float | int | str]:
         """Simulator config keys (see :class:`scm_core.simulator.RigConfig`): W, the slip in the
         symmetric convention, one speed (omega when the wheel turns and omega is known, else
-        the carriage speed), R, b, n_grousers, grouser_height as given."""
+        the carriage speed), R, b, n_grousers, grouser_height and slip_angle as given."""
         out: dict[str, float | int | str] = {"W": self.W}
         if self.slip_symmetric is not None:
             if self.slip is not None and self.slip >= 0:
@@ -148,11 +160,15 @@ class TestConditions(BaseModel):
             out["omega"] = self.omega
         elif self.carriage_speed is not None:
             out["carriage_speed"] = self.carriage_speed
-        for key in ("R", "b", "n_grousers", "grouser_height"):
+        for key in ("R", "b", "n_grousers", "grouser_height", "slip_angle"):
             value = getattr(self, key)
             if value is not None:
                 out[key] = value
         return out
+
+
+#: condition fields added after content hashes were pinned (left out of to_dict when unset)
+_LATER_FIELDS = ("slip_angle",)
 
 
 def _is_number(x: Any) -> bool:
@@ -168,7 +184,7 @@ def condition_unit(name: str) -> str | None:
     if field is None or not field.description:
         return None
     unit = field.description.split(",")[0].strip()
-    return unit if unit in ("N", "m", "m/s", "rad/s", "-") else None
+    return unit if unit in ("N", "m", "m/s", "rad/s", "-", "deg") else None
 
 
 def make_conditions(values: dict[str, Any], where: str = "metadata") -> TestConditions:

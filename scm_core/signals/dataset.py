@@ -95,7 +95,7 @@ class SWTDataset:
             "name": self.name,
             "source_kind": self.source_kind,
             "content_hash": self.content_hash,
-            "conditions": self.conditions.model_dump(),
+            "conditions": self.conditions.to_dict(),
             "provenance": dict(self.provenance),
             "responses": {
                 k: {"mean": r.mean, "se": r.se, "sd": r.sd, "n_eff": r.n_eff}

@@ -74,7 +74,7 @@ def read_sidecar(path: Path) -> dict[str, Any]:
 
 
 def _metadata_dict(meta: Metadata) -> dict[str, Any]:
-    return {"conditions": meta.conditions.model_dump(), "provenance": meta.provenance}
+    return {"conditions": meta.conditions.to_dict(), "provenance": meta.provenance}
 
 
 def load_log(
@@ -257,9 +257,9 @@ def write_log(
     units per column, e.g. ``{"sinkage": "mm", "time": "ms"}``. Metadata is validated first
     and written with canonical keys (W, slip, omega, ...) in SI. Returns the CSV path.
     """
-    raw = metadata.model_dump() if isinstance(metadata, TestConditions) else dict(metadata)
+    raw = metadata.to_dict() if isinstance(metadata, TestConditions) else dict(metadata)
     meta = merge_metadata([("metadata", raw)])
-    flat = {k: v for k, v in meta.conditions.model_dump().items() if v is not None}
+    flat = {k: v for k, v in meta.conditions.to_dict().items() if v is not None}
     flat.update(meta.provenance)
     columns = {"time": t, "drawbar_pull": F, "torque": T, "sinkage": z}
     if normal_force is not None:

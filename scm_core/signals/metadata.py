@@ -31,6 +31,10 @@ CONDITION_KEYS: dict[str, tuple[str, tuple[str, ...]]] = {
     "b": ("length", ("b", "wheel_width", "width")),
     "n_grousers": ("count", ("n_grousers", "grousers", "grouser_count", "n_g")),
     "grouser_height": ("length", ("grouser_height", "h_g", "grouser_depth")),
+    "slip_angle": (
+        "angle",
+        ("slip_angle", "slip_angle_deg", "beta", "steering_angle", "yaw_angle"),
+    ),
 }
 _ALIAS = {alias: name for name, (_, aliases) in CONDITION_KEYS.items() for alias in aliases}
 _KEY_UNIT = re.compile(r"^(?P<key>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")

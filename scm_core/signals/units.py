@@ -33,6 +33,8 @@ UNITS: dict[str, dict[str, float]] = {
     "angular_velocity": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0, "deg/s": math.pi / 180.0},
     "speed": {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3, "m/min": 1.0 / 60.0, "km/h": 1.0 / 3.6},
     "count": {"": 1.0, "-": 1.0},
+    # angles are kept in degrees, as the case files give phi and the labs give slip angles
+    "angle": {"deg": 1.0, "°": 1.0, "degree": 1.0, "degrees": 1.0, "rad": 180.0 / math.pi},
 }
 
 #: SI unit written for each quantity.
@@ -45,6 +47,7 @@ SI_UNIT: dict[str, str] = {
     "angular_velocity": "rad/s",
     "speed": "m/s",
     "count": "",
+    "angle": "deg",
 }
 
 #: largest plausible magnitude per quantity (SI). No single-wheel test comes within orders of
@@ -61,6 +64,7 @@ PLAUSIBLE_MAX: dict[str, float] = {
     "angular_velocity": 1e3,
     "speed": 1e2,
     "count": 1e4,
+    "angle": 360.0,
 }
 
 

@@ -38,6 +38,7 @@ from .layout import (
     P_TANPHI,
     P_TAPER,
     P_V,
+    P_VLAT,
 )
 from .state import Columns, Ground, Patches
 
@@ -58,11 +59,14 @@ R_KSTAR = 6  # k* = k_c / b_eff + k_phi of the footprint [N/m^(n+2)]
 R_NORM = 7  # normalisation of the border taper
 R_CMIN = 8  # footprint extent: first and last loaded column of the window
 R_CMAX = 9
-N_RES = 10
+R_FY = 10  # lateral force: soil force on the wheel along its axle (+y) [N]
+N_RES = 11
 
 
 @njit(cache=True)
-def inclination_factor(nx: float, nz: float, tx: float, tz: float, mu: float, m: float) -> float:
+def inclination_factor(
+    nx: float, nz: float, tx: float, tz: float, mu: float, m: float, ty: float = 0.0
+) -> float:
     """Bearing-capacity factor (1 - alpha / 90 deg)^m of a node's traction on the soil.
 
     The wheel pushes the soil along -n and drags it along t (the wheel's slip direction) with
@@ -76,9 +80,12 @@ def inclination_factor(nx: float, nz: float, tx: float, tz: float, mu: float, m:
     """
     dx = -nx + mu * tx
     dz = -nz + mu * tz
+    # a steered wheel's slip has a component ty along the axle: the traction's horizontal part
+    # is then (dx, mu ty)
+    horizontal = abs(dx) if ty == 0.0 else math.hypot(dx, mu * ty)
     i = 0.0
     if dz < 0.0:
-        i = (1.0 - math.atan2(abs(dx), -dz) / (0.5 * math.pi)) ** m
+        i = (1.0 - math.atan2(horizontal, -dz) / (0.5 * math.pi)) ** m
     return 1.0 - (1.0 - i) * nz * nz
 
 
@@ -93,6 +100,15 @@ def surface_velocity(
     vpx = v + omega * rz
     vpz = vz - omega * rx
     return vpx, vpz, vpx * nx + vpz * nz
+
+
+@njit(cache=True, inline="always")
+def slip_direction(vx: float, vy: float, vz: float) -> tuple[float, float, float, float]:
+    """(|v|, and the unit vector along v) of a slip velocity v [m/s]; a zero vector for none."""
+    vt = math.sqrt(vx * vx + vz * vz + vy * vy)
+    if vt > 0.0:
+        return vt, vx / vt, vy / vt, vz / vt
+    return vt, 0.0, 0.0, 0.0
 
 
 @njit(cache=True)
@@ -315,7 +331,7 @@ def evaluate_contact(
     """
     pc, pj0, pj1, pst, pflag, psig = patches
     xi, e, fx, fz, gx, gyc = cols.xi, cols.e, cols.fx, cols.fz, cols.gx, cols.gyc
-    res[R_FX] = res[R_FZ] = res[R_T] = res[R_DFZ] = 0.0
+    res[R_FX] = res[R_FZ] = res[R_T] = res[R_DFZ] = res[R_FY] = 0.0
     n_exp = prm[P_N]
     tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
     tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8)), at phi where it
@@ -331,6 +347,11 @@ def evaluate_contact(
     kin = prm[P_SHEARSCALE]
     omega = prm[P_OMEGA] * kin
     sv = prm[P_SLIPV]
+    # a steered wheel slides along its axle at the axle's lateral velocity (the surface turns
+    # in the wheel's plane): the slip velocity, the shear's direction t and eq. (8)'s
+    # mobilisation are those of the vector (vtx, vty, vtz) (Janosi-Hanamoto along the slip
+    # direction: Ishigami et al. 2007; Chrono's SCM)
+    vty = prm[P_VLAT] * sv
     disp_form = prm[P_SHEARDISP] > 0.5
     incl_exp = prm[P_INCL]
     ncont, kstar, norm, cmin, cmax = _footprint(
@@ -342,13 +363,14 @@ def evaluate_contact(
     taper = prm[P_TAPER] > 0.5
     # ---- pass 2: stresses and forces (patches come column by column)
     Fx = 0.0
+    Fy = 0.0
     Fz = 0.0
     Ty = 0.0
     dFz = 0.0
     Fx_fwd = 0.0  # forward (thrust) contributions and their moment
     Ty_fwd = 0.0
     k_prev = -1
-    rx = rz = nx = nz = tx = tz = sd = dsd = fsh = vt = mu = 0.0
+    rx = rz = nx = nz = tx = ty = tz = sd = dsd = fsh = vt = mu = 0.0
     for p in range(npatch):
         if pflag[p] == 0:
             continue
@@ -363,19 +385,8 @@ def evaluate_contact(
             nz = fz[k]
             vpx, vpz, vn = surface_velocity(v * sv, vz * sv, omega, rx, rz, nx, nz)
             pen = -vn / sv  # rate of penetration into the soil [m/s]
-            sd = 0.0
-            dsd = 0.0
-            if dsoil > 0.0 and pen > 0.0:
-                sd = dsoil * pen
-                dsd = -dsoil * nz / dt
-            vtx = vpx - vn * nx
-            vtz = vpz - vn * nz
-            vt = math.sqrt(vtx * vtx + vtz * vtz)
-            tx = 0.0
-            tz = 0.0
-            if vt > 0.0:
-                tx = vtx / vt
-                tz = vtz / vt
+            sd, dsd = (dsoil * pen, -dsoil * nz / dt) if dsoil > 0.0 and pen > 0.0 else (0.0, 0.0)
+            vt, tx, ty, tz = slip_direction(vpx - vn * nx, vty, vpz - vn * nz)
             fsh = 1.0 - math.exp(-vt / J)
             # the surface pushes into the soil more than it slides: the soil moves with it
             mu = tanphi if stuck_soil and pen > 0.0 and vt <= tandelta * pen * sv else tandelta
@@ -383,7 +394,7 @@ def evaluate_contact(
             fsh = 1.0 - math.exp(-(pst[p, 4] + vt * dt) / J)
         incl = 1.0
         if incl_exp > 0.0:
-            incl = inclination_factor(nx, nz, tx, tz, fsh * mu, incl_exp)
+            incl = inclination_factor(nx, nz, tx, tz, fsh * mu, incl_exp, ty)
         rows = pj1[p] - pj0[p]
         sink = pst[p, 0] - (zw + e[k])
         sel = pst[p, 3] * (sink - pst[p, 1])
@@ -410,6 +421,7 @@ def evaluate_contact(
         dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding
         dfz = (sig_sum * nz - tau_sum * tz) * dA
         Fx += dfx
+        Fy -= tau_sum * ty * dA  # the shear opposes the sideways sliding too
         Fz += dfz
         Ty += kin * (rz * dfx - rx * dfz)  # eq. (10), moment about the axle (y component)
         if dfx > 0.0:
@@ -427,6 +439,7 @@ def evaluate_contact(
         Ty -= (1.0 - lam) * Ty_fwd
         Fx = cap if lam > 0.0 else Fx - Fx_fwd
     res[R_FX] = Fx
+    res[R_FY] = Fy
     res[R_FZ] = Fz
     res[R_T] = -Ty
     res[R_DFZ] = dFz

@@ -80,6 +80,7 @@ from .layout import (
     P_SLIPV,
     P_TANDELTA,
     P_V,
+    P_VLAT,
 )
 from .state import Columns, FlowScratch, Ground, Marks, Patches, Window
 
@@ -125,6 +126,7 @@ def commit_contact(
     # the shearing surface's slip over the ground, as in contact.evaluate_contact
     v = prm[P_V] * prm[P_SLIPV]
     vz = vz * prm[P_SLIPV]
+    vty = prm[P_VLAT] * prm[P_SLIPV]  # a steered wheel's slip along its axle
     omega = prm[P_OMEGA] * prm[P_SHEARSCALE]
     flow = 0.0
     for p in range(npatch):
@@ -136,7 +138,7 @@ def commit_contact(
         vt = 0.0
         if disp_form:
             vpx, vpz, vn = surface_velocity(v, vz, omega, xi[k], e[k], fx[k], fz[k])
-            vt = math.hypot(vpx - vn * fx[k], vpz - vn * fz[k])
+            vt = math.hypot(math.hypot(vpx - vn * fx[k], vpz - vn * fz[k]), vty)
         sb = psig[p]
         for j in range(pj0[p], pj1[p]):
             jj = jw0 + j

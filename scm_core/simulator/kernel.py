@@ -27,6 +27,7 @@ from .contact import (
     R_BEFF,
     R_DFZ,
     R_FX,
+    R_FY,
     R_FZ,
     R_KSTAR,
     R_NCONTACT,
@@ -72,6 +73,7 @@ from .layout import (
     P_TANREPOSE,
     P_TG,
     P_V,
+    P_VLAT,
     P_W,
     P_ZDATUM,
     STATUS_BOTTOMED_OUT,
@@ -79,6 +81,7 @@ from .layout import (
     STATUS_OK,
     STATUS_UNSTABLE,
 )
+from .side import side_force
 from .state import Columns, FlowScratch, Ground, Marks, Patches, Window
 
 # columns of the output series
@@ -88,7 +91,8 @@ S_TORQUE = 2
 S_Z = 3
 S_FN = 4
 S_BEFF = 5
-N_SERIES = 6
+S_FY = 6  # lateral force along the axle [N] (a steered wheel; 0 straight)
+N_SERIES = 7
 
 # diagnostics vector
 D_STEPS = 0
@@ -137,18 +141,43 @@ SETTLE_CHECKS = (0.25, 0.5, 0.75)
 
 @njit(cache=True)
 def grid_shape(prm: np.ndarray):
-    """(nx, ny, nyw, n_margin, dy, x0) of the DEM for these parameters."""
+    """(nx, ny, nyw, n_margin, dy, x0) of the DEM for these parameters: a steered wheel's
+    grid is wider by the rows it slides across (:func:`lateral_rows`)."""
     dx = prm[P_DX]
     b = prm[P_B]
     nyw = max(1, int(round(b / (prm[P_DYDX] * dx))))
     dy = b / nyw
     n_margin = int(math.ceil(prm[P_MARGIN] / dy))
-    ny = nyw + 2 * n_margin
+    ny = nyw + 2 * n_margin + lateral_rows(prm, dy)
     r_out = prm[P_R] + prm[P_HG]
     x0 = -(r_out + X_PAD)
     x1 = prm[P_V] * prm[P_DURATION] + r_out + X_PAD
     nx = int(math.ceil((x1 - x0) / dx)) + 2
     return nx, ny, nyw, n_margin, dy, x0
+
+
+@njit(cache=True)
+def lateral_rows(prm: np.ndarray, dy: float) -> int:
+    """Rows a steered wheel slides across over the run, |v_y| duration / dy (0 straight)."""
+    if prm[P_VLAT] == 0.0:
+        return 0
+    return int(math.ceil(abs(prm[P_VLAT]) * prm[P_DURATION] / dy)) + 1
+
+
+@njit(cache=True)
+def rows_under(j_start: int, y: float, dy: float, last: int) -> int:
+    """The first row under a wheel that has slid by ``y`` [m] along its axle since it stood
+    on row ``j_start`` (at most ``last``)."""
+    if y == 0.0:
+        return j_start
+    return min(max(j_start + int(round(y / dy)), 0), last)
+
+
+@njit(cache=True)
+def first_row(prm: np.ndarray, n_margin: int, dy: float) -> int:
+    """The first row under the wheel at the start: past the margin, and past the rows it will
+    slide across when it slides toward -y."""
+    return n_margin + (lateral_rows(prm, dy) if prm[P_VLAT] < 0.0 else 0)
 
 
 #: this step's vertical problem: the last axle height zn, the predicted zpred = zn + dt vn, the
@@ -338,13 +367,13 @@ def _work_space(nx: int, ny: int, nyw: int, ncw_max: int):
 
 
 @njit(cache=True, nogil=True)
-def _heap_load(prm, ground, c_ax, n_margin, nyw, zw, diag):
+def _heap_load(prm, ground, c_ax, jw0, nyw, zw, diag):
     """The bow wave's load on the wheel this step: (surcharge [Pa] on the contact's front, its
     wedge's horizontal force [N], that force's height [m], a third up the heap), from the loose
     soil within a wheel radius ahead of the rim (the axle's column ``c_ax`` to two radii on)."""
     r_out = prm[P_R] + prm[P_HG]
     n_ahead = int(math.ceil(2.0 * r_out / prm[P_DX])) + 1
-    h_b, base = bow_wave(ground, c_ax, n_ahead, n_margin, nyw, zw + r_out)
+    h_b, base = bow_wave(ground, c_ax, n_ahead, jw0, nyw, zw + r_out)
     surcharge, f_b = heap_passive_pressure(prm[P_GAMMA], prm[P_TANPHI], prm[P_TANREPOSE], h_b)
     force = f_b * prm[P_B]
     diag[D_HEAP_H] = h_b
@@ -357,7 +386,8 @@ def run_swt(prm: np.ndarray):
     """Simulate one SWT. Returns (series (n_out, N_SERIES), n_out, status, surface, diag).
 
     Series columns: time [s], drawbar pull F [N], driving torque T [N m], sinkage z [m] (axle drop
-    from first contact with the undisturbed surface, less P_ZDATUM), normal force [N], b_eff [m];
+    from first contact with the undisturbed surface, less P_ZDATUM), normal force [N], b_eff [m],
+    lateral force Fy [N] (along the axle; a steered wheel slides across the grid's rows);
     each sample is the mean over the steps since the previous one. A run that stops early
     (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded soil
     surface h0 - sp + hl [m] (ground plus loose deposits).
@@ -370,7 +400,7 @@ def run_swt(prm: np.ndarray):
     r_out = R + hg
     ng = int(prm[P_NGROUSERS])
     tg = prm[P_TG]
-    v = prm[P_V]
+    v, v_lat = prm[P_V], prm[P_VLAT]
     omega = prm[P_OMEGA]
     n_steps = int(round(prm[P_DURATION] / dt))
     out_every = int(prm[P_OUTEVERY])
@@ -380,7 +410,8 @@ def run_swt(prm: np.ndarray):
     diag = np.zeros(N_DIAG)
     diag[D_DY] = dy
     diag[D_X0] = x0
-    diag[D_JW0] = n_margin
+    j_start = first_row(prm, n_margin, dy)
+    diag[D_JW0] = j_start
     diag[D_NYW] = nyw
     h0 = np.zeros((nx, ny))
     sp = np.zeros((nx, ny))
@@ -421,6 +452,7 @@ def run_swt(prm: np.ndarray):
         tick = cycles()
         t = (step + 1) * dt
         xw = v * t
+        jw0 = rows_under(j_start, v_lat * t, dy, ny - nyw)
         theta = omega * t
         c0 = int(math.floor((xw - r_out - x0) / dx))
         c1 = int(math.ceil((xw + r_out - x0) / dx))
@@ -432,17 +464,19 @@ def run_swt(prm: np.ndarray):
         wheel_envelope(xi[:ncw], dx, R, ng, hg, tg, theta, e, fx, fz, vis)
         tip_circle(xi[:ncw], r_out, eb)  # the Bekker footprint's envelope
         z_low = zw + dt * vz - prm[P_W] * dt * dt / prm[P_MASS]  # free fall: lowest possible
-        npatch, ztop = build_patches(ground, cols, patches, c0, ncw, n_margin, nyw, z_low)
+        npatch, ztop = build_patches(ground, cols, patches, c0, ncw, jw0, nyw, z_low)
         diag[D_PATCH_STEPS] += npatch
         tick = _lap(diag, np.int64(D_CYC_GEOMETRY), tick)
         surcharge, heap_force, heap_z = 0.0, 0.0, 0.0
         if heap_weight:
             c_ax = int(round((xw - x0) / dx))
-            surcharge, heap_force, heap_z = _heap_load(prm, ground, c_ax, n_margin, nyw, zw, diag)
+            surcharge, heap_force, heap_z = _heap_load(prm, ground, c_ax, jw0, nyw, zw, diag)
         z_new, ok = _solve_vertical(zw, vz, prm, npatch, ztop, dx, dy, nyw, work, diag, surcharge)
         if heap_force > 0.0:  # the heap's own wedge pushes the rim back above its base
             res[R_FX] -= heap_force
             res[R_T] += (heap_z - z_new) * heap_force  # eq. (10), the moment about the axle
+        if v_lat != 0.0:  # a steered wheel's leading side pushes the soil beside it
+            res[R_FY] += side_force(prm, ground, cols, c0, ncw, jw0, nyw, z_new, dx, t)
         tick = _lap(diag, np.int64(D_CYC_SOLVE), tick)
         if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
             status = STATUS_UNSTABLE
@@ -454,7 +488,7 @@ def run_swt(prm: np.ndarray):
         vz = (z_new - zw) / dt
         zw = z_new
         diag[D_NODE_STEPS] += res[R_NCONTACT]
-        window = Window(c0, ncw, n_margin, nyw)
+        window = Window(c0, ncw, jw0, nyw)
         flow = commit_contact(zw, vz, prm, npatch, patches, cols, ground, marks, window)
         tick = _lap(diag, np.int64(D_CYC_COMMIT), tick)
         if bulldoze:
@@ -465,14 +499,14 @@ def run_swt(prm: np.ndarray):
             diag[D_SPILLED] += spilled
             tick = _lap(diag, np.int64(D_CYC_FLOW), tick)
             if (step + 1) % erode_every == 0 or step == n_steps - 1:
-                grid = (c0, ncw, n_margin, nyw, fwork[0], h0, sp, hl, cflag, queue, inq)
+                grid = (c0, ncw, jw0, nyw, fwork[0], h0, sp, hl, cflag, queue, inq)
                 diag[D_EROSION_VISITS] += erode(grid, dx, dy, tan_repose, tail, escratch)
                 tail = np.int64(0)
             tick = _lap(diag, np.int64(D_CYC_EROSION), tick)
         else:
             diag[D_COMPACTED] += flow * dA  # without flow the displaced soil is compacted
         for k in range(ncw):  # clear the marks of the nodes under the wheel
-            for j in range(n_margin, n_margin + nyw):
+            for j in range(jw0, jw0 + nyw):
                 cflag[k + 1, j] = 0
         diag[D_STEPS] += 1
         # each output sample is the mean over the steps since the last one (a box-car
@@ -482,9 +516,10 @@ def run_swt(prm: np.ndarray):
         acc[S_Z] += r_out - zw - prm[P_ZDATUM]
         acc[S_FN] += res[R_FZ]
         acc[S_BEFF] += res[R_BEFF]
+        acc[S_FY] += res[R_FY]
         if (step + 1) % out_every == 0 and n_out < n_out_max:
             series[n_out, S_T] = t
-            for col in (S_F, S_TORQUE, S_Z, S_FN, S_BEFF):
+            for col in (S_F, S_TORQUE, S_Z, S_FN, S_BEFF, S_FY):
                 series[n_out, col] = acc[col] / out_every
                 acc[col] = 0.0
             n_out += 1

@@ -64,8 +64,9 @@ from .rig import ResolvedRig, resolve_rig
     P_STUCKSOIL,  # 1: where the wheel's surface sticks to the soil, the soil shears (at phi)
     P_POCKETKEEP,  # 1: the pockets carry off only the soil they keep (pocket_fill), no floor
     P_GAMMA,  # unit weight of the soil, rho g [N/m^3] (0: weightless deposits, SCM)
+    P_VLAT,  # the axle's velocity along the axle (+y), -v sin(beta) [m/s] (0: straight)
     N_PARAMS,
-) = range(50)
+) = range(51)
 
 STATUS_NAMES = ("ok", "bottomed_out", "nonpositive_stiffness", "unstable")
 STATUS_OK = 0
@@ -128,7 +129,13 @@ def pack_resolved(soil: SoilParams, wheel: WheelGeometry, rig: ResolvedRig) -> n
     p[P_TG] = wheel.grouser_thickness
     p[P_W] = rig.W
     p[P_MASS] = rig.mass
-    p[P_V] = rig.carriage_speed
+    # a steered wheel (slip angle beta): the carriage's velocity along the heading, which the
+    # wheel's plane sees, and along the axle, which slides the wheel sideways (exactly v and 0
+    # at beta = 0; the heading's component exactly 0 at 90 deg)
+    beta = math.radians(rig.slip_angle)
+    along = math.cos(beta)
+    p[P_V] = rig.carriage_speed * (along if abs(along) > 1e-12 else 0.0)
+    p[P_VLAT] = -rig.carriage_speed * math.sin(beta) if beta else 0.0
     p[P_OMEGA] = rig.omega
     p[P_DURATION] = rig.duration
     p[P_DT] = rig.dt

@@ -192,6 +192,14 @@ class RigConfig(_Frozen):
     slip_radius: float | None = Field(
         None, gt=0.0, description="Radius defining slip [m]; default the rim radius R"
     )
+    slip_angle: float = Field(
+        0.0,
+        ge=-90.0,
+        le=90.0,
+        description="Slip angle beta [deg] between the wheel's heading and the carriage's "
+        "travel (0: straight; 90: dragged along its axle); the wheel then slides along its "
+        "axle at v sin(beta), toward -y for beta > 0, and the soil pushes it back (Fy > 0)",
+    )
     mass: float | None = Field(None, gt=0.0, description="Vertical mass [kg]; default W/g")
     duration: float | None = Field(
         None,

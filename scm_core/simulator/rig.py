@@ -77,6 +77,7 @@ class ResolvedRig:
     grouser_slip: str
     stuck_shear: str
     pocket_carry: str
+    slip_angle: float = 0.0  # [deg] between heading and travel
 
     def to_dict(self) -> dict:
         """JSON-compatible dict (a locked wheel's drive slip as None)."""
@@ -157,4 +158,5 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         grouser_slip=rig.grouser_slip,
         stuck_shear=rig.stuck_shear,
         pocket_carry=rig.pocket_carry,
+        slip_angle=rig.slip_angle,
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -24,6 +25,7 @@ class SteadyMeans:
     F: float  # drawbar pull [N]
     T: float  # driving torque [N m]
     z: float  # sinkage [m]
+    Fy: float = 0.0  # lateral force along the axle [N] (a steered wheel), F's window
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,9 @@ class SWTResult:
 
     ``series`` has the keys t [s], F [N] (drawbar pull, + forward), T [N m] (driving torque),
     z [m] (sinkage), normal_force [N], slip [-] (symmetric convention (omega r - v)/max(v, omega r),
-    equal to 1 - v/(omega r) when driving), b_eff [m]. ``means`` is None unless status == "ok".
+    equal to 1 - v/(omega r) when driving), b_eff [m], Fy [N] (lateral force along the axle,
+    + for a wheel sliding toward -y: RigConfig.slip_angle > 0). ``means`` is None unless
+    status == "ok".
     ``rig`` is the resolved rig (kinematics, both slips, numerics).
     """
 
@@ -75,7 +79,11 @@ def simulate_swt(
     means_arr = kernel.steady_means(series, prm)
     wall = time.perf_counter() - t0
     status_name = STATUS_NAMES[status]
-    means = SteadyMeans(*map(float, means_arr)) if status == STATUS_OK else None
+    means = None
+    if status == STATUS_OK:
+        window = series[:, kernel.S_T] >= resolved.offset_F - 1e-9
+        fy = float(np.mean(series[window, kernel.S_FY])) if window.any() else math.nan
+        means = SteadyMeans(*map(float, means_arr), Fy=fy)
     d = {name: float(diag[i]) for i, name in enumerate(_DIAG_NAMES)}
     dy = d["dy"]
     ny = h.shape[1]
@@ -90,6 +98,7 @@ def simulate_swt(
         "normal_force": series[:, kernel.S_FN].copy(),
         "slip": np.full(n_out, resolved.slip_symmetric),
         "b_eff": series[:, kernel.S_BEFF].copy(),
+        "Fy": series[:, kernel.S_FY].copy(),
     }
     return SWTResult(
         status=status_name,

@@ -39,6 +39,7 @@ def _conditions(ds: SWTDataset) -> dict[str, Any]:
         "b_m": c.b,
         "n_grousers": c.n_grousers,
         "grouser_height_m": c.grouser_height,
+        "slip_angle_deg": c.slip_angle,
     }
 
 
@@ -69,7 +70,9 @@ def _fmt(x: float | None, digits: int = 4) -> str:
 def _print(reports: list[dict[str, Any]], warnings: list[str], errors: list[str]) -> None:
     console = Console(width=None if sys.stdout.isatty() else 160)
     table = Table(title="SWT datasets as a study reads them")
-    columns = ("file", "kind", "W [N]", "slip drive / sym.", "v / rim [mm/s]", "F [N]")
+    steered = any(r["conditions"]["slip_angle_deg"] for r in reports)
+    columns = ("file", "kind", "W [N]", "slip drive / sym.", "v / rim [mm/s]")
+    columns += ("slip angle [deg]",) * steered + ("F [N]",)
     for col in (*columns, "T [N m]", "z [mm]", "window / trials"):
         table.add_column(escape(col), justify="left" if col in ("file", "kind") else "right")
     for r in reports:
@@ -97,7 +100,9 @@ def _print(reports: list[dict[str, Any]], warnings: list[str], errors: list[str]
         else:
             w = r["window_s"]
             extent = f"{w[0]:.4g}-{w[1]:.4g} s, {r['n_samples']} samples" if w else "-"
-        table.add_row(Path(r["file"]).name, r["kind"], _fmt(c["W_N"]), slip, speeds, *cells, extent)
+        angle = [_fmt(c["slip_angle_deg"] or 0.0, 3)] * steered
+        first = (Path(r["file"]).name, r["kind"], _fmt(c["W_N"]), slip, speeds, *angle)
+        table.add_row(*first, *cells, extent)
     if reports:
         console.print(table)
     for w in warnings:

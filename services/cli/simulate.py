@@ -53,7 +53,8 @@ def simulate(
 
 
 def result_summary(result: SWTResult) -> dict:
-    """JSON-ready means (F_mean N, T_mean N m, z_mean m), status and run statistics."""
+    """JSON-ready means (F_mean N, T_mean N m, z_mean m; Fy_mean N of a steered wheel), status
+    and run statistics."""
     m = result.means
     d = result.diagnostics
     return {
@@ -61,6 +62,7 @@ def result_summary(result: SWTResult) -> dict:
         "F_mean": m.F if m else None,
         "T_mean": m.T if m else None,
         "z_mean": m.z if m else None,
+        "Fy_mean": m.Fy if m else None,
         "wall_time_s": result.wall_time_s,
         "steps": int(d["steps"]),
         "mean_loaded_nodes": d["node_steps"] / max(d["steps"], 1.0),
@@ -69,7 +71,8 @@ def result_summary(result: SWTResult) -> dict:
 
 
 def write_series_csv(result: SWTResult, path: Path) -> None:
-    """Series as CSV in the lab-log column convention (SI units in brackets)."""
+    """Series as CSV in the lab-log column convention (SI units in brackets); a steered
+    wheel's adds its lateral force."""
     cols = (
         ("time [s]", "t"),
         ("drawbar_pull [N]", "F"),
@@ -77,7 +80,7 @@ def write_series_csv(result: SWTResult, path: Path) -> None:
         ("sinkage [m]", "z"),
         ("normal_force [N]", "normal_force"),
         ("slip [-]", "slip"),
-    )
+    ) + ((("lateral_force [N]", "Fy"),) if result.rig.slip_angle else ())
     with path.open("w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow([c for c, _ in cols])
@@ -103,5 +106,8 @@ def _print_table(summary: dict, result: SWTResult) -> None:
     table.add_row("drawbar pull F", fmt(summary["F_mean"], unit="N"), f"t >= {rig.offset_F:g} s")
     table.add_row("torque T", fmt(summary["T_mean"], unit="N m"), f"t >= {rig.offset_T:g} s")
     table.add_row("sinkage z", fmt(summary["z_mean"], 1000.0, "mm"), f"t >= {rig.offset_z:g} s")
+    if rig.slip_angle:
+        fy = fmt(summary["Fy_mean"], unit="N")
+        table.add_row(f"lateral force Fy ({rig.slip_angle:g} deg)", fy, f"t >= {rig.offset_F:g} s")
     table.add_row("wall time", f"{summary['wall_time_s']:.3f} s", "")
     Console().print(table)

@@ -133,3 +133,35 @@ def test_inconsistent_kinematics_are_refused():
         TestConditions(W=1, slip=0.2, carriage_speed=0.01, rim_speed=0.02)
     with pytest.raises(ValueError, match="unknown slip convention"):
         TestConditions(W=1, slip=0.2, slip_convention="wong")
+
+
+@pytest.mark.parametrize(
+    ("raw", "deg"),
+    [
+        ({"slip_angle": "30"}, 30.0),  # a bare number is in degrees
+        ({"slip angle [deg]": "60"}, 60.0),
+        ({"beta": "-45 deg"}, -45.0),
+        ({"steering_angle": "0.5 rad"}, 0.5 * 180.0 / 3.141592653589793),
+        ({"slip_angle_deg": "90"}, 90.0),
+    ],
+)
+def test_slip_angle_aliases_and_units(raw, deg):
+    """A lab's slip angle (issue 70), in degrees whatever unit it came in; the simulator gets
+    it as RigConfig.slip_angle."""
+    meta = merge_metadata([("file", {"W": "20 N", "slip": "0.2", **raw})])
+    assert meta.conditions.slip_angle == pytest.approx(deg, rel=1e-12)
+    assert meta.conditions.to_sim_config()["slip_angle"] == pytest.approx(deg, rel=1e-12)
+
+
+def test_no_slip_angle_is_straight_and_leaves_the_simulator_keys_as_they_were():
+    c = TestConditions(W=20, slip=0.2)
+    assert c.slip_angle is None and "slip_angle" not in c.to_sim_config()
+
+
+@pytest.mark.parametrize("bad", ["91", "-120 deg", "2 rad"])
+def test_a_slip_angle_beyond_90_deg_is_refused_naming_it(bad):
+    with pytest.raises(
+        LogFormatError,
+        match=r"slip_angle = .*(less than or equal to 90|greater than or equal to -90)",
+    ):
+        merge_metadata([("file", {"W": "20 N", "slip": "0.2", "slip_angle": bad})])
