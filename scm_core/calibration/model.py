@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import ValidationError
 
+from scm_core.inference import portable
 from scm_core.inference.likelihood import LOG_SQRT_2PI, log_likelihood_trials
 from scm_core.signals import SWTDataset
 from scm_core.simulator import (
@@ -378,8 +379,7 @@ class StudyModel:
         sigma = self.sigmas(X)[:, list(self.likelihood_columns[k])]
         per = np.full(sigma.shape, -LOG_SQRT_2PI)
         if self.likelihood == "gaussian":
-            with np.errstate(divide="ignore", invalid="ignore"):
-                per = per - np.log(sigma)
+            per = per - portable.log(sigma)
         bound = per.sum(axis=1)
         n = self.n_tests[k]
         if n > 1:  # zero residual of the trial mean; the trials' own scatter stays

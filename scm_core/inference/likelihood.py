@@ -24,6 +24,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from scm_core.inference import portable
+
 __all__ = [
     "LIKELIHOODS",
     "LOG_SQRT_2PI",
@@ -91,8 +93,7 @@ def log_likelihood_gaussian(
     """
     xi = standardized_residuals(x_exp, x_num, sigma)
     sigma_b = np.broadcast_to(np.asarray(sigma, dtype=float), xi.shape)
-    with np.errstate(all="ignore"):
-        log_sigma = np.log(np.where(np.isnan(xi), 1.0, sigma_b))
+    log_sigma = portable.log(np.where(np.isnan(xi), 1.0, sigma_b))
     return _sum_responses(-0.5 * xi * xi - LOG_SQRT_2PI - log_sigma)
 
 

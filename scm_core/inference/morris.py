@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from scm_core.inference import portable
 from scm_core.inference.priors import JointPrior
 
 __all__ = [
@@ -113,8 +114,8 @@ def _to_box(
     lo, hi = bounds[:, 0], bounds[:, 1]
     X = lo + U * (hi - lo)
     if log_scale.any():
-        llo, lhi = np.log(lo[log_scale]), np.log(hi[log_scale])
-        X[:, log_scale] = np.exp(llo + U[:, log_scale] * (lhi - llo))
+        llo, lhi = portable.log(lo[log_scale]), portable.log(hi[log_scale])
+        X[:, log_scale] = portable.exp(llo + U[:, log_scale] * (lhi - llo))
     return X
 
 
@@ -202,8 +203,8 @@ def design_from_points(
         raise ValueError(f"'points' must have shape (r * {d + 1}, {d}), got {X.shape}")
     lo, hi = b[:, 0].copy(), b[:, 1].copy()
     V = X.copy()
-    V[:, flags] = np.log(V[:, flags])
-    lo[flags], hi[flags] = np.log(lo[flags]), np.log(hi[flags])
+    V[:, flags] = portable.log(V[:, flags])
+    lo[flags], hi[flags] = portable.log(lo[flags]), portable.log(hi[flags])
     unit = (V - lo) / (hi - lo)
     r = X.shape[0] // (d + 1)
     T = unit.reshape(r, d + 1, d)

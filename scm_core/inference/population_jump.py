@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.inference import portable
 from scm_core.inference.walk_space import rows_times
 
 __all__ = ["JUMP_DOF", "jump_log_density", "jump_proposal"]
@@ -52,4 +53,4 @@ def jump_log_density(
     q = np.zeros(U.shape[0])
     for j in range(W.shape[1]):
         q = q + W[:, j] * W[:, j]
-    return -0.5 * (JUMP_DOF + U.shape[1]) * np.log1p(q / JUMP_DOF)
+    return -0.5 * (JUMP_DOF + U.shape[1]) * portable.log1p(q / JUMP_DOF)

@@ -17,6 +17,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from scm_core.inference import portable
+
 __all__ = [
     "LOG_SCALE_KINDS",
     "TABLE2_NOMINAL",
@@ -115,23 +117,31 @@ class TruncatedNormal(_Serial):
         _check_order("TruncatedNormal", self.lower, self.upper)
 
     @cached_property
-    def _dist(self) -> Any:
-        """scipy's frozen truncnorm, made on first use (scipy.stats takes seconds to import,
-        and a prior built at import, like Table 2's, should not pay for it)."""
-        from scipy import stats
-
+    def _standard(self) -> tuple[float, float, bool]:
+        """(lower, upper) standardised, and whether they lie in the upper tail (a >= 0), where
+        the normal's survival function keeps the digits its distribution function loses."""
         a = (self.lower - self.mean) / self.sd
         b = (self.upper - self.mean) / self.sd
-        return stats.truncnorm(a, b, loc=self.mean, scale=self.sd)
+        return a, b, a >= 0.0
+
+    @cached_property
+    def _ends(self) -> tuple[float, float]:
+        """Phi at the ends (Phi(-.) of their negatives in the upper tail): scipy.special's
+        ndtr, compiled code whose bits do not depend on the CPU (:mod:`.portable`)."""
+        from scipy.special import ndtr
+
+        a, b, upper_tail = self._standard
+        if upper_tail:
+            return float(ndtr(-a)), float(ndtr(-b))
+        return float(ndtr(a)), float(ndtr(b))
 
     @cached_property
     def _log_norm(self) -> float:
-        """log(sd sqrt(2 pi) Z), Z the normal mass in [a, b], taken from scipy's truncnorm at
-        an interior point so that logpdf below is a cheap closed form equal to
-        truncnorm.logpdf."""
-        x0 = min(max(self.mean, self.lower), self.upper)
-        z0 = (x0 - self.mean) / self.sd
-        return float(-0.5 * z0 * z0 - self._dist.logpdf(x0))
+        """log(sd sqrt(2 pi) Z), Z the normal mass in [a, b] (so that logpdf is a closed form
+        equal to scipy's truncnorm.logpdf)."""
+        lo, hi = self._ends
+        mass = abs(hi - lo)
+        return math.log(self.sd) + 0.5 * math.log(2.0 * math.pi) + math.log(mass)
 
     def logpdf(self, x: ArrayLike) -> NDArray[np.float64]:
         """Log density; -inf outside [lower, upper]."""
@@ -141,8 +151,19 @@ class TruncatedNormal(_Serial):
         return np.where(inside, -0.5 * z * z - self._log_norm, -np.inf)
 
     def ppf(self, u: ArrayLike) -> NDArray[np.float64]:
-        """Quantile function for u in [0, 1]."""
-        return np.clip(self._dist.ppf(np.asarray(u, dtype=float)), self.lower, self.upper)
+        """Quantile function for u in [0, 1]: the normal's inverse at Phi(a) + u (Phi(b) -
+        Phi(a)), through the survival function in the upper tail (scipy.special's ndtri; the
+        bits do not depend on the CPU)."""
+        from scipy.special import ndtri
+
+        u = np.asarray(u, dtype=float)
+        lo, hi = self._ends
+        _, _, upper_tail = self._standard
+        p = lo + u * (hi - lo)
+        z = -ndtri(p) if upper_tail else ndtri(p)
+        x = np.clip(self.mean + self.sd * z, self.lower, self.upper)
+        # the ends exactly (ndtri is not exact in a far tail, ~1e-19)
+        return np.where(u <= 0.0, self.lower, np.where(u >= 1.0, self.upper, x))
 
     def sample(self, rng: np.random.Generator, size: int | tuple[int, ...]) -> NDArray[np.float64]:
         """Independent draws (inverse-CDF of ``rng.random``)."""
@@ -174,13 +195,13 @@ class LogUniform(_Serial):
         inside = (x >= self.lower) & (x <= self.upper)
         log_norm = math.log(math.log(self.upper / self.lower))
         safe = np.where(inside, x, self.lower)
-        return np.where(inside, -np.log(safe) - log_norm, -np.inf)
+        return np.where(inside, -portable.log(safe) - log_norm, -np.inf)
 
     def ppf(self, u: ArrayLike) -> NDArray[np.float64]:
         """Quantile function for u in [0, 1]."""
         u = np.asarray(u, dtype=float)
         lo, hi = math.log(self.lower), math.log(self.upper)
-        return np.clip(np.exp(lo + u * (hi - lo)), self.lower, self.upper)
+        return np.clip(portable.exp(lo + u * (hi - lo)), self.lower, self.upper)
 
     def sample(self, rng: np.random.Generator, size: int | tuple[int, ...]) -> NDArray[np.float64]:
         """Independent draws."""
@@ -227,12 +248,13 @@ class LogNormal(_Serial):
         x = np.asarray(x, dtype=float)
         inside = (x >= self.lower) & (x <= self.upper)
         safe = np.where(inside, x, self.lower)
-        log_x = np.clip(np.log(safe), self._log.lower, self._log.upper)
-        return np.where(inside, self._log.logpdf(log_x) - np.log(safe), -np.inf)
+        log_safe = portable.log(safe)
+        log_x = np.clip(log_safe, self._log.lower, self._log.upper)
+        return np.where(inside, self._log.logpdf(log_x) - log_safe, -np.inf)
 
     def ppf(self, u: ArrayLike) -> NDArray[np.float64]:
         """Quantile function for u in [0, 1]."""
-        return np.clip(np.exp(self._log.ppf(u)), self.lower, self.upper)
+        return np.clip(portable.exp(self._log.ppf(u)), self.lower, self.upper)
 
     def sample(self, rng: np.random.Generator, size: int | tuple[int, ...]) -> NDArray[np.float64]:
         """Independent draws (inverse-CDF of ``rng.random``)."""

@@ -18,7 +18,7 @@ scipy's ``RBFInterpolator`` with ``neighbors`` (each prediction solves its own s
 from its nearest training points; :func:`local_tps`), fitted on the distinct starting
 states of the stage's chains and their stored responses: a function of the stage plan alone, so
 a resumed or redelivered batch, or any number of workers, sees the same first stage. The
-system of each row is built (numba loops) and solved (LAPACK, one system at a time) on its own,
+system of each row is built and solved (numba loops, one system at a time) on its own,
 so a row's value does not depend on the other rows of the batch (scipy's own evaluation groups
 rows into matrix products whose rounding does).
 
@@ -27,13 +27,14 @@ A likelihood opts in by implementing :class:`ResponseLikelihood`.
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+
+from scm_core.inference.portable import solve_systems
 
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
@@ -154,20 +155,14 @@ def local_tps(
     (n, d)), in the formulation of scipy's ``RBFInterpolator(kernel="thin_plate_spline",
     degree=1, neighbors=k, smoothing=...)``: polynomial coordinates shifted and scaled to the
     neighbours' box, kernel matrix plus ``smoothing`` on its diagonal. Each row's system is
-    built (numba loops) and solved (LAPACK, one system at a time) on its own, so a row's value
-    does not depend on the other rows. A row whose system is singular gives NaN."""
+    built and solved (numba loops: the same bits on every CPU, :mod:`.portable`) on its own, so
+    a row's value does not depend on the other rows. A row whose system is singular gives NaN."""
     points = np.ascontiguousarray(points, dtype=np.float64)
     values = np.ascontiguousarray(values, dtype=np.float64)
     neighbors = np.ascontiguousarray(neighbors, dtype=np.intp)
     U = np.ascontiguousarray(U, dtype=np.float64)
     A, B, shift, scale = _local_systems(points, values, neighbors, float(smoothing))
-    coef = np.full_like(B, np.nan)
-    try:
-        coef = np.linalg.solve(A, B)
-    except np.linalg.LinAlgError:  # some system is singular: solve row by row
-        for i in range(A.shape[0]):
-            with contextlib.suppress(np.linalg.LinAlgError):
-                coef[i] = np.linalg.solve(A[i], B[i])
+    coef = solve_systems(A, B)  # a singular system's rows are NaN
     return _local_values(points, neighbors, U, coef, shift, scale)
 
 

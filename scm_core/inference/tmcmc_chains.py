@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.inference import portable
 from scm_core.inference.early_rejection import n_parts
 from scm_core.inference.population_jump import JUMP_DOF
 from scm_core.inference.surrogate import ResponseSurrogate, fit_surrogate, supports_surrogate
@@ -179,10 +180,9 @@ def draw_numbers(
         rng = chain_rng(plan.seed, plan.stage, int(c))
         a, b = offsets[k] * K, offsets[k + 1] * K
         Z[a:b] = rng.standard_normal((b - a, d))
-        with np.errstate(divide="ignore"):
-            log_u[a:b] = np.log(rng.random(b - a))
-            if settings.delayed_acceptance:
-                log_u1[a:b] = np.log(rng.random(b - a))
+        log_u[a:b] = portable.log(rng.random(b - a))
+        if settings.delayed_acceptance:
+            log_u1[a:b] = portable.log(rng.random(b - a))
         if jumps:
             jump_at[a:b] = rng.random(b - a) < settings.surrogate_jumps
             chi2[a:b] = rng.chisquare(JUMP_DOF, b - a)

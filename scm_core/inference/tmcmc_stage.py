@@ -56,6 +56,7 @@ from dataclasses import fields
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.inference import portable
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc_chains import chain_rng, run_chains
 from scm_core.inference.tmcmc_moves import move_of, steps_for_acceptance
@@ -209,9 +210,9 @@ def plan_stage(
         # the population jumps' t proposal: the weighted population in walk coordinates
         _, jump_chol = proposal_factor(pop_cov, walk_bounds(prior.bounds, logs))
         jump = {
-            "jump_mean": weights @ walk,
+            "jump_mean": portable.weighted_mean(np.ascontiguousarray(walk), weights),
             "jump_chol": jump_chol,
-            "jump_inv": np.linalg.inv(jump_chol),
+            "jump_inv": portable.lower_inverse(jump_chol),
         }
 
     chain_start, chain_length = move.chains(parent, n, state.acceptance_rate, settings)

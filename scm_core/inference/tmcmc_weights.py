@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import logsumexp
 
+from scm_core.inference import portable
 from scm_core.inference.tmcmc_types import TMCMCSettings
 
 __all__ = [
@@ -39,14 +39,14 @@ def plausibility_weights(
     if not finite.any():
         raise ValueError("all log-likelihoods are -inf: no plausibility weights")
     a = np.where(finite, delta_p * np.where(finite, ll, 0.0), -np.inf)
-    lse = logsumexp(a)
-    w = np.exp(a - lse)
+    lse = portable.logsumexp(a)
+    w = portable.exp(a - lse)
     return w, float(lse - math.log(ll.shape[0]))
 
 
 def _weights_cov(a_finite: NDArray[np.float64], n: int) -> float:
     """Coefficient of variation of exp(a) over n samples, of which len(a_finite) are nonzero."""
-    w = np.exp(a_finite - a_finite.max())
+    w = portable.exp(a_finite - a_finite.max())
     mean = w.sum() / n
     second = (w * w).sum() / n
     var = max(second - mean * mean, 0.0)
@@ -142,14 +142,11 @@ def genealogy_log_evidence_var(
 
 
 def weighted_covariance(X: ArrayLike, weights: ArrayLike) -> NDArray[np.float64]:
-    """Sum_i w_i (x_i - m)(x_i - m)^T with m = sum_i w_i x_i (weights sum to 1)."""
-    X = np.asarray(X, dtype=float)
+    """Sum_i w_i (x_i - m)(x_i - m)^T with m = sum_i w_i x_i (weights normalised to sum to 1),
+    in a fixed order (:mod:`scm_core.inference.portable`: the same bits on every CPU)."""
+    X = np.ascontiguousarray(X, dtype=float)
     w = np.asarray(weights, dtype=float)
-    w = w / w.sum()
-    mean = w @ X
-    dx = X - mean
-    cov = (dx * w[:, None]).T @ dx
-    return 0.5 * (cov + cov.T)
+    return portable.weighted_covariance(X, np.ascontiguousarray(w / w.sum()))
 
 
 def proposal_factor(
@@ -167,7 +164,7 @@ def proposal_factor(
     for _ in range(30):
         c = cov + np.diag(jitter)
         try:
-            return c, np.linalg.cholesky(c)
+            return c, portable.cholesky(c)
         except np.linalg.LinAlgError:
             jitter = jitter * 10.0 + 1e-300
     raise np.linalg.LinAlgError(f"proposal covariance not positive definite (d={d})")

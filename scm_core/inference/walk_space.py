@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.inference import portable
 from scm_core.inference.priors import JointPrior
 
 __all__ = [
@@ -49,8 +50,7 @@ def to_walk(X: NDArray[np.float64], logs: NDArray[np.bool_]) -> NDArray[np.float
     """Walk coordinates of points X (m, d): log of the ``logs`` columns."""
     U = np.array(X, dtype=float, copy=True)
     if logs.any():
-        with np.errstate(divide="ignore", invalid="ignore"):
-            U[:, logs] = np.log(U[:, logs])
+        U[:, logs] = portable.log(U[:, logs])
     return U
 
 
@@ -58,7 +58,7 @@ def from_walk(U: NDArray[np.float64], logs: NDArray[np.bool_]) -> NDArray[np.flo
     """Points from walk coordinates U (m, d) (inverse of :func:`to_walk`)."""
     X = np.array(U, dtype=float, copy=True)
     if logs.any():
-        X[:, logs] = np.exp(X[:, logs])
+        X[:, logs] = portable.exp(X[:, logs])
     return X
 
 

@@ -1,0 +1,79 @@
+"""The same study, bit for bit, whatever CPU computes it (issue 71), shown on this machine by
+making it compute as other CPUs do, each run in its own process: OpenBLAS's kernels for other
+CPUs (``OPENBLAS_CORETYPE`` Haswell, SkylakeX, Zen, Sandybridge), numpy without its AVX-512 and
+AVX2 loops (``NPY_DISABLE_CPU_FEATURES``: a CPU without them), and numba compiling for a generic
+x86-64 CPU and for this one (``NUMBA_CPU_NAME``, each in its own cache). The study is the quick
+case, small (60 samples, three stages after the prior's): stage 0 from the prior, the waste-free
+moves with the surrogate, its local systems and the population jumps, the proposal covariance
+and its Cholesky factor, the weights and the evidence.
+
+What is not covered (docs/layers.md): CPUs without FMA, on which glibc's exp and log take other
+code paths (GLIBC_TUNABLES=glibc.cpu.hwcaps=-FMA changes the bits here).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+NO_AVX512 = "X86_V4,AVX512_ICL,AVX512_SPR"
+
+pytestmark = pytest.mark.slow
+
+#: name -> environment; the numba variants compile into their own caches first, the others
+#: then run on the host cache (BLAS and numpy do not change numba's machine code)
+NUMBA = {"numba generic": {"NUMBA_CPU_NAME": "generic"}, "numba host": {"NUMBA_CPU_NAME": "host"}}
+OTHERS = {
+    **{
+        f"OpenBLAS {c}": {"OPENBLAS_CORETYPE": c}
+        for c in ("Haswell", "SkylakeX", "Zen", "Sandybridge")
+    },
+    "numpy without AVX-512": {"NPY_DISABLE_CPU_FEATURES": NO_AVX512},
+    "numpy without AVX2, OpenBLAS Sandybridge": {
+        "NPY_DISABLE_CPU_FEATURES": "X86_V3," + NO_AVX512,
+        "OPENBLAS_CORETYPE": "Sandybridge",
+    },
+}
+
+
+def _study(out: Path, env: dict[str, str], cache: Path) -> dict[str, dict]:
+    """The stages of the small study run under ``env`` (wall times left out)."""
+    run_env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache), **env}
+    cmd = [sys.executable, "-m", "services.cli", "calibrate", str(ROOT / "examples" / "quick.toml"),
+           "--samples", "60", "--max-stages", "3", "--no-plots", "--quiet", "--workers", "1",
+           "--out", str(out)]  # fmt: skip
+    proc = subprocess.run(cmd, env=run_env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, (env, proc.stderr[-2000:])
+    stages = {}
+    for f in sorted((out / "checkpoints").glob("stage_*.json")):
+        doc = json.loads(f.read_text())
+        doc.pop("wall_time_s", None)
+        stages[f.name] = doc
+    assert len(stages) == 4
+    return stages
+
+
+def test_the_same_study_is_bit_identical_as_other_cpus_compute_it(tmp_path: Path) -> None:
+    caches = {name: tmp_path / f"cache_{k}" for k, name in enumerate(NUMBA)}
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        runs = dict(zip(NUMBA, pool.map(
+            lambda name: _study(tmp_path / name.replace(" ", "_"), NUMBA[name], caches[name]),
+            NUMBA,
+        ), strict=True))  # fmt: skip
+        host_cache = caches["numba host"]
+        runs.update(zip(OTHERS, pool.map(
+            lambda name: _study(tmp_path / name.replace(" ", "_").replace(",", ""),
+                                OTHERS[name], host_cache),
+            OTHERS,
+        ), strict=True))  # fmt: skip
+    reference = runs["numba host"]
+    log_z = reference["stage_003.json"]["state"]["log_evidence"]
+    differ = [name for name, stages in runs.items() if stages != reference]
+    assert not differ, f"{differ} differ from this CPU's run (log Z {log_z!r})"
