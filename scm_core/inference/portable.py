@@ -180,15 +180,15 @@ def lower_inverse(L: NDArray[np.float64]) -> NDArray[np.float64]:
 @njit(cache=True)
 def solve_systems(A: NDArray[np.float64], B: NDArray[np.float64]) -> NDArray[np.float64]:
     """X[i] = A[i]^-1 B[i] for each of the systems A (m, k, k), B (m, k, s): Gaussian
-    elimination with partial pivoting, one system at a time; a singular system's rows are
-    NaN."""
+    elimination with partial pivoting on the augmented rows [A[i] | B[i]], one system at a
+    time, then back substitution; a singular system's rows are NaN."""
     m, k, s = B.shape
+    n = k + s
     out = np.full((m, k, s), np.nan)
-    M = np.empty((k, k))
-    R = np.empty((k, s))
+    M = np.empty((k, n))  # the augmented system, rows contiguous (the updates vectorise)
     for i in range(m):
-        M[:, :] = A[i]
-        R[:, :] = B[i]
+        M[:, :k] = A[i]
+        M[:, k:] = B[i]
         singular = False
         for c in range(k):
             p = c
@@ -201,22 +201,20 @@ def solve_systems(A: NDArray[np.float64], B: NDArray[np.float64]) -> NDArray[np.
                 singular = True
                 break
             if p != c:
-                for j in range(k):
+                for j in range(n):
                     M[c, j], M[p, j] = M[p, j], M[c, j]
-                for j in range(s):
-                    R[c, j], R[p, j] = R[p, j], R[c, j]
+            pivot_row = M[c]
             for r in range(c + 1, k):
-                f = M[r, c] / M[c, c]
+                row = M[r]
+                f = row[c] / pivot_row[c]
                 if f != 0.0:
-                    for j in range(c + 1, k):
-                        M[r, j] -= f * M[c, j]
-                    for j in range(s):
-                        R[r, j] -= f * R[c, j]
+                    for j in range(c + 1, n):
+                        row[j] -= f * pivot_row[j]
         if singular:
             continue
         for c in range(k - 1, -1, -1):
             for j in range(s):
-                t = R[c, j]
+                t = M[c, k + j]
                 for q in range(c + 1, k):
                     t -= M[c, q] * out[i, q, j]
                 out[i, c, j] = t / M[c, c]

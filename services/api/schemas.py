@@ -145,7 +145,9 @@ class _StudyFields(_In):
 
     model_config = ConfigDict(json_schema_extra=PRESET_OR_CASE)
 
-    preset: str | None = Field(None, description="The paper's case: '1', '2a' or '2b'.")
+    preset: str | None = Field(
+        None, description="A preset: 'quick', or the paper's '1', '2a', '2b'."
+    )
     case: dict[str, Any] | None = Field(
         None, description="A case document (the TOML case file as JSON); data.files is ignored."
     )

@@ -24,7 +24,8 @@ def base_case(preset: str | None, document: Mapping[str, Any] | None) -> CaseDef
     """The case named by a request: a preset of the paper or a case document (exactly one)."""
     if (preset is None) == (document is None):
         raise StudyRequestError(
-            "preset: give exactly one of 'preset' (a name: 1, 2a, 2b) or 'case' (a case document)"
+            "preset: give exactly one of 'preset' (a name: quick, 1, 2a, 2b) or 'case' (a case "
+            "document)"
         )
     if preset is not None:
         try:
