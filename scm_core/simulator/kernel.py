@@ -36,14 +36,9 @@ from .contact import (
     evaluate_contact,
 )
 from .cycles import cycles
-from .deformation import (
-    bow_wave,
-    commit_contact,
-    erode,
-    erosion_scratch,
-    flow_and_deposit,
-    heap_passive_pressure,
-)
+from .deformation import bow_wave, commit_contact, heap_passive_pressure
+from .erosion import erode, erosion_scratch
+from .flow import flow_and_deposit
 from .geometry import tip_circle, wheel_envelope
 from .layout import (
     P_B,

@@ -1,7 +1,7 @@
 """The kernel's state as named structures: named tuples of arrays, which numba passes to its
 compiled functions as plain structs (fields resolved at compile time). Taking an array out of
 one costs a reference count, paid per call: the functions called many times per step that do
-(contact.evaluate_contact and its _footprint, deformation._slide) are inlined into their
+(contact.evaluate_contact and its _footprint, erosion._slide) are inlined into their
 callers (``inline="always"``), where numba prunes those counts; measured, the kernel is then
 as fast as with its arrays passed one by one (benchmarks/bench_simulator.py).
 

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
-from scm_core.simulator.deformation import EROSION_TOL, erode, erosion_scratch, flow_and_deposit
+from scm_core.simulator.erosion import EROSION_TOL, erode, erosion_scratch
+from scm_core.simulator.flow import flow_and_deposit
 from scm_core.simulator.layout import pack
 from scm_core.simulator.state import Columns, FlowScratch, Ground, Marks, Window
 
