@@ -9,6 +9,7 @@ sampler's own plan of a stage and the measured cost of a run (``benchmarks/bench
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -152,6 +153,7 @@ def stage_runs(case: CaseDefinition) -> int:
     return int(np.sum(lengths))
 
 
+@functools.cache  # the presets do not change: the dashboard's form asks on every load
 def preset_cost(key: str, n_samples: int | None = None) -> PresetCost:
     """The expected cost of a study of preset ``key`` (:class:`PresetCost`), at its own
     samples per stage or ``n_samples``: the first stage's n runs plus the measured stages
