@@ -64,6 +64,7 @@ def database(tmp_path: Path) -> Iterator[Path]:
         subprocess.run(["chattr", "-i", *files], capture_output=True)
         holder.stdin.close()
         holder.wait(timeout=30)
+        holder.stdout.close()
 
 
 def _files(path: Path) -> list[Path]:
