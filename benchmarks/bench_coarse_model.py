@@ -39,7 +39,7 @@ from services.cli.parent import load_parent
 def _log_likelihood(model: StudyModel, X: np.ndarray) -> tuple[np.ndarray, float]:
     """(log L (m,), wall time per row [s])."""
     t0 = time.perf_counter()
-    ll, _ = model.log_likelihood_batch(X)
+    ll = model.log_likelihood_batch(X)[0]
     return np.asarray(ll, float), (time.perf_counter() - t0) / len(X)
 
 

@@ -158,7 +158,9 @@ def run_form(
             "exponent": float(s.exponent),
             "model_runs": int(s.model_runs),
             "acceptance": float(s.acceptance_rate),
-            "inner_acceptance": s.inner_accepted / s.inner_proposed if s.inner_proposed else None,
+            "inner_acceptance": s.surrogate_steps_accepted / s.surrogate_steps
+            if s.surrogate_steps
+            else None,
             "first_stage_rejections": int(s.first_stage_rejections),
             "surrogate_error": s.surrogate_error_sum / s.surrogate_checks
             if s.surrogate_checks
@@ -172,7 +174,7 @@ def run_form(
     screened = sum(s.first_stage_rejections for s in res.stages)
     settings = case.tmcmc_settings()
     per_chain = WasteFreeMove.states_per_chain(settings) if settings.moves == "waste-free" else 0
-    inner = sum(s.inner_proposed for s in res.stages)
+    inner = sum(s.surrogate_steps for s in res.stages)
     return {
         "form": form,
         "n_samples": n_samples,

@@ -16,7 +16,8 @@ condition (give each condition its own study to relax that).
 
 A run that fails (status != "ok") or whose configuration is invalid (e.g. a calibrated R that
 makes the grousers too high for the rim: pydantic refuses it) gives log L = -inf and NaN
-responses; TMCMC counts those as failed runs. Nothing is raised for a bad parameter vector.
+responses, and its reason (:mod:`scm_core.calibration.failures`) goes with the output; TMCMC
+counts those as failed runs, by reason. Nothing is raised for a bad parameter vector.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ from scm_core.simulator.layout import N_PARAMS, pack
 from scm_core.validation_text import one_line
 
 from .case import CALIBRATABLE, RESPONSES, RIG_FIELDS, SOIL_FIELDS, WHEEL_FIELDS, CaseDefinition
+from .failures import INVALID, failure_of
 
 __all__ = ["DatasetTerms", "StudyModel", "dataset_terms"]
 
@@ -261,25 +263,47 @@ class StudyModel:
         measurement offsets; NaN where a run failed or was invalid, or for a dataset not in
         ``datasets``, default all) and the per-row ok mask (m, n_datasets). A dataset's means
         do not depend on which others are simulated with it."""
+        means, ok, _ = self.simulate(X, datasets)
+        return means, ok
+
+    def simulate(
+        self, X: ArrayLike, datasets: Sequence[int] | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.str_]]:
+        """:meth:`simulate_means` and why each run failed (m, n_datasets): the simulator's
+        status (``bottomed_out``...), :data:`~scm_core.calibration.failures.INVALID` for a
+        configuration that could not be built, "" where the run did not fail or was not
+        asked for."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         chosen = list(range(self.n_datasets)) if datasets is None else list(datasets)
         m, n = X.shape[0], len(chosen)
         prms, valid = self.pack_rows(X, chosen)
         sim = np.full((m * n, 3), np.nan)
         sim_ok = np.zeros(m * n, dtype=bool)
+        why = np.where(valid, "", INVALID).astype(object)
         rows = np.flatnonzero(valid)
         if rows.size:
             batch = simulate_packed(prms[rows])
             sim[rows] = batch.means
             sim_ok[rows] = batch.ok
+            why[rows] = [failure_of(status) for status in batch.status]
         sim[~sim_ok] = np.nan
         means = np.full((m, self.n_datasets, 3), np.nan)
         ok = np.zeros((m, self.n_datasets), dtype=bool)
+        failure = np.full((m, self.n_datasets), "", dtype=object)
         means[:, chosen] = sim.reshape(m, n, 3)
         ok[:, chosen] = sim_ok.reshape(m, n)
+        failure[:, chosen] = why.reshape(m, n)
         for i, col, fixed in self.offsets:
             means[:, :, i] += (X[:, col] if col is not None else fixed)[:, None]
-        return means, ok
+        return means, ok, failure.astype(str)
+
+    def first_failure(self, failure: NDArray[np.str_]) -> NDArray[np.str_]:
+        """Per point, the reason of its first failed run in :attr:`part_order` (the order
+        early rejection runs the datasets in, so both paths name the same run); "" if none."""
+        out = np.full(failure.shape[0], "", dtype=object)
+        for k in reversed(self.part_order):
+            out = np.where(failure[:, k] != "", failure[:, k], out)
+        return out.astype(str)
 
     def sigmas(self, X: ArrayLike) -> NDArray[np.float64]:
         """Prediction-error sigmas (m, n_used) of the used responses."""
@@ -315,10 +339,14 @@ class StudyModel:
             total = total + np.asarray(ll, dtype=float).reshape(-1)
         return np.where(np.isnan(total), -np.inf, total)
 
-    def log_likelihood_batch(self, X: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(log L (m,), responses (m, 3 * n_datasets)) for parameter vectors X (m, d)."""
+    def log_likelihood_batch(
+        self, X: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], None, NDArray[np.str_]]:
+        """(log L (m,), responses (m, 3 * n_datasets), no base density, why each failed run
+        failed (m,), see :meth:`first_failure`) for parameter vectors X (m, d)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        return self._output(X, self.simulate_means(X)[0])
+        means, _, failure = self.simulate(X)
+        return (*self._output(X, means), None, self.first_failure(failure))
 
     def _output(
         self, X: NDArray[np.float64], means: NDArray[np.float64]
@@ -366,11 +394,13 @@ class StudyModel:
 
     def run_part(
         self, X: NDArray[np.float64], k: int
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(log-likelihood term of dataset k (m,), its lab-side means (m, 3))."""
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.str_]]:
+        """(log-likelihood term of dataset k (m,), its lab-side means (m, 3), why its failed
+        runs failed (m,))."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        means, _ = self.simulate_means(X, [k])
-        return self.log_likelihood_from_means(means, self.sigmas(X), [k]), means[:, k]
+        means, _, failure = self.simulate(X, [k])
+        term = self.log_likelihood_from_means(means, self.sigmas(X), [k])
+        return term, means[:, k], failure[:, k]
 
     def part_bound(self, X: NDArray[np.float64], k: int) -> NDArray[np.float64]:
         """Largest log-likelihood term dataset k can have at X (zero residuals); ``inf`` where

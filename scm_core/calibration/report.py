@@ -46,11 +46,12 @@ def stage_table(
     result: TMCMCResult, wall_times: Sequence[float] | None = None
 ) -> list[dict[str, Any]]:
     """One row per stage: stage, exponent, beta, acceptance, ESS, unique samples, model runs,
-    failed runs, proposals outside the support, part runs (simulator runs), early rejections,
-    part runs saved, log evidence so far, wall time [s]."""
+    failed runs (and by reason), proposals outside the support, part runs (simulator runs),
+    early rejections, part runs saved, log evidence so far, wall time [s]."""
     rows = []
     for i, row in enumerate(result.diagnostics()):
         out = {k: (int(v) if isinstance(v, int) else finite_or_none(v)) for k, v in row.items()}
+        out["failed_by"] = result.stages[i].failed_by.to_dict()
         if wall_times is not None and i < len(wall_times):
             out["wall_time_s"] = finite_or_none(wall_times[i])
         rows.append(out)
@@ -129,6 +130,7 @@ def study_summary(
         "simulations": int(sum(s.part_runs for s in result.stages)),
         "simulations_saved": int(sum(s.part_runs_saved for s in result.stages)),
         "failed_runs": int(result.n_failed_runs),
+        "failed_by": result.failed_by.to_dict(),
         "wall_time_s": finite_or_none(sum(wall_times)) if wall_times else None,
         "settings": settings,
         "datasets": datasets,

@@ -42,19 +42,18 @@ from scm_core.simulator import simulate_packed
 from scm_core.simulator.layout import N_PARAMS, STATUS_NAMES, pack
 
 from .case import CALIBRATABLE, RESPONSES, CaseDefinition
+from .failures import INVALID_CODE, failure_counts
 from .model import DatasetTerms, build_configs, dataset_terms
 
 __all__ = [
     "DEFAULT_BOUNDS",
     "FACTOR_UNITS",
-    "INVALID_CONFIGURATION",
     "TABLE1_PARAMETERS",
     "MorrisModel",
     "MorrisSettings",
     "SensitivityDesign",
     "SensitivityResult",
     "analyze_sensitivity",
-    "failure_counts",
     "run_sensitivity",
     "screening_factors",
     "sensitivity_design",
@@ -118,22 +117,10 @@ def screening_factors(
     return names, b, log
 
 
-#: a run's status code: -1 the simulator configuration could not be built, else the index of
-#: its simulator status in STATUS_NAMES (0: ok)
-INVALID_CONFIGURATION = -1
-
-
-def failure_counts(status: ArrayLike) -> dict[str, int]:
-    """Failed runs by reason, from status codes (see :data:`INVALID_CONFIGURATION`)."""
-    codes, counts = np.unique(np.asarray(status, dtype=np.int64), return_counts=True)
-    names = {INVALID_CONFIGURATION: "invalid_configuration", **dict(enumerate(STATUS_NAMES))}
-    return {names[int(c)]: int(k) for c, k in zip(codes, counts, strict=True) if c != 0}
-
-
 class MorrisModel:
     """Picklable ``func_batch``: factor points (m, d) -> (steady means (m, 3) [N, N m, m]
     under one dataset's conditions, NaN for failed or invalid runs; status codes (m,), see
-    :data:`INVALID_CONFIGURATION`), rows run in one
+    :data:`~scm_core.calibration.failures.INVALID_CODE`), rows run in one
     :func:`~scm_core.simulator.simulate_packed` call."""
 
     def __init__(
@@ -179,7 +166,7 @@ class MorrisModel:
             prms[i] = pack(*cfg)
             valid[i] = True
         out = np.full((X.shape[0], 3), np.nan)
-        status = np.full(X.shape[0], INVALID_CONFIGURATION, dtype=np.int64)
+        status = np.full(X.shape[0], INVALID_CODE, dtype=np.int64)
         rows = np.flatnonzero(valid)
         if rows.size:
             res = simulate_packed(prms[rows])
@@ -209,7 +196,7 @@ class SensitivityResult:
     levels: int
     seed: int
     dataset: str
-    status: NDArray[np.int64] | None = None  # per point (see INVALID_CONFIGURATION)
+    status: NDArray[np.int64] | None = None  # per point (see failures.INVALID_CODE)
 
     @property
     def n_runs(self) -> int:

@@ -24,8 +24,8 @@ __all__ = ["UpdateLikelihood"]
 
 class UpdateLikelihood:
     """``model`` over the old datasets (the first ``n_old``) and then the new ones: X (m, d) ->
-    (log L(new) (m,), responses (m, 3 n_datasets), log L(old) (m,)). One simulator run per
-    point covers all datasets, as in a joint calibration. Picklable."""
+    (log L(new) (m,), responses (m, 3 n_datasets), log L(old) (m,), failure reasons (m,)). One
+    simulator run per point covers all datasets, as in a joint calibration. Picklable."""
 
     def __init__(self, model: StudyModel, n_old: int) -> None:
         if not 0 < n_old < model.n_datasets:
@@ -37,9 +37,11 @@ class UpdateLikelihood:
 
     def __call__(
         self, X: ArrayLike
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.str_]]:
+        """(log L(new), responses, log L(old), why each failed run failed) at X (m, d)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        return self._output(X, self.model.simulate_means(X)[0])
+        means, _, failure = self.model.simulate(X)
+        return (*self._output(X, means), self.model.first_failure(failure))
 
     def _output(
         self, X: NDArray[np.float64], means: NDArray[np.float64]
@@ -92,7 +94,7 @@ class UpdateLikelihood:
 
     def run_part(
         self, X: NDArray[np.float64], k: int
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.str_]]:
         return self.model.run_part(X, k)
 
     def part_bound(self, X: NDArray[np.float64], k: int) -> NDArray[np.float64]:

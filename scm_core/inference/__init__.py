@@ -62,12 +62,14 @@ from scm_core.inference.tmcmc_stage import (
     run_chains,
     stage_status,
 )
+from scm_core.inference.tmcmc_types import Failures, StageCounts, count_fields
 
 __all__ = [
     "LIKELIHOODS",
     "LOG_SCALE_KINDS",
     "TABLE2_NOMINAL",
     "ChainBatchResult",
+    "Failures",
     "JointPrior",
     "LogNormal",
     "LogUniform",
@@ -76,6 +78,7 @@ __all__ = [
     "PopulationStart",
     "PosteriorSummary",
     "Resume",
+    "StageCounts",
     "StageHooks",
     "StagePlan",
     "StageState",
@@ -84,6 +87,7 @@ __all__ = [
     "TruncatedNormal",
     "Uniform",
     "chain_batches",
+    "count_fields",
     "credible_interval",
     "design_from_points",
     "distribution_from_dict",

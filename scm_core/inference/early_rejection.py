@@ -40,7 +40,9 @@ class PartedLikelihood(Protocol):
 
     ``part_order``: the order to run the parts in (cheapest first); ``part_in_base``: part k
     belongs to the base density b of an update (weight 1, not tempered). ``run_part(X, k)``:
-    (log term of part k (m,), its responses (m, r_k)); a failed run gives a non-finite term.
+    (log term of part k (m,), its responses (m, r_k)) or (term, responses, failure (m,): why a
+    run failed, in the model's words, "" where it did not); a failed run gives a non-finite
+    term.
     ``part_bound(X, k)``: an upper bound (m,) of part k's log term at X (``inf`` if none).
     ``assemble(X, responses)``: from every part's responses (list over k, canonical order), the
     exact output of ``f(X)`` (bit-identical: the same arithmetic in the same order).
@@ -76,7 +78,9 @@ class StagedEvaluation:
     ``X[complete]``, None if none did); ``rejected`` (m,): proposals rejected before their last
     part (the full evaluation would reject them too); ``part_runs``: parts run in total;
     ``part_runs_saved``: parts not run thanks to the early test; ``failed_rejected``: rejected
-    proposals one of whose parts failed (a failed run ends a proposal at once).
+    proposals one of whose parts failed (a failed run ends a proposal at once); ``failure``
+    (m,): the reason of each proposal's first failed run where the parts give reasons (""
+    where none failed), else None.
     """
 
     complete: NDArray[np.bool_]
@@ -85,6 +89,7 @@ class StagedEvaluation:
     part_runs: int
     part_runs_saved: int
     failed_rejected: int
+    failure: NDArray[np.str_] | None = None
 
 
 def evaluate_staged(
@@ -109,6 +114,7 @@ def evaluate_staged(
     alive = np.ones(m, dtype=bool)
     rejected = np.zeros(m, dtype=bool)
     failed = np.zeros(m, dtype=bool)
+    reasons: NDArray[np.object_] | None = None
     done_sum = np.zeros(m)
     done_abs = np.zeros(m)
     left = bounds.sum(axis=1)
@@ -118,7 +124,12 @@ def evaluate_staged(
         left = left - bounds[:, k]
         if rows.size == 0:
             break
-        term, resp = f.run_part(X[rows], k)
+        term, resp, *why = f.run_part(X[rows], k)
+        if why:
+            if reasons is None:
+                reasons = np.full(m, "", dtype=object)
+            first = reasons[rows] == ""
+            reasons[rows[first]] = np.asarray(why[0], dtype=object).reshape(-1)[first]
         term = np.asarray(term, dtype=float).reshape(-1)
         resp = np.asarray(resp, dtype=float).reshape(rows.size, -1)
         if responses[k] is None:
@@ -146,6 +157,9 @@ def evaluate_staged(
         idx = np.flatnonzero(complete)
         output = f.assemble(X[idx], [r[idx] for r in responses])  # type: ignore[index]
     saved = m * n_parts - runs
+    failure = None
+    if reasons is not None:
+        failure = np.where(failed, reasons, "").astype(str)
     return StagedEvaluation(
-        complete, rejected, output, runs, saved, int(np.count_nonzero(rejected & failed))
+        complete, rejected, output, runs, saved, int(np.count_nonzero(rejected & failed)), failure
     )

@@ -27,6 +27,7 @@ from scm_core.inference.tmcmc_stage import (
     chain_batches,
     run_chains,
 )
+from scm_core.inference.tmcmc_types import Failures, count_fields
 
 __all__ = [
     "PopulationStart",
@@ -118,6 +119,11 @@ class TMCMCResult:
     def n_failed_runs(self) -> int:
         return int(sum(s.failed_runs for s in self.stages))
 
+    @property
+    def failed_by(self) -> Failures:
+        """Failed model runs of all stages by reason."""
+        return sum((s.failed_by for s in self.stages), Failures())
+
     def to_dict(self) -> dict[str, Any]:
         """Strict-JSON dict of names, status and every stage; :meth:`from_dict` is exact."""
         return {
@@ -154,24 +160,19 @@ class TMCMCResult:
                 "ess": s.ess,
                 "n_unique": s.n_unique,
                 "n_steps": s.n_steps,
-                "model_runs": s.model_runs,
-                "failed_runs": s.failed_runs,
-                "out_of_support": s.out_of_support,
-                "part_runs": s.part_runs,
-                "early_rejections": s.early_rejections,
-                "part_runs_saved": s.part_runs_saved,
-                "first_stage_rejections": s.first_stage_rejections,
-                "surrogate_checks": s.surrogate_checks,
+                **{name: getattr(s, name) for name, _ in count_fields()},
                 "surrogate_error": (
                     s.surrogate_error_sum / s.surrogate_checks if s.surrogate_checks else math.nan
                 ),
-                "surrogate_steps": s.inner_proposed,
                 "surrogate_acceptance": (
-                    s.inner_accepted / s.inner_proposed if s.inner_proposed else math.nan
+                    s.surrogate_steps_accepted / s.surrogate_steps
+                    if s.surrogate_steps
+                    else math.nan
                 ),
-                "population_jumps": s.jump_proposed,
                 "population_jump_acceptance": (
-                    s.jump_accepted / s.jump_proposed if s.jump_proposed else math.nan
+                    s.population_jumps_accepted / s.population_jumps
+                    if s.population_jumps
+                    else math.nan
                 ),
                 "log_evidence": s.log_evidence,
             }

@@ -6,7 +6,6 @@ as a whole."""
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -156,7 +155,7 @@ def run_chains(
         proposed=proposed,
         surrogate_error=state.error,
         **_evaluated(state, idx.size, plan.start_samples.shape[1]),
-        **dataclasses.asdict(state.counters),
+        **state.counters.counts().count_values(),
     )
 
 

@@ -49,9 +49,9 @@ Three move schemes (``TMCMCSettings.moves``):
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
-from dataclasses import fields
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,12 +67,12 @@ from scm_core.inference.tmcmc_stage0 import (
     initial_state,
     stage_rng,
 )
-from scm_core.inference.tmcmc_steps import ChainCounters
 from scm_core.inference.tmcmc_types import (
     MOVES,
     ChainBatchResult,
     LogLikelihoodBatch,
     PointEvaluation,
+    StageCounts,
     StagePlan,
     StageState,
     TMCMCSettings,
@@ -301,12 +301,14 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
     accepted = int(sum(int(r.accepted.sum()) for r in results))
     proposed = int(sum(int(r.proposed.sum()) for r in results))
     acceptance = accepted / proposed if proposed else math.nan
-    n = {c.name: int(sum(getattr(r, c.name) for r in results)) for c in fields(ChainCounters)}
+    n = functools.reduce(StageCounts.plus, (r.counts() for r in results), StageCounts())
     # the proposal scale follows the random-walk steps it drives: a surrogate transition's
     # inner steps (less its population jumps) when there are any, else the moves themselves
-    walk_proposed = n["inner_proposed"] - n["jump_proposed"]
+    walk_proposed = n.surrogate_steps - n.population_jumps
     step_acceptance = (
-        (n["inner_accepted"] - n["jump_accepted"]) / walk_proposed if walk_proposed else acceptance
+        (n.surrogate_steps_accepted - n.population_jumps_accepted) / walk_proposed
+        if walk_proposed
+        else acceptance
     )
     stalled = (plan.exponent - plan.prev_exponent) < plan.settings.stall_tol
     return StageState(
@@ -332,7 +334,7 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
         stall_count=plan.prev_stall_count + 1 if stalled else 0,
         seed=plan.seed,
         surrogate_error_sum=float(np.sum(_chain_ordered(results, "surrogate_error"))),
-        **n,
+        **n.count_values(),
         eve=None if plan.start_eve is None else plan.start_eve[row_chain[order]],
         **_training_set(plan, results),
     )

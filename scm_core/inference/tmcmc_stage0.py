@@ -18,6 +18,7 @@ from scm_core.inference.early_rejection import is_parted, n_parts
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc_eval import batch_output, call_batch
 from scm_core.inference.tmcmc_types import (
+    Failures,
     LogLikelihoodBatch,
     PointEvaluation,
     StageState,
@@ -85,17 +86,37 @@ def evaluate_points(
         return PointEvaluation(np.empty(0), None, 0, model_runs=0)
     f = log_likelihood_batch
     if not known_parts or not is_parted(f):
-        ll, resp, n_failed, base = call_batch(f, X)
-        return PointEvaluation(ll, resp, n_failed, base, part_runs=m * n_parts(f), model_runs=m)
+        ll, resp, n_failed, base, failure = call_batch(f, X)
+        return PointEvaluation(
+            ll,
+            resp,
+            n_failed,
+            base,
+            part_runs=m * n_parts(f),
+            model_runs=m,
+            failed_by=Failures.of([] if failure is None else failure.tolist()),
+        )
     responses, runs = [], 0
+    reasons = np.full(m, "", dtype=object)
     for k in range(n_parts(f)):
         r = known_parts.get(k)
         if r is None or r.shape[0] != m or not np.all(np.isfinite(r)):
-            r = f.run_part(X, k)[1]
+            _, r, *why = f.run_part(X, k)
+            if why:  # the first failed part's reason
+                reasons = np.where(reasons == "", np.asarray(why[0], dtype=object), reasons)
             runs += m
         responses.append(np.asarray(r, dtype=float))
-    ll, resp, n_failed, base = batch_output(f.assemble(X, responses), X)
-    return PointEvaluation(ll, resp, n_failed, base, part_runs=runs, model_runs=m)
+    ll, resp, n_failed, base, _ = batch_output(f.assemble(X, responses), X)
+    reasons = np.where(np.isfinite(ll), "", reasons)
+    return PointEvaluation(
+        ll,
+        resp,
+        n_failed,
+        base,
+        part_runs=runs,
+        model_runs=m,
+        failed_by=Failures.of(reasons.tolist()),
+    )
 
 
 def _scatter(ev: PointEvaluation, rows: NDArray[np.int64], m: int) -> PointEvaluation:
@@ -115,6 +136,7 @@ def _scatter(ev: PointEvaluation, rows: NDArray[np.int64], m: int) -> PointEvalu
         spread(ev.log_base),
         part_runs=ev.part_runs,
         model_runs=ev.model_runs,
+        failed_by=ev.failed_by,
     )
 
 
@@ -167,6 +189,7 @@ def initial_state(
         log_evidence_var=0.0,
         model_runs=int(sum(e.runs for e in evaluations)),
         failed_runs=int(sum(e.failed_runs for e in evaluations)),
+        failed_by=sum((e.failed_by for e in evaluations), Failures()),
         proposals=0,
         accepted=0,
         out_of_support=0,

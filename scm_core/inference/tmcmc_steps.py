@@ -28,7 +28,13 @@ from scm_core.inference.early_rejection import evaluate_staged
 from scm_core.inference.population_jump import jump_log_density, jump_proposal
 from scm_core.inference.surrogate import ResponseSurrogate
 from scm_core.inference.tmcmc_eval import batch_output, tempered
-from scm_core.inference.tmcmc_types import LogLikelihoodBatch, StagePlan
+from scm_core.inference.tmcmc_types import (
+    Failures,
+    LogLikelihoodBatch,
+    StageCounts,
+    StagePlan,
+    count_fields,
+)
 from scm_core.inference.walk_space import from_walk, log_proposal_ratio, rows_times, to_walk
 
 __all__ = [
@@ -45,24 +51,32 @@ __all__ = [
 ]
 
 
-@dataclass
 class ChainCounters:
-    """Batch totals of one batch's chains; :class:`~scm_core.inference.tmcmc_types.
-    ChainBatchResult` and :class:`~scm_core.inference.tmcmc_types.StageState` carry fields of
-    the same names (see there)."""
+    """A batch's counters as its moves run: :class:`~scm_core.inference.tmcmc_types.
+    StageCounts`' fields, added to with :meth:`add` and :meth:`failed`, read out with
+    :meth:`counts`."""
 
-    model_runs: int = 0
-    failed_runs: int = 0
-    out_of_support: int = 0
-    part_runs: int = 0
-    part_runs_saved: int = 0
-    early_rejections: int = 0
-    first_stage_rejections: int = 0
-    surrogate_checks: int = 0
-    inner_accepted: int = 0
-    inner_proposed: int = 0
-    jump_accepted: int = 0
-    jump_proposed: int = 0
+    def __init__(self) -> None:
+        self._n = {name: 0 for name, _ in count_fields()}
+        self._reasons = Failures()
+
+    def add(self, **counts: int) -> None:
+        """Add to the named counters (a name StageCounts lacks is an error)."""
+        for name, k in counts.items():
+            if name not in self._n:
+                raise KeyError(f"no stage counter {name!r}")
+            self._n[name] += int(k)
+
+    def failed(self, reasons: NDArray[np.str_] | None) -> None:
+        """Count the reasons of failed runs (one per run, "" for a run that did not fail)."""
+        if reasons is not None:
+            self._reasons = self._reasons + Failures.of(np.asarray(reasons).tolist())
+
+    def __getitem__(self, name: str) -> int:
+        return self._n[name]
+
+    def counts(self) -> StageCounts:
+        return StageCounts(**self._n, failed_by=self._reasons)
 
 
 @dataclass(frozen=True)
@@ -154,7 +168,7 @@ def propose(
             )
     lp_prop = np.asarray(plan.prior.log_pdf(y_prop), dtype=float)
     ok = np.isfinite(lp_prop) & np.asarray(plan.prior.in_support(y_prop))
-    state.counters.out_of_support += ok.size - int(np.count_nonzero(ok))
+    state.counters.add(out_of_support=ok.size - int(np.count_nonzero(ok)))
     return y_prop, np.where(ok, lp_prop, -np.inf), ok, q_ratio
 
 
@@ -170,7 +184,7 @@ def surrogate_target(
     finite), log L~) at X, from the surrogate's responses."""
     if X.shape[0] == 0:
         return np.empty(0), np.empty(0)
-    ll, _, _, base = batch_output(f.from_responses(X, sur.predict(X)), X)
+    ll, _, _, base, _ = batch_output(f.from_responses(X, sur.predict(X)), X)
     with np.errstate(invalid="ignore"):
         part = tempered(np.zeros(X.shape[0]) if base is None else base, ll, exponent)
     return log_prior + np.where(np.isfinite(part), part, floor), ll
@@ -228,27 +242,32 @@ def model_step(
             ev = evaluate_staged(ctx.f, x_prop[run], threshold, p)
             evaluated = run.copy()
             evaluated[run] = ev.complete
-            n.part_runs += ev.part_runs
-            n.part_runs_saved += ev.part_runs_saved
-            n.early_rejections += int(np.count_nonzero(ev.rejected))
-            n.failed_runs += ev.failed_rejected
+            n.add(
+                part_runs=ev.part_runs,
+                part_runs_saved=ev.part_runs_saved,
+                early_rejections=int(np.count_nonzero(ev.rejected)),
+                failed_runs=ev.failed_rejected,
+            )
+            n.failed(ev.failure)
             out = ev.output
         else:
             out = ctx.f(x_prop[run])
-            n.part_runs += n_run * ctx.parts
-        n.model_runs += n_run
+            n.add(part_runs=n_run * ctx.parts)
+        n.add(model_runs=n_run)
         lp_prop[run & ~evaluated] = -np.inf
         if out is not None:
-            ll_ok, resp_ok, n_failed, base_ok = batch_output(out, x_prop[evaluated])
+            ll_ok, resp_ok, n_failed, base_ok, failure = batch_output(out, x_prop[evaluated])
             ll_prop[evaluated] = ll_ok
             if base_ok is not None:
                 lp_prop[evaluated] = lp_prop[evaluated] + base_ok
-            n.failed_runs += n_failed
+            n.add(failed_runs=n_failed)
+            if not ctx.staged:  # a staged evaluation's reasons are its parts' (above)
+                n.failed(failure)
             resp_prop = _record_run(state, active, evaluated, x_prop, resp_ok)
             if sur_ll is not None:
                 diff = np.abs(ll_ok - sur_ll[evaluated])
                 fin = np.isfinite(diff)
-                n.surrogate_checks += int(np.count_nonzero(fin))
+                n.add(surrogate_checks=int(np.count_nonzero(fin)))
                 chains = active[evaluated][fin]
                 state.error[chains] = state.error[chains] + diff[fin]
     with np.errstate(invalid="ignore"):
@@ -290,8 +309,10 @@ class PlainSteps:
             )
             moved |= acc
             if self.count_inner:
-                state.counters.inner_proposed += active.size
-                state.counters.inner_accepted += int(np.count_nonzero(acc))
+                state.counters.add(
+                    surrogate_steps=active.size,
+                    surrogate_steps_accepted=int(np.count_nonzero(acc)),
+                )
         return moved
 
 
@@ -326,18 +347,19 @@ class SurrogateTransition:
             )
             acc = ok & (num.log_u1[rows] < s_prop - sur_y + q_ratio)
             if ctx.jumps:
-                n.jump_proposed += int(np.count_nonzero(num.jump_at[rows]))
-                n.jump_accepted += int(np.count_nonzero(acc & num.jump_at[rows]))
+                n.add(
+                    population_jumps=int(np.count_nonzero(num.jump_at[rows])),
+                    population_jumps_accepted=int(np.count_nonzero(acc & num.jump_at[rows])),
+                )
             y[acc], lp_y[acc], sur_y[acc], sur_ll[acc] = (
                 y_prop[acc],
                 lp_prop[acc],
                 s_prop[acc],
                 ll_tilde[acc],
             )
-            n.inner_proposed += active.size
-            n.inner_accepted += int(np.count_nonzero(acc))
+            n.add(surrogate_steps=active.size, surrogate_steps_accepted=int(np.count_nonzero(acc)))
         run = np.any(y != state.x[active], axis=1)
-        n.first_stage_rejections += active.size - int(np.count_nonzero(run))
+        n.add(first_stage_rejections=active.size - int(np.count_nonzero(run)))
         gate = np.where(run, sur_y - self.sur_x[active], 0.0)
         rows = ctx.rows(active, t, 0)
         acc = model_step(ctx, state, active, y, lp_y, run, num.log_u[rows], gate, sur_ll)

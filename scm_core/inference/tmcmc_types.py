@@ -8,8 +8,8 @@ point evaluations. Each is a frozen dataclass whose strict-JSON form (``to_dict`
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field, fields
 from typing import Any, TypeVar
 
 import numpy as np
@@ -21,22 +21,28 @@ from scm_core.inference.priors import JointPrior
 __all__ = [
     "MOVES",
     "ChainBatchResult",
+    "Failures",
     "LogLikelihoodBatch",
     "PointEvaluation",
+    "StageCounts",
     "StagePlan",
     "StageState",
     "TMCMCSettings",
+    "count_fields",
 ]
 
 MOVES = ("resample-move", "leader", "waste-free")
 RESAMPLING = ("systematic", "multinomial")
 
-#: X (m, d) -> log L (m,), or (log L, responses (m, k)), or (log L, responses, log b (m,))
+#: X (m, d) -> log L (m,), or (log L, responses (m, k)), or (log L, responses, log b (m,) or
+#: None), or (log L, responses, log b or None, failure (m,)): why each failed run failed, in the
+#: model's words (a str per point, "" where the run did not fail; :class:`Failures` counts them)
 LogLikelihoodBatch = Callable[
     [NDArray[np.float64]],
     NDArray[np.float64]
     | tuple[NDArray[np.float64], NDArray[np.float64]]
-    | tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+    | tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]
+    | tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None, NDArray[np.str_]],
 ]
 
 _T = TypeVar("_T", bound="_Fields")
@@ -186,8 +192,127 @@ class TMCMCSettings(_Fields):
             )
 
 
-@dataclass(frozen=True, eq=False)
-class StageState(_Fields):
+@dataclass(frozen=True)
+class Failures:
+    """Failed model runs by reason, in the model's words (a study's: the simulator's status,
+    e.g. "bottomed_out", or "invalid_configuration"); reasons with a count only, by name.
+    Written as a JSON object ``{reason: count}``; ``a + b`` adds the counts."""
+
+    counts: tuple[tuple[str, int], ...] = ()
+
+    @classmethod
+    def of(cls, reasons: Iterable[str] | Mapping[str, int]) -> Failures:
+        """From a mapping {reason: count} or one reason per failed run ("" is no failure)."""
+        tally: dict[str, int] = {}
+        items = reasons.items() if isinstance(reasons, Mapping) else ((r, 1) for r in reasons)
+        for reason, k in items:
+            if reason and int(k):
+                tally[str(reason)] = tally.get(str(reason), 0) + int(k)
+        return cls(tuple(sorted(tally.items())))
+
+    def __add__(self, other: Failures) -> Failures:
+        tally = dict(self.counts)
+        for reason, k in other.counts:
+            tally[reason] = tally.get(reason, 0) + k
+        return Failures.of(tally)
+
+    def __bool__(self) -> bool:
+        return bool(self.counts)
+
+    @property
+    def total(self) -> int:
+        return sum(k for _, k in self.counts)
+
+    def to_dict(self) -> dict[str, int]:
+        return dict(self.counts)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, int] | None) -> Failures:
+        return cls.of(data or {})
+
+
+def _count(doc: str) -> Any:
+    """A counter of :class:`StageCounts`: 0 by default, ``doc`` its description (the API's)."""
+    return field(default=0, metadata={"doc": doc})
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class StageCounts(_Fields):
+    """What the chains of one stage (or one batch of them) did, counted; a stage's counts are
+    its batches' sums (:meth:`plus`). Declared here once: the stages as stored, the API's
+    stages, the dashboard's table and the CLI's progress take their lists from these fields
+    (:func:`count_fields`), each described by its metadata's ``doc``.
+    """
+
+    model_runs: int = _count("Model runs: likelihood evaluations (one per proposal run).")
+    failed_runs: int = _count("Model runs that failed (log L = -inf); reasons in failed_by.")
+    failed_by: Failures = field(
+        default=Failures(),
+        metadata={"doc": "Failed model runs by reason (the simulator's status)."},
+    )
+    out_of_support: int = _count("Proposals outside the prior's support (no run).")
+    part_runs: int = _count(
+        "Likelihood parts run (a calibration's simulator runs, one per dataset)."
+    )
+    early_rejections: int = _count("Proposals rejected before all their datasets were simulated.")
+    part_runs_saved: int = _count("Simulator runs early rejection saved (exact: the same samples).")
+    first_stage_rejections: int = _count(
+        "Moves the surrogate turned down (delayed acceptance: no run)."
+    )
+    surrogate_checks: int = _count("Model runs the surrogate's likelihood was compared with.")
+    surrogate_steps: int = _count(
+        "Metropolis steps on the surrogate (delayed acceptance's inner steps)."
+    )
+    surrogate_steps_accepted: int = _count("Of those, the accepted ones.")
+    population_jumps: int = _count(
+        "Of the surrogate steps, population jumps (independence proposals from the "
+        "population's t; the proposal scale adapts on the acceptance of the other steps)."
+    )
+    population_jumps_accepted: int = _count("Of those, the accepted ones.")
+
+    def count_values(self) -> dict[str, Any]:
+        """{counter: value} of these counts (keyword arguments of any class that carries them)."""
+        return {f.name: getattr(self, f.name) for f in fields(StageCounts)}
+
+    def counts(self) -> StageCounts:
+        """These counts alone (a :class:`StageCounts`, whatever carries them)."""
+        return StageCounts(**self.count_values())
+
+    def plus(self, other: StageCounts) -> StageCounts:
+        """Counts of two batches (or stages) together."""
+        return StageCounts(
+            **{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(StageCounts)}
+        )
+
+    @classmethod
+    def from_dict(cls: type[_T], data: dict[str, Any]) -> _T:
+        """As :meth:`_Fields.from_dict`, reading the names stored before issue 72 gave each
+        counter one name (:meth:`renamed`)."""
+        return super().from_dict(StageCounts.renamed(data))  # type: ignore[misc]
+
+    @staticmethod
+    def renamed(data: Mapping[str, Any]) -> dict[str, Any]:
+        """``data`` with the counters' names stored before issue 72 (``inner_proposed`` for
+        ``surrogate_steps``...) read as today's."""
+        return {_RENAMED.get(k, k): v for k, v in data.items()}
+
+
+#: counters' names before issue 72 -> their names now
+_RENAMED = {
+    "inner_proposed": "surrogate_steps",
+    "inner_accepted": "surrogate_steps_accepted",
+    "jump_proposed": "population_jumps",
+    "jump_accepted": "population_jumps_accepted",
+}
+
+
+def count_fields() -> tuple[tuple[str, str], ...]:
+    """(name, description) of every integer counter of :class:`StageCounts`, in order."""
+    return tuple((f.name, f.metadata["doc"]) for f in fields(StageCounts) if f.name != "failed_by")
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class StageState(StageCounts):
     """Population after stage ``stage`` (stage 0 = prior draws), targeting prior * L^exponent.
 
     samples (n, d) in the prior's parameter order; log_likelihood and log_prior (n,);
@@ -195,25 +320,17 @@ class StageState(_Fields):
     beta: proposal scale for the *next* stage (already adapted). acceptance_rate: of the moves
     that produced this stage (NaN at stage 0). log_evidence, log_evidence_var: running sum of the
     log-evidence increments and the estimated variance of that sum (see :func:`plan_stage`).
-    model_runs, failed_runs, proposals, accepted, out_of_support: counts for this stage only.
+    The counters of :class:`StageCounts` (model runs, failures by reason, early rejections,
+    surrogate steps...) and proposals, accepted: for this stage only.
     n_chains, n_steps: chains run and Metropolis steps per chain (longest chain for "leader").
     ess: effective sample size of the plausibility weights used to resample into this stage
     (n at stage 0). stall_count: consecutive stages with an exponent increment below the stall
-    tolerance. seed: study seed.
-    part_runs: likelihood parts run this stage (a study's parts are its datasets: simulator
-    runs); early_rejections: proposals rejected before their last part; part_runs_saved: parts
-    not run thanks to early rejection (0 when it is off or the likelihood has one part).
-    first_stage_rejections: moves the surrogate turned down (delayed acceptance: the inner
-    steps did not move, no model run); surrogate_checks, surrogate_error_sum: full evaluations
-    where the surrogate's log-likelihood was compared with the model's, and the sum of
-    |difference| (untempered). inner_accepted, inner_proposed: Metropolis steps of the
-    surrogate transitions (delayed acceptance), of which jump_accepted, jump_proposed were
-    population jumps (beta adapts on the rate of the others). train_samples,
-    train_responses: with delayed acceptance, the newest ``surrogate_memory`` states the model
-    evaluated up to this stage, in chain and step order (else None). eve (n,): the stage-0
-    sample each sample descends from through the resampling (its Eve; at stage 0 the first
-    occurrence of the sample, a repeated point being one draw), for the log evidence's
-    variance; None in states stored before it was kept.
+    tolerance. seed: study seed. surrogate_error_sum: the sum of |log L~ - log L| (untempered)
+    over the surrogate's checks. train_samples, train_responses: with delayed acceptance, the
+    newest ``surrogate_memory`` states the model evaluated up to this stage, in chain and step
+    order (else None). eve (n,): the stage-0 sample each sample descends from through the
+    resampling (its Eve; at stage 0 the first occurrence of the sample, a repeated point being
+    one draw), for the log evidence's variance; None in states stored before it was kept.
     """
 
     stage: int
@@ -226,29 +343,17 @@ class StageState(_Fields):
     acceptance_rate: float
     log_evidence: float
     log_evidence_var: float
-    model_runs: int
-    failed_runs: int
     proposals: int
     accepted: int
-    out_of_support: int
     n_chains: int
     n_steps: int
     ess: float
     stall_count: int
     seed: int
-    part_runs: int = 0
-    early_rejections: int = 0
-    part_runs_saved: int = 0
-    first_stage_rejections: int = 0
-    surrogate_checks: int = 0
     surrogate_error_sum: float = 0.0
-    inner_accepted: int = 0
-    inner_proposed: int = 0
     train_samples: NDArray[np.float64] | None = None
     train_responses: NDArray[np.float64] | None = None
     eve: NDArray[np.int64] | None = None
-    jump_accepted: int = 0
-    jump_proposed: int = 0
 
     @property
     def n_samples(self) -> int:
@@ -318,17 +423,15 @@ class StagePlan(_Fields):
         return int(self.chain_start.shape[0])
 
 
-@dataclass(frozen=True, eq=False)
-class ChainBatchResult(_Fields):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ChainBatchResult(StageCounts):
     """Output of :func:`run_chains` for one batch of chains of stage ``stage``.
 
     For chain chain_indices[i], output_counts[i] consecutive rows of samples / log_likelihood /
     log_prior / responses hold its output (1 final state for resample-move; every visited state,
     one per step, for leader). accepted, proposed (c,): per-chain Metropolis counts (proposals
-    outside the prior support count as proposed and rejected). model_runs, failed_runs,
-    out_of_support, part_runs, early_rejections, part_runs_saved, first_stage_rejections,
-    surrogate_checks, inner_accepted, inner_proposed, jump_accepted, jump_proposed: batch
-    totals (see :class:`StageState`); evaluated_counts (c,), evaluated_samples,
+    outside the prior support count as proposed and rejected). The counters of
+    :class:`StageCounts`: the batch's totals. evaluated_counts (c,), evaluated_samples,
     evaluated_responses: with delayed acceptance, the states each chain's model runs evaluated
     with finite responses, chain by chain in step order (the surrogate's next training states;
     else None). surrogate_error (c,): per chain, the sum of |log L~ - log L| over its checked
@@ -344,19 +447,7 @@ class ChainBatchResult(_Fields):
     responses: NDArray[np.float64] | None
     accepted: NDArray[np.int64]
     proposed: NDArray[np.int64]
-    model_runs: int
-    failed_runs: int
-    out_of_support: int
-    part_runs: int = 0
-    early_rejections: int = 0
-    part_runs_saved: int = 0
-    first_stage_rejections: int = 0
-    surrogate_checks: int = 0
     surrogate_error: NDArray[np.float64] | None = None
-    inner_accepted: int = 0
-    inner_proposed: int = 0
-    jump_accepted: int = 0
-    jump_proposed: int = 0
     evaluated_counts: NDArray[np.int64] | None = None
     evaluated_samples: NDArray[np.float64] | None = None
     evaluated_responses: NDArray[np.float64] | None = None
@@ -367,7 +458,8 @@ class PointEvaluation(_Fields):
     """Likelihood of a batch of fixed points (stage 0): log L (m,), responses or None, failures,
     log b (m,) where the likelihood gives a base density (else None; see the module doc), the
     likelihood parts run (m x parts), the points run (m less repeated ones; None: m) and, where
-    the model gives them, the runs' status codes (m,) (a screening: why runs failed)."""
+    the model gives them, the runs' status codes (m,) (a screening: why runs failed) and the
+    failed runs by reason (:class:`Failures`)."""
 
     log_likelihood: NDArray[np.float64]
     responses: NDArray[np.float64] | None
@@ -376,6 +468,7 @@ class PointEvaluation(_Fields):
     part_runs: int = 0
     model_runs: int | None = None
     status: NDArray[np.int64] | None = None
+    failed_by: Failures = Failures()
 
     @property
     def runs(self) -> int:

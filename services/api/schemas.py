@@ -16,6 +16,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from scm_core.calibration import SamplerSettings
+from scm_core.inference import count_fields
 from scm_core.seeds import SEED_MAX
 from services.limits import INT32_MAX, INT64_MAX
 from services.studies.request_model import PRESET_OR_CASE, RequestModel
@@ -235,7 +236,11 @@ class ProgressOut(BaseModel):
         description="Finished stages' model runs plus those the current stage's done batches "
         "ran (never decreases: at a stage's end its runs are exactly these)."
     )
-    failed_runs: int
+    failed_runs: int = Field(description="Finished stages' failed model runs.")
+    failed_by: dict[str, int] = Field(
+        default_factory=dict,
+        description="Those failed runs by reason (see StageOut.failed_by).",
+    )
     elapsed_seconds: float | None
     runs_per_second: float | None
     eta_seconds: float | None = Field(description="Time to finish the current stage.")
@@ -339,7 +344,7 @@ class CaseFileOut(BaseModel):
 # ---------------------------------------------------------------------------- stages
 
 
-class StageOut(BaseModel):
+class _StageColumns(BaseModel):
     stage: int
     status: str
     exponent: float | None
@@ -353,38 +358,27 @@ class StageOut(BaseModel):
     n_steps: int | None
     n_batches: int
     batches: dict[str, int] = Field(description="Work batches by status.")
-    model_runs: int | None
-    failed_runs: int | None
-    part_runs: int | None = Field(
-        None, description="Likelihood parts run (a calibration's simulator runs, one per dataset)."
+    created_at: datetime
+    finished_at: datetime | None
+    failed_by: dict[str, int] = Field(
+        default_factory=dict,
+        description="A done stage's failed model runs by reason: the simulator's status "
+        "(bottomed_out, nonpositive_stiffness, unstable; docs/simulator.md, Statuses) or "
+        "invalid_configuration.",
     )
-    early_rejections: int | None = Field(
-        None, description="Proposals rejected before all their datasets were simulated."
-    )
-    part_runs_saved: int | None = Field(
-        None, description="Simulator runs early rejection saved (exact: the same samples)."
-    )
-    first_stage_rejections: int | None = Field(
-        None, description="Moves the surrogate turned down (delayed acceptance: no run)."
-    )
-    surrogate_steps: int | None = Field(
-        None, description="Metropolis steps on the surrogate (delayed acceptance's inner steps)."
-    )
-    surrogate_steps_accepted: int | None = Field(None, description="Of those, the accepted ones.")
-    population_jumps: int | None = Field(
-        None,
-        description="Of the surrogate steps, population jumps (independence proposals from the "
-        "population's t; the proposal scale adapts on the acceptance of the other steps).",
-    )
-    population_jumps_accepted: int | None = Field(None, description="Of those, the accepted ones.")
     unique_samples: int | None = Field(
         None, description="Distinct samples in the stage's population (resampling repeats)."
     )
-    surrogate_checks: int | None = Field(
-        None, description="Model runs the surrogate's likelihood was compared with."
-    )
-    created_at: datetime
-    finished_at: datetime | None
+
+
+#: a stage as the API gives it: its columns and every counter of the sampler, declared once in
+#: :class:`scm_core.inference.StageCounts` (null until the stage is done, except model and
+#: failed runs)
+StageOut = create_model(
+    "StageOut",
+    __base__=_StageColumns,
+    **{name: (int | None, Field(None, description=doc)) for name, doc in count_fields()},
+)
 
 
 Num = float | Literal["nan", "inf", "-inf"]

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from scm_core.calibration import RESPONSES
 from scm_core.calibration.convergence import RHAT_LIMIT, diagnose_runs
+from scm_core.inference import Failures, StageCounts, count_fields
 from scm_core.inference.posterior import credible_interval, summarize
 from scm_core.jsondoc import finite_or_none
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
@@ -166,6 +167,16 @@ def predictions_of(store: Store, study: StudyRecord) -> list[StudyRecord]:
     return [p for p in page.items if (p.payload or {}).get("study_id") == study.id]
 
 
+def failed_by(store: Store, study: StudyRecord) -> dict[str, int]:
+    """The study's failed runs by reason: its done stages' (none looked up when none failed)."""
+    if not study.failed_runs:
+        return {}
+    total = Failures()
+    for stage in store.stages.list(study.id):
+        total = total + Failures.from_dict(stage.meta.get("failed_by"))
+    return total.to_dict()
+
+
 def study_progress(store: Store, study: StudyRecord, now: datetime | None = None) -> ProgressOut:
     """The progress block of ``GET /studies/{id}`` (see :class:`ProgressOut`)."""
     now = now or store.db.now()
@@ -205,11 +216,29 @@ def study_progress(store: Store, study: StudyRecord, now: datetime | None = None
         batches_total=batches_total,
         model_runs=int(runs),
         failed_runs=study.failed_runs,
+        failed_by=failed_by(store, study),
         elapsed_seconds=elapsed,
         runs_per_second=rate,
         eta_seconds=eta,
         error=study.error,
     )
+
+
+def stage_counts(stage: StageRecord) -> dict[str, Any]:
+    """A stage's counters (:class:`~scm_core.inference.StageCounts`, by the names the version
+    that stored it used): null until it is done, except its model and failed runs; its failed
+    runs by reason."""
+    stored = StageCounts.renamed(stage.meta)
+    counts = StageCounts.from_dict(stored)
+    out: dict[str, Any] = {
+        name: getattr(counts, name) if name in stored else None for name, _ in count_fields()
+    }
+    out.update(
+        model_runs=stage.model_runs,
+        failed_runs=stage.failed_runs,
+        failed_by=counts.failed_by.to_dict(),
+    )
+    return out
 
 
 def stage_out(store: Store, stage: StageRecord) -> StageOut:
@@ -227,18 +256,8 @@ def stage_out(store: Store, stage: StageRecord) -> StageOut:
         n_steps=stage.n_steps,
         n_batches=stage.n_batches,
         batches=store.batches.counts(stage.study_id, stage.stage_index),
-        model_runs=stage.model_runs,
-        failed_runs=stage.failed_runs,
-        part_runs=stage.counts.get("part_runs"),
-        early_rejections=stage.counts.get("early_rejections"),
-        part_runs_saved=stage.counts.get("part_runs_saved"),
-        first_stage_rejections=stage.counts.get("first_stage_rejections"),
-        surrogate_checks=stage.counts.get("surrogate_checks"),
-        surrogate_steps=stage.counts.get("inner_proposed"),
-        surrogate_steps_accepted=stage.counts.get("inner_accepted"),
-        population_jumps=stage.counts.get("jump_proposed"),
-        population_jumps_accepted=stage.counts.get("jump_accepted"),
-        unique_samples=stage.counts.get("unique_samples"),
+        **stage_counts(stage),
+        unique_samples=stage.meta.get("unique_samples"),
         created_at=stage.created_at,
         finished_at=stage.finished_at,
     )

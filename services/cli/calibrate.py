@@ -27,6 +27,7 @@ from rich.table import Table
 
 from scm_core.calibration import CaseDefinition, CaseError, SamplerSettings, StudyModel
 from scm_core.calibration.case import field_range
+from scm_core.calibration.failures import READ_MORE, reasons_text
 from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc import result_of
@@ -469,6 +470,8 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
         title=f"{summary['case']['name']}: {summary['status']} after {summary['n_stages']} "
         f"stages, {summary['model_runs']} model runs ({summary['failed_runs']} failed){stopped}"
     )
+    n_failed = int(summary["failed_runs"])
+    why = reasons_text(n_failed, summary.get("failed_by", {}))
     for col in ("parameter", "mean", "sd", "2.5 %", "97.5 %", "MAP"):
         table.add_column(col, justify="right" if col != "parameter" else "left")
 
@@ -487,6 +490,13 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
         )
     console = Console()
     console.print(table)
+    if n_failed:
+        console.print(
+            f"{n_failed} of {summary['model_runs']} model runs failed (log L = -inf)"
+            + (f": {why}" if why else "")
+            + f'; what each reason means: {READ_MORE}; per stage: "stages" in '
+            f"{out / 'summary.json'}"
+        )
     warning = not_a_posterior(summary["status"], summary.get("final_exponent"))
     console.print(
         f"log evidence {g(summary['log_evidence'])} +- {g(summary['log_evidence_se'])}"

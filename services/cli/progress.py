@@ -18,6 +18,7 @@ from rich.progress import (
 )
 
 from scm_core.calibration import StageStart
+from scm_core.calibration.failures import reasons_text
 from scm_core.inference import StageState
 from services.stages import DatabaseStages
 from services.studies.kinds import kind_of
@@ -103,17 +104,19 @@ class StageDisplay:
         if not self.quiet:
             rate = state.acceptance_rate
             acc = f"{rate:.2f}" if math.isfinite(rate) else "-"
+            why = reasons_text(state.failed_runs, state.failed_by.to_dict())
+            reasons = f" ({why})" if why else ""
             text = (
                 f"stage {state.stage:2d} done: p = {state.exponent:.4g}, acceptance {acc}, "
                 f"ESS {state.ess:.0f}, unique {state.n_unique}, model runs {state.model_runs}, "
-                f"failed {state.failed_runs}, {wall:.1f} s"
+                f"failed {state.failed_runs}{reasons}, {wall:.1f} s"
             )
             if state.part_runs_saved:
                 text += f", {state.part_runs_saved} simulations saved by early rejection"
-            if state.inner_proposed:
+            if state.surrogate_steps:
                 text += (
-                    f", {state.inner_proposed} surrogate steps "
-                    f"(acceptance {state.inner_accepted / state.inner_proposed:.2f}), "
+                    f", {state.surrogate_steps} surrogate steps (acceptance "
+                    f"{state.surrogate_steps_accepted / state.surrogate_steps:.2f}), "
                     f"{state.first_stage_rejections} moves turned down without a run"
                 )
 

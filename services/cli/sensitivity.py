@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import MorrisSettings
+from scm_core.calibration.failures import describe_failures
 from scm_core.seeds import SEED_MAX
 from services.studies import StudyRequestError, sensitivity_spec
 from services.studies.batching import local_batch_size
@@ -157,8 +158,9 @@ _OPTIONS = {"bounds": "--bounds", "r": "--r", "levels": "--levels", "dataset_id"
 
 
 def _print_indices(res: dict, out: Path) -> None:
+    failed = describe_failures(res["n_failed_runs"], res.get("failed_runs_by", {}))
     table = Table(
-        title=f"Morris screening, {res['n_runs']} runs ({res['n_failed_runs']} failed): "
+        title=f"Morris screening, {res['n_runs']} runs ({failed or 'none failed'}): "
         "linear / non-linear index"
     )
     table.add_column("factor")

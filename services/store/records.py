@@ -156,10 +156,10 @@ class StageRecord:
     created_at: datetime
     updated_at: datetime
     finished_at: datetime | None
-    #: a done stage's sampler counts beyond the columns (part runs, early rejections, part runs
-    #: saved, first-stage rejections, surrogate checks: :class:`~scm_core.inference.StageState`),
-    #: from its stored scalars; {} otherwise
-    counts: dict[str, int] = field(default_factory=dict)
+    #: a done stage's stored scalars (its kind's: a calibration's ``StageState`` without its
+    #: arrays, whose counters :class:`~scm_core.inference.StageCounts` reads; the distinct
+    #: samples; failed runs by reason), {} otherwise
+    meta: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, order=True)

@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 from test_api_support import AUTH, EXAMPLES, api_client, fresh_database, upload_file
 
+from scm_core.inference import count_fields
+from scm_core.simulator import STATUS_NAMES
 from services.client import SCMCalibClient
 from services.store import Store
 
@@ -90,6 +92,14 @@ def test_stages_and_events(finished) -> None:
     assert all(s["status"] == "done" for s in stages)
     assert all(s["batches"]["done"] == s["n_batches"] for s in stages)
     assert stages[0]["exponent"] == 0.0 and 0 < stages[1]["exponent"] < stages[2]["exponent"]
+    # every counter of the sampler (declared once: StageCounts), failures by reason
+    for s in stages:
+        assert {name for name, _ in count_fields()} <= s.keys()
+        assert sum(s["failed_by"].values()) == s["failed_runs"], s
+        assert set(s["failed_by"]) <= {*STATUS_NAMES[1:], "invalid_configuration"}
+    progress = client.get(f"/studies/{study_id}").json()["progress"]
+    assert progress["failed_runs"] == sum(s["failed_runs"] for s in stages)
+    assert sum(progress["failed_by"].values()) == progress["failed_runs"]
     kinds = [e["kind"] for e in client.get(f"/studies/{study_id}/events").json()]
     assert kinds[0] == "study_created" and kinds.count("stage_done") == 3
     events = client.get(f"/studies/{study_id}/events", params={"limit": 2}).json()

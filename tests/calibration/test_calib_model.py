@@ -82,7 +82,7 @@ def hand_means() -> np.ndarray:
 @pytest.mark.parametrize("likelihood", ["normalized", "gaussian"])
 def test_likelihood_equals_hand_computation(likelihood: str, hand_means: np.ndarray) -> None:
     model = StudyModel(make_case(likelihood), DATASETS)
-    ll, resp = model.log_likelihood_batch(POINTS)
+    ll, resp, _, _ = model.log_likelihood_batch(POINTS)
     assert resp.shape == (4, 6)
     np.testing.assert_array_equal(resp[:2], hand_means.reshape(2, 6))
     for i in range(2):
@@ -111,13 +111,13 @@ def test_failed_and_invalid_runs_count_as_failed() -> None:
 
 def test_rows_do_not_depend_on_batch_and_model_pickles() -> None:
     model = StudyModel(make_case("gaussian"), DATASETS)
-    ll, resp = model.log_likelihood_batch(POINTS)
+    ll, resp, _, _ = model.log_likelihood_batch(POINTS)
     for i in range(POINTS.shape[0]):
-        ll_i, resp_i = model.log_likelihood_batch(POINTS[i : i + 1])
+        ll_i, resp_i, _, _ = model.log_likelihood_batch(POINTS[i : i + 1])
         np.testing.assert_array_equal(ll_i, ll[i : i + 1])
         np.testing.assert_array_equal(resp_i, resp[i : i + 1])
     clone = pickle.loads(pickle.dumps(model))
-    ll2, resp2 = clone.log_likelihood_batch(POINTS[:2])
+    ll2, resp2, _, _ = clone.log_likelihood_batch(POINTS[:2])
     np.testing.assert_array_equal(ll2, ll[:2])
     np.testing.assert_array_equal(resp2, resp[:2])
 
@@ -155,16 +155,21 @@ def test_datasets_as_parts_assemble_the_batch_likelihood_bit_for_bit(likelihood:
     model = StudyModel(make_case(likelihood), DATASETS)
     assert is_parted(model) and sorted(model.part_order) == [0, 1]
     assert model.part_in_base == (False, False)
-    ll, resp = model.log_likelihood_batch(POINTS)
+    ll, resp, base, failure = model.log_likelihood_batch(POINTS)
+    assert base is None
     parts = [model.run_part(POINTS, k) for k in range(2)]
-    ll2, resp2 = model.assemble(POINTS, [r for _, r in parts])
+    ll2, resp2 = model.assemble(POINTS, [r for _, r, _ in parts])
     np.testing.assert_array_equal(ll2, ll)
     np.testing.assert_array_equal(resp2, resp)
-    for k, (term, means) in enumerate(parts):
+    for k, (term, means, why) in enumerate(parts):
         np.testing.assert_array_equal(means, resp[:, 3 * k : 3 * k + 3])
         ok = np.isfinite(term)
         assert ok[:2].all() and not ok[2:].any()
         assert np.all(term[ok] <= model.part_bound(POINTS, k)[ok])
+        # why each run failed, in the simulator's words (issue 69): the soft soil's wheel
+        # sinks past max_sinkage, the grousers higher than half the rim are refused unbuilt
+        assert why.tolist() == ["", "", "bottomed_out", "invalid_configuration"]
+    assert failure.tolist() == ["", "", "bottomed_out", "invalid_configuration"]
     np.testing.assert_allclose(parts[0][0][:2] + parts[1][0][:2], ll[:2], rtol=1e-14)
 
 

@@ -72,14 +72,14 @@ def da(request) -> TMCMCSettings:
 def _jumped(res, settings: TMCMCSettings) -> bool:
     """With population jumps on, some were proposed and some accepted."""
     if settings.surrogate_jumps == 0.0:
-        return all(s.jump_proposed == 0 for s in res.stages)
-    return sum(s.jump_accepted for s in res.stages) > 0
+        return all(s.population_jumps == 0 for s in res.stages)
+    return sum(s.population_jumps_accepted for s in res.stages) > 0
 
 
 def _screened(res) -> int:
     """Surrogate steps inside the support that the model never saw (one inner step: the
     proposals the screen turned down)."""
-    return sum(s.inner_proposed - s.out_of_support - s.model_runs for s in res.stages[1:])
+    return sum(s.surrogate_steps - s.out_of_support - s.model_runs for s in res.stages[1:])
 
 
 def test_linear_gaussian_5d_exact_answer_with_fewer_model_runs(da: TMCMCSettings) -> None:

@@ -190,7 +190,7 @@ def test_log_walk_with_surrogate_transitions_in_waste_free_chains(states: int) -
         f"screened {screened}"
     )
     # the surrogate was really used: ten inner steps per model run, checked at every run
-    assert sum(s.inner_proposed for s in res.stages) >= 10 * (res.n_model_runs - 2000)
+    assert sum(s.surrogate_steps for s in res.stages) >= 10 * (res.n_model_runs - 2000)
     assert sum(s.surrogate_checks for s in res.stages) > 0
     assert abs(u.mean() - post_mean) < 0.1 * tau
     assert abs(u.std() / tau - 1.0) < 0.10

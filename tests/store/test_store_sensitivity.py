@@ -82,6 +82,9 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     assert ok.sum() >= 15 and np.all(a.responses[ok, 1:] > 0)
     # why the others failed, one reason per failed run
     assert sum(done.result["failed_runs_by"].values()) == done.result["n_failed_runs"]
+    # the stage keeps them as a calibration's stages do (StageCounts' failed_by)
+    (stage,) = store.stages.list(study.id)
+    assert stage.meta["failed_by"] == done.result["failed_runs_by"]
 
     # a second delivery of a batch changes nothing
     before = store.studies.get(study.id)

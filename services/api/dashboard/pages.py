@@ -25,6 +25,7 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from scm_core.calibration import PRESETS, preset_cost
+from scm_core.calibration.failures import describe_failures
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals.conditions import condition_unit
 from services.limits import INT64_MAX
@@ -80,6 +81,7 @@ def _templates() -> Jinja2Templates:
     t = Jinja2Templates(directory=[str(folder), *own])
     t.env.filters["num"] = _fmt_num
     t.env.filters["duration"] = _fmt_duration
+    t.env.globals["failures"] = describe_failures
     t.env.globals.update(
         POLL_SECONDS=POLL_SECONDS,
         LIST_POLL_SECONDS=LIST_POLL_SECONDS,

@@ -14,27 +14,12 @@ from ..models import Stage, WorkBatch
 from ..records import PlannedStage, StageRecord
 from .events import append_event
 
-__all__ = ["STAGE_COUNTS", "create_done_stage", "create_stage", "optional_float", "stage_record"]
+__all__ = ["create_done_stage", "create_stage", "optional_float", "stage_record"]
 
 
 def optional_float(x: float | None) -> float | None:
     """A stored float column's value: None stays None, anything else becomes a float."""
     return None if x is None else float(x)
-
-
-#: scalars of a done stage's stored state that its record exposes as ``counts``
-STAGE_COUNTS = (
-    "part_runs",
-    "early_rejections",
-    "part_runs_saved",
-    "first_stage_rejections",
-    "surrogate_checks",
-    "inner_accepted",
-    "inner_proposed",
-    "jump_accepted",
-    "jump_proposed",
-    "unique_samples",
-)
 
 
 def stage_record(st: Stage) -> StageRecord:
@@ -58,7 +43,7 @@ def stage_record(st: Stage) -> StageRecord:
         created_at=st.created_at,
         updated_at=st.updated_at,
         finished_at=st.finished_at,
-        counts={k: int(st.state_meta[k]) for k in STAGE_COUNTS if k in (st.state_meta or {})},
+        meta=dict(st.state_meta or {}),
     )
 
 

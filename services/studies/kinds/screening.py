@@ -33,6 +33,7 @@ from scm_core.calibration import (
     build_configs,
     sensitivity_design,
 )
+from scm_core.calibration.failures import failure_counts
 from scm_core.inference import LOG_SCALE_KINDS
 from scm_core.inference.tmcmc_stage import PointEvaluation
 from scm_core.seeds import SEED_MAX
@@ -251,7 +252,9 @@ class MorrisRun:
                 population=SampleArrays(self.design.points, nan, nan, Y),
                 model_runs=n,
                 failed_runs=result.n_failed,
-                meta={"seed": self.seed},
+                # the failures by reason, as a calibration's stages keep them (StageCounts)
+                meta={"seed": self.seed}
+                | ({} if status is None else {"failed_by": failure_counts(status)}),
             )
             return StageAdvance(reduced, final_status="completed", result=result.to_dict())
 
