@@ -7,7 +7,7 @@ from scm_core.inference.tmcmc import PopulationStart, Resume, StageHooks, StageS
 
 from .case import (
     CALIBRATABLE,
-    RESPONSES,
+    RESPONSE_KEYS,
     SIGMA_NAMES,
     CaseDefinition,
     CaseError,
@@ -40,7 +40,7 @@ __all__ = [
     "DEFAULT_BOUNDS",
     "FACTOR_UNITS",
     "PRESETS",
-    "RESPONSES",
+    "RESPONSE_KEYS",
     "SIGMA_NAMES",
     "TABLE1_PARAMETERS",
     "CaseDefinition",

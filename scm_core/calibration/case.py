@@ -74,12 +74,13 @@ from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc_stage import TMCMCSettings
 from scm_core.inference.tmcmc_types import MOVES
 from scm_core.seeds import SEED_MAX
+from scm_core.signals.responses import RESPONSE_KEYS, response
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
 from scm_core.validation_text import first_error, one_line
 
 __all__ = [
     "CALIBRATABLE",
-    "RESPONSES",
+    "RESPONSE_KEYS",
     "SIGMA_NAMES",
     "CaseDefinition",
     "CaseError",
@@ -89,9 +90,9 @@ __all__ = [
     "load_case",
 ]
 
-RESPONSES = ("F", "T", "z")
-SIGMA_NAMES = {"F": "sigma_F", "T": "sigma_T", "z": "sigma_z"}
-SIGMA_UNITS = {"sigma_F": "N", "sigma_T": "N m", "sigma_z": "m"}
+#: each response's prediction-error sigma and its unit (scm_core.signals.responses)
+SIGMA_NAMES = {k: response(k).sigma for k in RESPONSE_KEYS}
+SIGMA_UNITS = {response(k).sigma: response(k).unit for k in RESPONSE_KEYS}
 #: measurement offsets: measured = simulated + offset (a datum the rig does not know exactly,
 #: e.g. the sinkage zero of a log); calibrated or fixed like the sigmas, shared by all datasets
 OFFSET_NAMES = {"z": "z_offset"}
@@ -349,7 +350,7 @@ class CaseDefinition(_Strict):
     seed: int = Field(0, ge=0, le=SEED_MAX)
     likelihood: Literal["normalized", "gaussian"] = "normalized"
     trials: Literal["mean", "each"] = "mean"
-    responses: tuple[Literal["F", "T", "z"], ...] = RESPONSES
+    responses: tuple[Literal[RESPONSE_KEYS], ...] = RESPONSE_KEYS
     parameters: dict[str, PriorSpec]
     nominal: dict[str, float | int | bool | str] = Field(default_factory=dict)
     simulator: dict[str, float | int | bool | str] = Field(default_factory=dict)
@@ -425,7 +426,7 @@ class CaseDefinition(_Strict):
         if not self.parameters:
             raise CaseError("parameters: at least one calibrated parameter is required")
         if len(set(self.responses)) != len(self.responses) or not self.responses:
-            raise CaseError(f"responses: must be distinct entries of {list(RESPONSES)}")
+            raise CaseError(f"responses: must be distinct entries of {list(RESPONSE_KEYS)}")
         for name, spec in self.parameters.items():
             where = f"parameters.{name}"
             if name not in CALIBRATABLE:

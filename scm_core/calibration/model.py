@@ -34,6 +34,7 @@ from pydantic import ValidationError
 from scm_core.inference import portable
 from scm_core.inference.likelihood import LOG_SQRT_2PI, log_likelihood_trials
 from scm_core.signals import SWTDataset
+from scm_core.signals.responses import N_RESPONSES
 from scm_core.simulator import (
     RigConfig,
     SoilParams,
@@ -46,7 +47,7 @@ from scm_core.simulator.cost import run_size
 from scm_core.simulator.layout import N_PARAMS, pack
 from scm_core.validation_text import one_line
 
-from .case import CALIBRATABLE, RESPONSES, RIG_FIELDS, SOIL_FIELDS, WHEEL_FIELDS, CaseDefinition
+from .case import CALIBRATABLE, RESPONSE_KEYS, RIG_FIELDS, SOIL_FIELDS, WHEEL_FIELDS, CaseDefinition
 from .failures import INVALID, failure_of
 
 __all__ = ["DatasetTerms", "StudyModel", "dataset_terms"]
@@ -61,16 +62,16 @@ class DatasetTerms:
 
     name: str
     conditions: dict[str, float | int | str]
-    means: tuple[float, float, float]  # NaN for a response the dataset did not measure
+    means: tuple[float, ...]  # one per response (RESPONSE_KEYS), NaN where not measured
     content_hash: str = ""
     n_trials: int = 1
-    trial_sd: tuple[float, float, float] = (np.nan, np.nan, np.nan)
-    standard_errors: tuple[float, float, float] = (np.nan, np.nan, np.nan)
+    trial_sd: tuple[float, ...] = (np.nan,) * N_RESPONSES
+    standard_errors: tuple[float, ...] = (np.nan,) * N_RESPONSES
 
     @property
     def measured(self) -> tuple[str, ...]:
         """The responses (F, T, z) this dataset measured."""
-        return tuple(r for r, x in zip(RESPONSES, self.means, strict=True) if np.isfinite(x))
+        return tuple(r for r, x in zip(RESPONSE_KEYS, self.means, strict=True) if np.isfinite(x))
 
 
 def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
@@ -82,15 +83,16 @@ def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
     return DatasetTerms(
         name=dataset.name,
         conditions=dict(dataset.conditions.to_sim_config()),
-        means=tuple(float(m.get(r, np.nan)) for r in RESPONSES),
+        means=tuple(float(m.get(r, np.nan)) for r in RESPONSE_KEYS),
         content_hash=dataset.content_hash,
         n_trials=int(trials),
         trial_sd=tuple(
             float(dataset.responses[r].sd) if r in dataset.responses and trials > 1 else np.nan
-            for r in RESPONSES
+            for r in RESPONSE_KEYS
         ),
         standard_errors=tuple(
-            float(dataset.responses[r].se) if r in dataset.responses else np.nan for r in RESPONSES
+            float(dataset.responses[r].se) if r in dataset.responses else np.nan
+            for r in RESPONSE_KEYS
         ),
     )
 
@@ -146,14 +148,14 @@ class StudyModel:
         self.names: tuple[str, ...] = case.parameter_names
         self.likelihood: str = case.likelihood
         self.trials: str = case.trials
-        self.used: tuple[int, ...] = tuple(RESPONSES.index(r) for r in case.responses)
+        self.used: tuple[int, ...] = tuple(RESPONSE_KEYS.index(r) for r in case.responses)
         sig = case.sigma_spec()
         self.sigma_columns: tuple[int | None, ...] = tuple(
-            int(sig[RESPONSES[i]][1]) if sig[RESPONSES[i]][0] == "parameter" else None
+            int(sig[RESPONSE_KEYS[i]][1]) if sig[RESPONSE_KEYS[i]][0] == "parameter" else None
             for i in self.used
         )
         self.sigma_fixed: tuple[float, ...] = tuple(
-            float(sig[RESPONSES[i]][1]) if sig[RESPONSES[i]][0] == "fixed" else np.nan
+            float(sig[RESPONSE_KEYS[i]][1]) if sig[RESPONSE_KEYS[i]][0] == "fixed" else np.nan
             for i in self.used
         )
         self.physical: tuple[tuple[int, str], ...] = tuple(
@@ -165,7 +167,7 @@ class StudyModel:
         #: measurement offsets (response index, column or None, fixed value)
         self.offsets: tuple[tuple[int, int | None, float], ...] = tuple(
             (
-                RESPONSES.index(r),
+                RESPONSE_KEYS.index(r),
                 int(v) if kind == "parameter" else None,
                 float(v) if kind == "fixed" else 0.0,
             )
@@ -194,7 +196,7 @@ class StudyModel:
 
     @property
     def response_names(self) -> tuple[str, ...]:
-        return tuple(f"{r}[{d.name}]" for d in self.datasets for r in RESPONSES)
+        return tuple(f"{r}[{d.name}]" for d in self.datasets for r in RESPONSE_KEYS)
 
     def values(self, theta: ArrayLike) -> dict[str, float]:
         """Calibrated simulator values of one parameter vector (sigmas left out)."""
@@ -252,17 +254,18 @@ class StudyModel:
         """Measurement offsets of one parameter vector, e.g. {"z": z_offset} [SI]."""
         theta = np.asarray(theta, dtype=float).reshape(-1)
         return {
-            RESPONSES[i]: float(theta[col]) if col is not None else fixed
+            RESPONSE_KEYS[i]: float(theta[col]) if col is not None else fixed
             for i, col, fixed in self.offsets
         }
 
     def simulate_means(
         self, X: ArrayLike, datasets: Sequence[int] | None = None
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """Steady means (m, n_datasets, 3) as the lab would measure them (simulated plus the
-        measurement offsets; NaN where a run failed or was invalid, or for a dataset not in
-        ``datasets``, default all) and the per-row ok mask (m, n_datasets). A dataset's means
-        do not depend on which others are simulated with it."""
+        """Steady means (m, n_datasets, k) of the k responses (RESPONSE_KEYS) as the lab would
+        measure them (simulated plus the measurement offsets; NaN where a run failed or was
+        invalid, or for a dataset not in ``datasets``, default all) and the per-row ok mask
+        (m, n_datasets). A dataset's means do not depend on which others are simulated with
+        it."""
         means, ok, _ = self.simulate(X, datasets)
         return means, ok
 
@@ -277,7 +280,7 @@ class StudyModel:
         chosen = list(range(self.n_datasets)) if datasets is None else list(datasets)
         m, n = X.shape[0], len(chosen)
         prms, valid = self.pack_rows(X, chosen)
-        sim = np.full((m * n, 3), np.nan)
+        sim = np.full((m * n, N_RESPONSES), np.nan)
         sim_ok = np.zeros(m * n, dtype=bool)
         why = np.where(valid, "", INVALID).astype(object)
         rows = np.flatnonzero(valid)
@@ -287,10 +290,10 @@ class StudyModel:
             sim_ok[rows] = batch.ok
             why[rows] = [failure_of(status) for status in batch.status]
         sim[~sim_ok] = np.nan
-        means = np.full((m, self.n_datasets, 3), np.nan)
+        means = np.full((m, self.n_datasets, N_RESPONSES), np.nan)
         ok = np.zeros((m, self.n_datasets), dtype=bool)
         failure = np.full((m, self.n_datasets), "", dtype=object)
-        means[:, chosen] = sim.reshape(m, n, 3)
+        means[:, chosen] = sim.reshape(m, n, N_RESPONSES)
         ok[:, chosen] = sim_ok.reshape(m, n)
         failure[:, chosen] = why.reshape(m, n)
         for i, col, fixed in self.offsets:
@@ -319,7 +322,7 @@ class StudyModel:
         sigma: NDArray[np.float64],
         datasets: Sequence[int] | None = None,
     ) -> NDArray[np.float64]:
-        """log L (m,) from simulated means (m, n_datasets, 3) and sigmas (m, n_used); summed
+        """log L (m,) from simulated means (m, n_datasets, k) and sigmas (m, n_used); summed
         over ``datasets`` (default all) in order (row results independent of m)."""
         total = np.zeros(means.shape[0])
         for k in range(self.n_datasets) if datasets is None else datasets:
@@ -342,7 +345,7 @@ class StudyModel:
     def log_likelihood_batch(
         self, X: ArrayLike
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], None, NDArray[np.str_]]:
-        """(log L (m,), responses (m, 3 * n_datasets), no base density, why each failed run
+        """(log L (m,), responses (m, k * n_datasets), no base density, why each failed run
         failed (m,), see :meth:`first_failure`) for parameter vectors X (m, d)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         means, _, failure = self.simulate(X)
@@ -369,7 +372,8 @@ class StudyModel:
         """The output of :meth:`log_likelihood_batch` had the lab-side means been R
         (m, 3 n_datasets)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        return self._output(X, np.asarray(R, dtype=float).reshape(X.shape[0], self.n_datasets, 3))
+        R = np.asarray(R, dtype=float).reshape(X.shape[0], self.n_datasets, N_RESPONSES)
+        return self._output(X, R)
 
     # ------------------------------------------------------------ parts (early rejection)
     # one part per dataset: see scm_core.inference.early_rejection.PartedLikelihood
@@ -395,7 +399,7 @@ class StudyModel:
     def run_part(
         self, X: NDArray[np.float64], k: int
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.str_]]:
-        """(log-likelihood term of dataset k (m,), its lab-side means (m, 3), why its failed
+        """(log-likelihood term of dataset k (m,), its lab-side means (m, k), why its failed
         runs failed (m,))."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         means, _, failure = self.simulate(X, [k])
@@ -423,7 +427,7 @@ class StudyModel:
     def assemble(
         self, X: NDArray[np.float64], responses: Sequence[NDArray[np.float64]]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The output of :meth:`log_likelihood_batch` from each dataset's means (m, 3)."""
+        """The output of :meth:`log_likelihood_batch` from each dataset's means (m, k)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         return self._output(X, np.stack([np.asarray(r, dtype=float) for r in responses], axis=1))
 

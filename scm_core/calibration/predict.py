@@ -24,9 +24,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
+from scm_core.signals.responses import N_RESPONSES
 from scm_core.slip import SlipError, resolve_speeds
 
-from .case import RESPONSES, SIGMA_NAMES, CaseDefinition
+from .case import RESPONSE_KEYS, SIGMA_NAMES, CaseDefinition
 from .model import DatasetTerms, StudyModel, dataset_terms
 
 __all__ = [
@@ -235,11 +236,11 @@ def summarize_predictions(
     is drawn from ``SeedSequence([seed, 1])``."""
     sigma = _sigmas(case, draws)  # response -> (draws,) or None
     rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
-    noise = rng.standard_normal((draws.shape[0], len(targets), 3))
+    noise = rng.standard_normal((draws.shape[0], len(targets), N_RESPONSES))
     out = []
     for k, t in enumerate(targets):
         responses = {}
-        for i, r in enumerate(RESPONSES):
+        for i, r in enumerate(RESPONSE_KEYS):
             sim = means[:, k, i]
             pred = None
             values = sim
@@ -294,7 +295,7 @@ def _sigmas(case: CaseDefinition, X: NDArray[np.float64]) -> dict[str, NDArray |
     or None where the case has neither (no predictive band)."""
     names = case.parameter_names
     out: dict[str, NDArray | None] = {}
-    for r in RESPONSES:
+    for r in RESPONSE_KEYS:
         s = SIGMA_NAMES[r]
         if s in names:
             out[r] = X[:, names.index(s)]

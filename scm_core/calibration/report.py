@@ -12,7 +12,7 @@ from scm_core.inference.posterior import credible_interval, summarize_result
 from scm_core.inference.tmcmc import TMCMCResult
 from scm_core.jsondoc import finite_or_none
 
-from .case import RESPONSES, CaseDefinition
+from .case import RESPONSE_KEYS, CaseDefinition
 from .model import StudyModel
 
 __all__ = ["not_a_posterior", "stage_table", "study_summary"]
@@ -87,10 +87,11 @@ def study_summary(
                 "content_hash": d.content_hash,
                 "conditions": d.conditions,
                 "means": {
-                    r: finite_or_none(x) for r, x in zip(RESPONSES, model.x_exp[k], strict=True)
+                    r: finite_or_none(x) for r, x in zip(RESPONSE_KEYS, model.x_exp[k], strict=True)
                 },
                 "standard_errors": {
-                    r: finite_or_none(x) for r, x in zip(RESPONSES, d.standard_errors, strict=True)
+                    r: finite_or_none(x)
+                    for r, x in zip(RESPONSE_KEYS, d.standard_errors, strict=True)
                 },
             }
         )

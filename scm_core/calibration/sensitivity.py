@@ -38,10 +38,11 @@ from pydantic import ValidationError
 from scm_core.inference.morris import MorrisDesign, morris_analyze, morris_design
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
+from scm_core.signals.responses import N_RESPONSES
 from scm_core.simulator import simulate_packed
 from scm_core.simulator.layout import N_PARAMS, STATUS_NAMES, pack
 
-from .case import CALIBRATABLE, RESPONSES, CaseDefinition
+from .case import CALIBRATABLE, RESPONSE_KEYS, CaseDefinition
 from .failures import INVALID_CODE, failure_counts
 from .model import DatasetTerms, build_configs, dataset_terms
 
@@ -165,7 +166,7 @@ class MorrisModel:
                 continue
             prms[i] = pack(*cfg)
             valid[i] = True
-        out = np.full((X.shape[0], 3), np.nan)
+        out = np.full((X.shape[0], N_RESPONSES), np.nan)
         status = np.full(X.shape[0], INVALID_CODE, dtype=np.int64)
         rows = np.flatnonzero(valid)
         if rows.size:
@@ -212,7 +213,7 @@ class SensitivityResult:
         def table(a: NDArray[np.float64]) -> dict[str, dict[str, float | None]]:
             return {
                 resp: {n: finite_or_none(a[i, k]) for i, n in enumerate(self.names)}
-                for k, resp in enumerate(RESPONSES)
+                for k, resp in enumerate(RESPONSE_KEYS)
             }
 
         return {
@@ -242,7 +243,7 @@ class SensitivityResult:
             "nonlinear_index": table(self.nonlinear_index),
             "n_effects": {
                 resp: {n: int(self.n_effects[i, k]) for i, n in enumerate(self.names)}
-                for k, resp in enumerate(RESPONSES)
+                for k, resp in enumerate(RESPONSE_KEYS)
             },
         }
 
@@ -346,8 +347,10 @@ def analyze_sensitivity(
     (NaN rows for failed runs: the elementary effects that touch them are left out);
     ``status``: the runs' status codes, kept to say why runs failed."""
     Y = np.asarray(outputs, dtype=float)
-    if Y.shape != (design.n_points, len(RESPONSES)):
-        raise ValueError(f"outputs have shape {Y.shape}, expected ({design.n_points}, 3)")
+    if Y.shape != (design.n_points, len(RESPONSE_KEYS)):
+        raise ValueError(
+            f"outputs have shape {Y.shape}, expected ({design.n_points}, {N_RESPONSES})"
+        )
     ee = morris_analyze(design.design, Y).ee  # NaN where a run failed
     mu, mu_star, sigma, count = _nan_stats(ee)
     return SensitivityResult(

@@ -26,11 +26,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from scm_core.signals.responses import RESPONSE_KEYS
 from scm_core.simulator import RigConfig, SoilParams, SWTResult, WheelGeometry, simulate_swt
 
 __all__ = ["NoiseModel", "SyntheticError", "SyntheticLog", "synthesize_log"]
 
-CHANNELS = ("F", "T", "z", "normal_force")
+CHANNELS = (*RESPONSE_KEYS, "normal_force")
 
 
 class SyntheticError(ValueError):

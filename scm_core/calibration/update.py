@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from scm_core.inference.tmcmc_loop import PopulationStart
 from scm_core.inference.tmcmc_stage import StageState
+from scm_core.signals.responses import N_RESPONSES
 
 from .model import StudyModel
 
@@ -66,11 +67,12 @@ class UpdateLikelihood:
         order): stage 0 of the update then runs the new datasets only (``known_parts`` of
         :func:`~scm_core.inference.tmcmc_stage.evaluate_points`), with the same result."""
         R = np.asarray(responses, dtype=float)
-        if R.ndim != 2 or R.shape[1] < 3 * self.n_old:
+        k_r = N_RESPONSES
+        if R.ndim != 2 or R.shape[1] < k_r * self.n_old:
             raise ValueError(
-                f"responses of shape {R.shape} do not hold {self.n_old} datasets' 3 means"
+                f"responses of shape {R.shape} do not hold {self.n_old} datasets' {k_r} means"
             )
-        return {k: R[:, 3 * k : 3 * k + 3] for k in range(self.n_old)}
+        return {k: R[:, k_r * k : k_r * (k + 1)] for k in range(self.n_old)}
 
     # surrogate (delayed acceptance): the model's responses
     @property
@@ -81,7 +83,8 @@ class UpdateLikelihood:
         self, X: NDArray[np.float64], R: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        return self._output(X, np.asarray(R, dtype=float).reshape(X.shape[0], -1, 3))
+        R = np.asarray(R, dtype=float).reshape(X.shape[0], -1, N_RESPONSES)
+        return self._output(X, R)
 
     # parts (early rejection): the model's datasets; the old ones form the base density
     @property

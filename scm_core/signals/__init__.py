@@ -21,15 +21,19 @@ from .processing import (
     steady_response,
     steady_stat,
 )
+from .responses import RESPONSE_KEYS, RESPONSES, Response, response
 from .summary import parse_summary_csv, parse_summary_json
 from .units import UNITS
 from .validation import check_time_axis, window_mask
 
 __all__ = [
     "COLUMNS",
+    "RESPONSES",
+    "RESPONSE_KEYS",
     "UNITS",
     "LogFormatError",
     "Metadata",
+    "Response",
     "ResponseStat",
     "SWTDataset",
     "SWTSeries",
@@ -49,6 +53,7 @@ __all__ = [
     "parse_summary_csv",
     "parse_summary_json",
     "read_sidecar",
+    "response",
     "standard_error",
     "steady_response",
     "steady_stat",

@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from .dataset import SWTDataset
+from .responses import RESPONSE_KEYS, response
 
 __all__ = ["MAX_FORCE_OVER_W", "MAX_SUMMARY_TRIALS", "dataset_warnings", "set_warnings"]
 
@@ -24,8 +25,6 @@ __all__ = ["MAX_FORCE_OVER_W", "MAX_SUMMARY_TRIALS", "dataset_warnings", "set_wa
 MAX_FORCE_OVER_W = 10.0
 #: a per-trial summary with more rows than this is most likely a log without its time column
 MAX_SUMMARY_TRIALS = 100
-
-_NAMES = {"F": "drawbar pull", "T": "torque", "z": "sinkage"}
 
 
 def dataset_warnings(ds: SWTDataset, label: str) -> list[str]:
@@ -60,12 +59,12 @@ def dataset_warnings(ds: SWTDataset, label: str) -> list[str]:
 def set_warnings(datasets: Sequence[SWTDataset], labels: Sequence[str]) -> list[str]:
     """Responses measured in some datasets of the set but not in the others."""
     out = []
-    for key in ("F", "T", "z"):
+    for key in RESPONSE_KEYS:
         have = [lab for ds, lab in zip(datasets, labels, strict=True) if key in ds.responses]
         lack = [lab for ds, lab in zip(datasets, labels, strict=True) if key not in ds.responses]
         if have and lack:
             out.append(
-                f"{_NAMES[key]} ({key}) is measured in {', '.join(have)} but not in "
+                f"{response(key).words} ({key}) is measured in {', '.join(have)} but not in "
                 f"{', '.join(lack)}: a study fits {key} only where it was measured; leave "
                 f"{key} out of the case's responses, or add it to those files"
             )

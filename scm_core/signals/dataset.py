@@ -11,9 +11,9 @@ from scm_core.validation_text import quoted
 from .conditions import TestConditions, make_conditions
 from .errors import LogFormatError
 from .processing import ResponseStat
+from .responses import RESPONSE_KEYS
 
 SourceKind = Literal["timeseries", "summary"]
-RESPONSE_KEYS = ("F", "T", "z")
 DICT_FORMAT = "scm-swt-dataset"
 DICT_VERSION = 2  # 2: conditions hold both slips and speeds (version 1: drive slip only)
 

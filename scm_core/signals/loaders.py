@@ -24,9 +24,6 @@ from .validation import MAX_JITTER, MIN_WINDOW_SAMPLES, check_time_axis, window_
 #: a path, bytes in memory, or a seekable binary file (read from its start)
 Source = str | os.PathLike[str] | bytes | BinaryIO
 
-#: log column -> response key
-_RESPONSES = {"drawbar_pull": "F", "torque": "T", "sinkage": "z"}
-
 
 @contextmanager
 def _open(source: Source) -> Iterator[tuple[BinaryIO, Path | None]]:

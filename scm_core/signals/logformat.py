@@ -20,6 +20,7 @@ from scm_core.validation_text import quoted
 from .csvtext import CanonicalDigest, TableReader, text_lines
 from .errors import LogFormatError
 from .metadata import CONDITION_KEYS, parse_metadata_lines
+from .responses import COLUMN_OF
 from .units import PLAUSIBLE_MAX, SI_UNIT, UNITS, plausible_message, unit_factor
 
 #: canonical column -> (quantity, lower-case aliases)
@@ -33,7 +34,7 @@ COLUMNS: dict[str, tuple[str, tuple[str, ...]]] = {
 }
 REQUIRED_COLUMNS = ("time",)
 #: measured responses: a log carries at least one of them
-RESPONSE_COLUMNS = ("drawbar_pull", "torque", "sinkage")
+RESPONSE_COLUMNS = tuple(COLUMN_OF.values())
 #: case-sensitive single-letter aliases that differ only by case
 _EXACT = {"t": "time", "T": "torque"}
 _ALIASES = {alias: name for name, (_, aliases) in COLUMNS.items() for alias in aliases}

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .responses import RESPONSE_KEYS
+
 #: Default low-pass cutoff (Hz). Grouser passage on an SWT rig is of order 0.1-2 Hz; 1 Hz keeps
 #: the slow response and removes sensor noise. With fewer than 5 Hz sampling the default becomes
 #: 0.2 x sample rate (0.4 x Nyquist).
@@ -51,7 +53,7 @@ class SteadyResponse:
 
     def stats(self) -> dict[str, ResponseStat]:
         """``{"F": ..., "T": ..., "z": ...}`` of the responses present."""
-        return {k: v for k, v in (("F", self.F), ("T", self.T), ("z", self.z)) if v is not None}
+        return {k: getattr(self, k) for k in RESPONSE_KEYS if getattr(self, k) is not None}
 
 
 def sample_rate(t: np.ndarray) -> float:
@@ -194,7 +196,7 @@ def steady_response(
         raise ValueError(f"no samples after the offset {offset:g} s")
     stats = {
         key: None if x is None else steady_stat(x, lowpass(x, rate, cutoff, order), mask)
-        for key, x in (("F", F), ("T", T), ("z", z))
+        for key, x in zip(RESPONSE_KEYS, (F, T, z), strict=True)
     }
     t_win = t[mask]
     return SteadyResponse(

@@ -44,10 +44,11 @@ from .errors import LogFormatError
 from .logformat import COLUMNS, cells_to_float, check_plausible, column_name, parse_header_field
 from .metadata import Metadata, merge_metadata, parse_metadata_lines
 from .processing import ResponseStat
+from .responses import COLUMN_OF
 from .units import SI_UNIT, plausible_message, unit_factor
 
 #: response key -> log column it is measured as
-RESPONSE_COLUMNS = {"F": "drawbar_pull", "T": "torque", "z": "sinkage"}
+RESPONSE_COLUMNS = COLUMN_OF
 _COLUMN_RESPONSE = {c: k for k, c in RESPONSE_COLUMNS.items()}
 _TOP_KEYS = ("name", "conditions", "provenance", "responses", "n_trials")
 #: largest summary or JSON dataset file read (a summary of many trials is a few kB; only

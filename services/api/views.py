@@ -14,7 +14,7 @@ import numpy as np
 from fastapi import HTTPException
 from numpy.typing import NDArray
 
-from scm_core.calibration import RESPONSES
+from scm_core.calibration import RESPONSE_KEYS
 from scm_core.calibration.convergence import RHAT_LIMIT, diagnose_runs
 from scm_core.inference import Failures, StageCounts, count_fields
 from scm_core.inference.posterior import credible_interval, summarize
@@ -89,7 +89,7 @@ def response_names(store: Store, study: StudyRecord) -> list[str]:
             name = store.datasets.get(did).name
         except NotFoundError:
             name = f"dataset{did}"
-        out.extend(f"{r}[{name}]" for r in RESPONSES)
+        out.extend(f"{r}[{name}]" for r in RESPONSE_KEYS)
     return out
 
 

@@ -22,6 +22,7 @@ from rich.table import Table
 
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset
 from scm_core.signals.checks import dataset_warnings, set_warnings
+from scm_core.signals.responses import RESPONSE_KEYS
 
 _SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
 
@@ -87,7 +88,7 @@ def _print(reports: list[dict[str, Any]], warnings: list[str], errors: list[str]
             for k in ("carriage_speed_m_s", "rim_speed_m_s")
         )
         cells = []
-        for key in ("F", "T", "z"):
+        for key in RESPONSE_KEYS:
             resp = r["responses"].get(key)
             scale, _ = _SCALE[key]
             cells.append(

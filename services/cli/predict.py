@@ -29,6 +29,7 @@ from scm_core.calibration.predict import ConditionPrediction, sweep_loads, sweep
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError, SWTDataset
 from scm_core.signals.metadata import merge_metadata
+from scm_core.signals.responses import N_RESPONSES, RESPONSE_KEYS
 from services.studies import StudyRequestError
 from services.studies.batching import local_batch_size
 from services.studies.kinds import kind_of
@@ -117,7 +118,7 @@ def parse_at(specs: tuple[str, ...], geometry: dict[str, float | int]) -> list[D
         except (LogFormatError, ValueError) as exc:
             raise CLIError(f"--at {spec!r}: {' '.join(str(exc).split())}") from None
         conditions = {**geometry, **meta.conditions.to_sim_config()}
-        out.append(DatasetTerms(f"at {spec}", conditions, (math.nan,) * 3))
+        out.append(DatasetTerms(f"at {spec}", conditions, (math.nan,) * N_RESPONSES))
     return out
 
 
@@ -168,7 +169,8 @@ def _conditions(
     loads = None
     if datasets:
         terms = [
-            DatasetTerms(d.name, d.conditions.to_sim_config(), (math.nan,) * 3) for d in datasets
+            DatasetTerms(d.name, d.conditions.to_sim_config(), (math.nan,) * N_RESPONSES)
+            for d in datasets
         ]
         template = terms[0]
         loads = sweep_loads(terms)
@@ -176,7 +178,9 @@ def _conditions(
         template = at_terms[0]
     else:
         first = (summary.get("datasets") or [{}])[0]
-        template = DatasetTerms("study", dict(first.get("conditions") or {}), (math.nan,) * 3)
+        template = DatasetTerms(
+            "study", dict(first.get("conditions") or {}), (math.nan,) * N_RESPONSES
+        )
     return datasets, roles, at_terms, sweep_targets(template, slips, loads)
 
 
@@ -344,7 +348,7 @@ def _predict(
 def _shown_responses(case: CaseDefinition, preds: list[ConditionPrediction]) -> tuple[str, ...]:
     """The case's responses plus any other one a dataset measured."""
     measured = {r for p in preds for r, x in p.responses.items() if x.measured is not None}
-    return tuple(r for r in ("F", "T", "z") if r in case.responses or r in measured)
+    return tuple(r for r in RESPONSE_KEYS if r in case.responses or r in measured)
 
 
 def _print_table(preds: list[ConditionPrediction], out: Path) -> None:

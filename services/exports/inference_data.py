@@ -35,11 +35,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.arviz_import import arviz
+from scm_core.signals.responses import RESPONSE_KEYS, response
 
 __all__ = ["RunPopulation", "StageRow", "inference_data"]
 
-RESPONSES = ("F", "T", "z")
-RESPONSE_UNITS = {"F": "N", "T": "N m", "z": "m"}
+RESPONSE_UNITS = {k: response(k).unit for k in RESPONSE_KEYS}
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,7 @@ def _predictive(
         raise ValueError(f"posterior_predictive: datasets with {sorted(sizes)} draws")
     n = sizes.pop()
     out = {}
-    for r in RESPONSES:
+    for r in RESPONSE_KEYS:
         values = np.full((1, n, len(datasets)), np.nan)
         for k, name in enumerate(datasets):
             column = (predictive.get(name) or {}).get(r)
@@ -154,7 +154,7 @@ def inference_data(
         datasets = list(observed)
         coords["dataset"] = datasets
         observed_data = {}
-        for r in RESPONSES:
+        for r in RESPONSE_KEYS:
             for key, suffix in (("means", ""), ("standard_errors", "_se")):
                 values = [(observed[d].get(key) or {}).get(r) for d in datasets]
                 observed_data[r + suffix] = np.array(
@@ -184,7 +184,7 @@ def inference_data(
             if units.get(n):
                 group[n].attrs["units"] = str(units[n])
     if observed_data is not None:
-        for r in RESPONSES:
+        for r in RESPONSE_KEYS:
             idata.observed_data[r].attrs["units"] = RESPONSE_UNITS[r]
             idata.observed_data[r + "_se"].attrs["units"] = RESPONSE_UNITS[r]
     for r in posterior_predictive or {}:

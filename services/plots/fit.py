@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from scm_core.signals import SWTDataset, TestConditions, lowpass
+from scm_core.signals.responses import RESPONSE_KEYS, RESPONSES
 from scm_core.simulator import ResolvedRig, SWTResult
 
 from .chart import Axis, Chart, Panel, hline, hspan, line, segment, text, vspan
@@ -19,11 +20,7 @@ from .figures import save
 #: a 180 s lab log at 100 Hz drawn in full made one figure 254 KB of SVG (issue 45)
 MAX_POINTS = 1200
 
-_ROWS = (
-    ("F", "drawbar_pull", "drawbar pull F [N]", 1.0, "offset_F"),
-    ("T", "torque", "torque T [N m]", 1.0, "offset_T"),
-    ("z", "sinkage", "sinkage z [mm]", 1000.0, "offset_z"),
-)
+_ROWS = tuple((r.key, r.column, r.label, r.scale, r.offset) for r in RESPONSES)
 
 
 def condition_label(c: TestConditions | ResolvedRig) -> str:
@@ -106,7 +103,7 @@ def fit_chart(
     datasets: Sequence[SWTDataset],
     sims: Sequence[SWTResult | None],
     title: str | None = None,
-    responses: Sequence[str] = ("F", "T", "z"),
+    responses: Sequence[str] = RESPONSE_KEYS,
     offsets: dict[str, float] | None = None,
 ) -> Chart:
     """One column per dataset, one row per response of ``responses`` that some dataset

@@ -7,16 +7,13 @@ from pathlib import Path
 from typing import Any
 
 from scm_core.calibration.predict import Band, ConditionPrediction
+from scm_core.signals.responses import RESPONSE_KEYS, RESPONSES
 
 from .chart import Axis, Chart, Panel, band, errorbars, line, points, text, vline
 from .figures import save
 from .fit import wheel_label
 
-_PANELS = (
-    ("F", "drawbar pull F [N]", 1.0),
-    ("T", "torque T [N m]", 1.0),
-    ("z", "sinkage z [mm]", 1000.0),
-)
+_PANELS = tuple((r.key, r.label, r.scale) for r in RESPONSES)
 _ROLE_STYLE = {
     "calibration": ("o", "black", "measured, used in the calibration"),
     "predicted": ("s", "red", "measured, held out"),
@@ -40,7 +37,7 @@ def predictions_chart(
     datasets: Sequence[ConditionPrediction],
     sweep: Sequence[ConditionPrediction],
     title: str | None = None,
-    responses: Sequence[str] = ("F", "T", "z"),
+    responses: Sequence[str] = RESPONSE_KEYS,
 ) -> Chart:
     """One panel per response against the symmetric lab slip (-1 = locked): the sweep's
     median and 95 % bands (simulated means, and with the prediction-error noise), each
@@ -141,7 +138,7 @@ def plot_predictions(
     sweep: Sequence[ConditionPrediction],
     path: str | Path,
     title: str | None = None,
-    responses: Sequence[str] = ("F", "T", "z"),
+    responses: Sequence[str] = RESPONSE_KEYS,
 ) -> Path:
     """:func:`predictions_chart` drawn to ``path``."""
     from .mpl import draw

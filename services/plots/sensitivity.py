@@ -10,9 +10,11 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from scm_core.signals.responses import RESPONSES
+
 from .figures import save
 
-_RESPONSES = (("F", "drawbar pull F"), ("T", "torque T"), ("z", "sinkage z"))
+_RESPONSES = tuple((r.key, f"{r.words} {r.key}") for r in RESPONSES)
 
 
 def indices_figure(

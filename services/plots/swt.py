@@ -5,16 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 
 from scm_core.signals import SWTDataset
+from scm_core.signals.responses import RESPONSES
 from scm_core.simulator import SWTResult, WheelGeometry
 
 from .chart import Axis, Chart, Panel, line, segment, vspan
 from .fit import UNITS, condition_label, decimated, wheel_label
 
-_PANELS = (
-    ("F", "drawbar pull F [N]", 1.0, "offset_F"),
-    ("T", "torque T [N m]", 1.0, "offset_T"),
-    ("z", "sinkage z [mm]", 1000.0, "offset_z"),
-)
+_PANELS = tuple((r.key, r.label, r.scale, r.offset) for r in RESPONSES)
 
 
 def conditions_text(result: SWTResult, wheel: WheelGeometry | None = None) -> str:
@@ -70,11 +67,7 @@ def plot_swt(
     return path
 
 
-_MEASURED = (
-    ("F", "drawbar_pull", "drawbar pull F [N]", 1.0),
-    ("T", "torque", "torque T [N m]", 1.0),
-    ("z", "sinkage", "sinkage z [mm]", 1000.0),
-)
+_MEASURED = tuple((r.key, r.column, r.label, r.scale) for r in RESPONSES)
 
 
 def measured_chart(ds: SWTDataset, title: str | None = None) -> Chart:

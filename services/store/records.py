@@ -66,7 +66,7 @@ class DatasetRecord:
 
     @property
     def means(self) -> dict[str, float]:
-        """Steady means {"F", "T", "z"} of the processed dataset."""
+        """Steady means of the processed dataset, by response key."""
         return {k: float(v["mean"]) for k, v in self.processed["responses"].items()}
 
     @property

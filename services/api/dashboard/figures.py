@@ -27,6 +27,7 @@ from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePred
 from scm_core.inference.posterior import map_sample, pool_samples
 from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import SWTDataset
+from scm_core.signals.responses import RESPONSE_KEYS
 from services.plots.chart import Chart
 from services.plots.choices import default_pairs, mean_b_eff
 from services.store import StageRecord, Store, StudyRecord
@@ -49,7 +50,6 @@ __all__ = [
     "study_figure",
 ]
 
-RESPONSES = ("F", "T", "z")
 
 #: the format of a figure as chart data, drawn by the page's script (charts.js)
 CHART_FORMAT = "json"
@@ -403,7 +403,7 @@ def _predictions(store: Store, study: StudyRecord, **_: Any) -> Chart:
     ]
     datasets = [c for c in conds if c.role != "sweep"]
     sweep = [c for c in conds if c.role == "sweep"]
-    responses = [r for r in RESPONSES if conds and r in conds[0].responses]
+    responses = [r for r in RESPONSE_KEYS if conds and r in conds[0].responses]
     return plots.predict.predictions_chart(
         datasets, sweep, title=f"{study.name}: posterior predictions", responses=responses
     )
