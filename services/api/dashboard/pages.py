@@ -25,7 +25,6 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from scm_core.calibration import PRESETS, preset_cost
-from scm_core.calibration.failures import describe_failures
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals.conditions import condition_unit
 from services.limits import INT64_MAX
@@ -62,6 +61,7 @@ from .figures import (
     runs_as_chains,
     study_figure,
 )
+from .text_filters import register as register_text_filters
 from .warmer import FigureWarmer
 
 __all__ = ["dashboard_router", "mount_static"]
@@ -79,9 +79,7 @@ def _templates() -> Jinja2Templates:
     folder = resources.files("services.api.dashboard") / "templates"
     own = [str(k.panel.templates) for k in KINDS.values() if k.panel.templates is not None]
     t = Jinja2Templates(directory=[str(folder), *own])
-    t.env.filters["num"] = _fmt_num
-    t.env.filters["duration"] = _fmt_duration
-    t.env.globals["failures"] = describe_failures
+    register_text_filters(t.env)
     t.env.globals.update(
         POLL_SECONDS=POLL_SECONDS,
         LIST_POLL_SECONDS=LIST_POLL_SECONDS,
@@ -89,27 +87,6 @@ def _templates() -> Jinja2Templates:
         DRAW_SECONDS=DRAW_SECONDS,
     )
     return t
-
-
-def _fmt_num(x: Any, digits: int = 4) -> str:
-    if x is None:
-        return "–"
-    if isinstance(x, int):
-        return f"{x:,}"
-    if not math.isfinite(x):
-        return str(x)
-    return f"{x:.{digits}g}"
-
-
-def _fmt_duration(seconds: float | None) -> str:
-    if seconds is None:
-        return "–"
-    s = int(round(seconds))
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {(s % 3600) // 60:02d} min"
 
 
 def mount_static(app: Any) -> None:
