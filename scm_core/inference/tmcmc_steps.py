@@ -72,9 +72,6 @@ class ChainCounters:
         if reasons is not None:
             self._reasons = self._reasons + Failures.of(np.asarray(reasons).tolist())
 
-    def __getitem__(self, name: str) -> int:
-        return self._n[name]
-
     def counts(self) -> StageCounts:
         return StageCounts(**self._n, failed_by=self._reasons)
 

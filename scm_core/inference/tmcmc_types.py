@@ -216,9 +216,6 @@ class Failures:
             tally[reason] = tally.get(reason, 0) + k
         return Failures.of(tally)
 
-    def __bool__(self) -> bool:
-        return bool(self.counts)
-
     @property
     def total(self) -> int:
         return sum(k for _, k in self.counts)
