@@ -12,6 +12,7 @@ from numba import njit
 
 from .contact import surface_velocity
 from .layout import (
+    P_B,
     P_COMPACTION,
     P_DIGMOB,
     P_DT,
@@ -32,6 +33,7 @@ from .layout import (
     P_SLIPV,
     P_TANDELTA,
     P_V,
+    P_VLAT,
 )
 from .soil_grid import LOADED_ELASTIC, LOADED_YIELDING, LOOSE_PUSHED, deposit_soil, take_soil
 from .state import Columns, FlowScratch, Ground, Marks, Window
@@ -160,8 +162,11 @@ def flow_and_deposit(
         if cmax[k] >= 0:
             n_cols += 1
     wx = n_rows / (n_rows + n_cols)
-    compacted = _displaced(keep, cols.xi, marks, window, scratch, xc, yc, wx)
+    vty = prm[P_VLAT] * prm[P_SLIPV]
+    compacted = _displaced(keep, cols.xi, marks, window, scratch, xc, yc, wx, vty)
     _convey(prm, zw, cols.xi, ground, marks, window, scratch)
+    if vty != 0.0:
+        _convey_lateral(prm, ground, marks, window, scratch, vty, dy)
     spilled, tail = _deposit_flows(ground, marks, window, scratch, tail)
     return compacted * dA, spilled * dA, tail
 
@@ -182,6 +187,7 @@ def _survey(prm, zw, vz, cols, marks, window, scratch):
     sv = prm[P_SLIPV]
     v = prm[P_V] * sv
     vz = vz * sv
+    vty = prm[P_VLAT] * sv  # a steered wheel's slip along its axle (0 straight)
     r_out = prm[P_R] + prm[P_HG]
     omega_s = prm[P_OMEGA] * prm[P_SHEARSCALE]  # the shearing surface's at the contact circle
     clamp = work[0]  # per window column: lowest level of the swept circle (inf: none)
@@ -215,7 +221,7 @@ def _survey(prm, zw, vz, cols, marks, window, scratch):
         vpx, vpz, vn = surface_velocity(v, vz, omega_s, xi[k], e[k], fx[k], fz[k])
         vtx = vpx - vn * fx[k]
         vtz = vpz - vn * fz[k]
-        vt = math.sqrt(vtx * vtx + vtz * vtz)
+        vt = math.sqrt(vtx * vtx + vtz * vtz + vty * vty)
         vtx_col[k] = vtx
         vt_col[k] = vt
         vn = vn / sv  # the surface's own normal speed (the scale is the shear's, not the rim's)
@@ -237,11 +243,12 @@ def _survey(prm, zw, vz, cols, marks, window, scratch):
 
 
 @njit(cache=True)
-def _displaced(keep, xi, marks, window, scratch, xc, yc, wx):
+def _displaced(keep, xi, marks, window, scratch, xc, yc, wx, vty):
     """The displaced volume of the loaded nodes, less the compacted share (1 - keep): its
     parallel share along the surface's slip and the rest radially from the centroid (xc, yc),
-    in the proportion wx along x, gathered per row and column. Returns the compacted volume
-    [m * nodes]."""
+    in the proportion wx along x, gathered per row and column. A steered wheel's parallel share
+    follows its horizontal slip (vtx, vty [m/s]), split between x and y as |vtx| : |vty|.
+    Returns the compacted volume [m * nodes]."""
     cflag, dsp = marks
     ncw = window.ncw
     work, iwork = scratch.work, scratch.iwork
@@ -260,12 +267,21 @@ def _displaced(keep, xi, marks, window, scratch, xc, yc, wx):
                 continue
             compacted += (1.0 - keep) * d
             dv = keep * d
-            par = share_col[k] * dv if vtx_col[k] != 0.0 else 0.0
+            par = share_col[k] * dv if vtx_col[k] != 0.0 or vty != 0.0 else 0.0
             if par > 0.0:
+                par_x = par
+                if vty != 0.0:
+                    # the soil flows along the slip, whatever the wheel's heading
+                    par_y = par * abs(vty) / (abs(vtx_col[k]) + abs(vty))
+                    par_x = par - par_y
+                    if vty > 0.0:
+                        acc_p[k] += par_y
+                    else:
+                        acc_m[k] += par_y
                 if vtx_col[k] > 0.0:
-                    acc_f[j] += par
-                else:
-                    acc_b[j] += par
+                    acc_f[j] += par_x
+                elif vtx_col[k] < 0.0:
+                    acc_b[j] += par_x
             rad = dv - par
             if rx >= 0.0:
                 acc_f[j] += wx * rad
@@ -320,6 +336,8 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
     kept_only = prm[P_POCKETKEEP] > 0.5  # no continuity floor: only the soil the pockets keep
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
+    v_lat = prm[P_VLAT]  # a steered wheel's lateral velocity (0 straight)
+    vty = v_lat * prm[P_SLIPV]  # and its slip along the axle
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
     if (depth > 0.0 and fslip > 0.0) or plough > 0.0 or y_slide > 0.0 or pocket > 0.0:
         for j in range(jw0, jw0 + nyw):
@@ -341,8 +359,16 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
             if u == 0.0:
                 continue
             sgn = 1 if u > 0.0 else -1
+            f = fslip
+            v_pass = v  # the ground's speed through the row's footprint
+            if v_lat != 0.0:
+                # a steered wheel drags the layer along its slip: the x share of it here, the y
+                # share in _convey_lateral; fresh ground enters the row's footprint across it
+                # too, at |v_y| over the row's loaded length out of the wheel's width
+                f *= abs(u) / (abs(u) + abs(vty))
+                v_pass = v + abs(v_lat) * nu * dx / prm[P_B]
             if dig_mobilised and sgn < 0:
-                mob = _row_mobilised(u, v, nu * dx, J, disp_form)
+                mob = _row_mobilised(u, v_pass, nu * dx, J, disp_form)
             # path ahead of a skidding row: its height above the wheel's lowest point [m]
             h = 0.0
             if sgn > 0 and (face_plough or plough > 0.0):
@@ -355,7 +381,7 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                 # its front face meets (at most the path's height; at least the grousers'),
                 # pushed ahead under the wedge that the face above carries
                 layer = max(min(y_slide, h), prm[P_HG])
-            flux = _conveyed(layer, fslip * mob, u, v, dig_mobilised)
+            flux = _conveyed(layer, f * mob, u, v_pass, dig_mobilised)
             if sgn > 0 and plough > 0.0 and not face_plough:
                 # ploughing: in the wheel's frame the path ahead comes at v; the rim rolls it
                 # under at its bottom speed omega r, the rest meets the front face as a blade,
@@ -398,6 +424,61 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                     # excavated instead of compacting it; left behind the wheel with the layer
                     take_soil(c0 + gmax[j], j, a_pocket, h0, hl)
                 acc_b[j] += a + a_pocket
+
+
+@njit(cache=True)
+def _convey_lateral(prm, ground, marks, window, scratch, vty, dy):
+    """The layer a steered wheel's rim drags along its axle, per window column: the rim's
+    bottom slides over the ground at the lateral slip ``vty`` [m/s] (tangential to the rim, as
+    a driven rim slides backwards) and drags the layer of grouser height + shear band d along
+    at ``slip_flow`` f times the slip, its y share |vty| / (|vtx| + |vty|) (:func:`_convey`
+    drags the x share). The layer cannot thicken under the wheel: as in a skid, what it carries
+    is dragged off the ground and pushed out of the leading side into the soil beside the rut,
+    where it is deposited (the soil flows along the slip whatever the wheel's heading). A node
+    loses the layer as its shear mobilises (eq. (8)): in the displacement form by
+    d f (exp(-(j - dj)/J) - exp(-j/J)) in a step in which its shear path grew from j - dj to j,
+    so d f (1 - exp(-j/J)) over its passage, most of it near the leading side where the rim
+    meets it; in the velocity form, mobilised at once, d f (1 - exp(-|v_t|/J)) at the leading
+    node. A node passing under a wheel dragged sideways is dug by up to d f: the lateral slip
+    sinkage, the skid's digging in along the axle. No new parameter: d, slip_flow and J are the
+    straight wheel's. Added to the columns' accumulators."""
+    h0, hl, js = ground.h0, ground.hl, ground.js
+    cflag = marks.cflag
+    c0, ncw = window.c0, window.ncw
+    work, iwork = scratch.work, scratch.iwork
+    vtx_col, vt_col = work[1], work[7]
+    acc_p, acc_m = work[5], work[6]
+    cmin, cmax = iwork[3, :ncw], iwork[4, :ncw]
+    depth = prm[P_FLOWDEPTH]
+    fslip = prm[P_SLIPFLOW]
+    if depth <= 0.0 or fslip <= 0.0:
+        return
+    J = prm[P_J]
+    disp_form = prm[P_SHEARDISP] > 0.5
+    dt = prm[P_DT]
+    for k in range(ncw):
+        if cmax[k] < 0:
+            continue
+        f = fslip * abs(vty) / (abs(vtx_col[k]) + abs(vty))  # the slip's y share
+        a = 0.0  # [m * nodes] dragged off in this step
+        lead = -1
+        for j in range(cmin[k], cmax[k] + 1):
+            if LOADED_ELASTIC <= cflag[k + 1, j] <= LOADED_YIELDING:
+                if disp_form:
+                    path = js[c0 + k, j]
+                    grown = math.exp(-max(path - vt_col[k] * dt, 0.0) / J) - math.exp(-path / J)
+                    take_soil(c0 + k, j, depth * f * grown, h0, hl)
+                    a += depth * f * grown
+                elif lead < 0 or vty > 0.0:
+                    lead = j
+        if lead >= 0:
+            # the layer's flux depth f mob |vty| per length, all of it where the rim meets it
+            a = depth * f * (1.0 - math.exp(-vt_col[k] / J)) * abs(vty) * dt / dy
+            take_soil(c0 + k, lead, a, h0, hl)
+        if vty > 0.0:
+            acc_p[k] += a
+        else:
+            acc_m[k] += a
 
 
 @njit(cache=True)

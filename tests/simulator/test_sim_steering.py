@@ -31,19 +31,23 @@ def test_straight_is_packed_as_before() -> None:
     assert r.ok and np.all(r.series["Fy"] == 0.0) and r.means.Fy == 0.0
 
 
-@pytest.mark.parametrize("beta", [30.0, 60.0])
+@pytest.mark.parametrize("beta", [30.0, 60.0, 90.0])
 def test_mirror_angles_give_the_same_forces_and_opposite_lateral_force(beta: float) -> None:
     """+beta and -beta are mirror images across the wheel's plane: F, T, z the same, Fy
-    opposite (to the rounding of the row a sliding wheel sits on, ~1e-8 relative)."""
+    opposite. Not bit for bit: the kernel visits the rows in ascending y, so the two images
+    sum in different orders (1e-16 relative), which a discrete event can amplify (a node at
+    the footprint's leading edge loaded in one image and not the other: 1e-3 of F at 60 deg
+    with this soil, 1e-8 elsewhere); 2e-3 is far inside the discretisation's own error (F
+    moves 5 % under dx / 2, docs/simulator.md)."""
     soil = SoilParams(bulk_density=1330.0)
     plus = simulate_swt(soil, rig=RigConfig(slip_angle=beta, **FAST))
     minus = simulate_swt(soil, rig=RigConfig(slip_angle=-beta, **FAST))
     assert plus.ok and minus.ok
     for name in ("F", "T", "z"):
         a, b = getattr(plus.means, name), getattr(minus.means, name)
-        assert a == pytest.approx(b, rel=1e-6, abs=1e-9), name
+        assert a == pytest.approx(b, rel=2e-3, abs=1e-9), name
     assert plus.means.Fy > 0.0  # against the slide toward -y
-    assert minus.means.Fy == pytest.approx(-plus.means.Fy, rel=1e-6)
+    assert minus.means.Fy == pytest.approx(-plus.means.Fy, rel=2e-3)
 
 
 def _coulomb_passive(gamma: float, c: float, phi_deg: float, h: float) -> float:
@@ -101,3 +105,58 @@ def test_a_locked_wheel_dragged_along_its_axle_slides_on_its_base() -> None:
     assert W * tan_phi * 0.98 <= r.means.Fy <= W * tan_phi / math.cos(theta1) * 1.02, (
         r.means.Fy, W * tan_phi, math.degrees(theta1))  # fmt: skip
     assert abs(r.means.F) < 0.02 * W
+
+
+@pytest.mark.parametrize("beta", [30.0, 60.0, 90.0])
+@pytest.mark.parametrize("omega", [0.0, 0.08], ids=["locked", "driven"])
+def test_a_steered_wheel_conserves_volume(beta: float, omega: float) -> None:
+    """The flows of a steered wheel (the displaced soil's parallel share along the slip, the
+    layer its rim drags along the axle into the soil beside the rut) move soil: only the
+    documented compaction, and soil that would leave the grid (spilled), removes volume."""
+    soil = SoilParams(shear_band=0.02, bulk_density=1330.0)
+    rig = RigConfig(omega=omega, carriage_speed=0.01, slip_angle=beta, **FAST)
+    d = simulate_swt(soil, rig=rig).diagnostics
+    assert d["compacted_volume"] > 0.0
+    balance = d["volume_final"] - d["volume_initial"] + d["compacted_volume"] + d["volume_spilled"]
+    assert abs(balance) / d["compacted_volume"] < 1e-9
+    assert d["volume_spilled"] <= 1e-3 * d["compacted_volume"]
+
+
+def _rut_below_start(shear_band: float, shear: str) -> tuple[float, float]:
+    """(depth [m] of the ground left behind a locked wheel dragged along its axle, under its
+    centre, below the undisturbed level; its steady sinkage [m]) on a stiff soil (little
+    pressing), the shear mobilised at once (J small) and the layer dragged at the slip."""
+    soil = SoilParams(k_phi=5e8, k_c=0.0, n=1.0, c=0.0, phi=30.0, J=1e-4, K=1e9,
+                      shear_band=shear_band, slip_flow=1.0)  # fmt: skip
+    wheel = WheelGeometry(R=0.058, b=0.05, n_grousers=0)
+    rig = RigConfig(W=20.0, omega=0.0, carriage_speed=0.01, slip_angle=90.0, duration=20.0,
+                    dt=0.02, dx=0.0025, offset_F=10.0, offset_T=10.0, offset_z=10.0,
+                    shear=shear)  # fmt: skip
+    r = simulate_swt(soil, wheel, rig)
+    assert r.ok, r.status
+    t = r.terrain
+    centre = t.h[int(np.argmin(np.abs(t.x)))]
+    # the wheel slides toward -y (beta > 0): the rows it left are the middle of those it
+    # crossed, away from both the start (its first footprint) and the end (under it)
+    crossed = np.flatnonzero(centre < -1e-6)
+    behind = centre[crossed[len(crossed) // 3 : 2 * len(crossed) // 3]]
+    return -float(np.median(behind)), r.means.z
+
+
+@pytest.mark.parametrize("shear", ["velocity", "displacement"])
+def test_a_wheel_dragged_sideways_digs_its_shear_band(shear: str) -> None:
+    """Slip sinkage along the axle (issue 70): a locked wheel dragged sideways slides its rim
+    over the ground at the carriage speed, its shear mobilised at once (J small), so every node
+    it passes loses the layer the rim drags, shear_band d (times slip_flow 1), besides the
+    pressing's own sinkage (0.07 mm on this stiff soil). At most d: the layer is all the rim
+    drags. Less by the loose soil the layer holds: the heap the wheel pushed beside its rut is
+    met first as the wheel arrives, and the rim drags it in the ground's place (take_soil takes
+    loose soil first), the more the nearer the leading side the shear mobilises (here 4 % of d
+    in the velocity form, which digs at the leading node, 41 % in the displacement form with
+    its shear path mobilised within 0.1 mm): at least half of d. A wheel with no layer digs
+    none."""
+    none, z0 = _rut_below_start(0.0, shear)
+    assert none < 2e-4 and z0 < 5e-4
+    dug, z = _rut_below_start(0.005, shear)
+    assert 0.5 * 0.005 <= dug - none <= 0.005
+    assert z > z0 + 0.002  # the wheel sinks into what it digs

@@ -1,0 +1,159 @@
+"""Transfer from straight driving to steering: the joint case's soil at the CMU slip angles.
+
+Run: ``python benchmarks/steering_transfer.py [--angles 0,30,60,90] [--threads 2] [--json OUT]``.
+
+The soil of ``examples/cmu_joint.toml`` as committed (its posterior medians, docs/calibration.md
+"The joint calibration with both", the model options of the case file) predicts the development
+data of ``../shared/data/cmu_steering/`` (``--data`` to point elsewhere): both CMU wheels at the
+slip angles 0, 30, 60 and 90 deg, the smooth wheel at its nine rim speeds, the grousered one at
+five, each run at the lab's conditions (carriage 10 mm/s, the commanded rim speed, the angle, the
+condition's mean measured load). Prints per condition F (along the heading), Fy (along the axle,
++ against the side slip) and z against the measured means, whether each is met (F and Fy within
+max(1.5 N, 20 % of |measured|), z within 3 mm: issue 70's transfer criteria), the run's status and
+wall time, and per angle how many conditions meet each criterion. A point prediction at the
+posterior medians, not a predictive band: it measures the physics, not the calibration's spread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from scm_core.calibration import load_case
+from scm_core.calibration.model import build_configs
+from scm_core.simulator import simulate_swt
+
+ROOT = Path(__file__).resolve().parents[1]
+CASE = ROOT / "examples" / "cmu_joint.toml"
+DATA = ROOT.parent / "shared" / "data" / "cmu_steering"
+#: cmu_joint.toml's posterior medians (seed 1, 2026-12-06; docs/calibration.md)
+MEDIANS = {
+    "k_phi": 2.86e6,
+    "n": 1.30,
+    "phi": 33.9,
+    "J": 0.0097,
+    "K": 3.55e6,
+    "shear_band": 0.0176,
+    "bearing_inclination": 1.84,
+    "interface_friction": 0.849,
+    "pocket_fill": 0.269,
+}
+Z_OFFSET = -0.0040  # m, the rig's datum (z_offset's median)
+CARRIAGE = 0.010  # m/s
+RADIUS = 0.058  # m, to the rim (the grouser base)
+WHEELS = {"smooth": {"n_grousers": 0}, "grouser": {"n_grousers": 12, "grouser_height": 0.005}}
+
+
+def conditions(data: Path, angles: set[float]) -> list[dict]:
+    """The development conditions (one per wheel, angle and rim speed) with their means."""
+    rows = []
+    for wheel in WHEELS:
+        with open(data / wheel / "by_condition.csv", newline="") as fh:
+            for r in csv.DictReader(fh):
+                if float(r["slip_angle_deg"]) in angles:
+                    rows.append({"wheel": wheel, **{k: float(v) for k, v in r.items()}})
+    return rows
+
+
+def predict(row: dict, case) -> dict:
+    """The model's steady F, Fy, z [N, N, m] at one condition (NaN unless the run is ok)."""
+    cond = {
+        "slip": None,
+        "W": row["normal_load_N_mean"],
+        "R": RADIUS,
+        "b": 0.05,
+        "carriage_speed": CARRIAGE,
+        "omega": row["vry_cmd_mmps"] / 1000.0 / RADIUS,
+        "slip_angle": row["slip_angle_deg"],
+        **WHEELS[row["wheel"]],
+    }
+    soil, wheel, rig = build_configs(case.nominal, case.simulator, cond, MEDIANS)
+    t0 = time.perf_counter()
+    res = simulate_swt(soil, wheel, rig)
+    wall = time.perf_counter() - t0
+    nan = float("nan")
+    m = res.means
+    return {
+        "status": res.status,
+        "wall_s": wall,
+        "F": m.F if m else nan,
+        "Fy": m.Fy if m else nan,
+        "z": m.z + Z_OFFSET if m else nan,
+    }
+
+
+def met(pred: float, meas: float, kind: str) -> bool:
+    """Issue 70's transfer criteria: forces within max(1.5 N, 20 %), sinkage within 3 mm."""
+    if kind == "z":
+        return abs(pred - meas) <= 0.003
+    return abs(pred - meas) <= max(1.5, 0.2 * abs(meas))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--angles", default="0,30,60,90")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--data", type=Path, default=DATA)
+    ap.add_argument("--json", type=Path, default=None, help="write the rows as JSON")
+    args = ap.parse_args()
+    case = load_case(CASE)
+    rows = conditions(args.data, {float(a) for a in args.angles.split(",")})
+    simulate_swt()  # compile before timing
+    with ThreadPoolExecutor(args.threads) as pool:
+        preds = list(pool.map(lambda r: predict(r, case), rows))
+    table = Table(title="cmu_joint.toml's soil (posterior medians) at the development angles")
+    for col in ("wheel", "beta", "rim mm/s", "F", "F meas", "Fy", "Fy meas", "z mm", "z meas"):
+        table.add_column(col, justify="right")
+    table.add_column("met (F Fy z)")
+    table.add_column("status")
+    table.add_column("s", justify="right")
+    counts: dict[float, list[int]] = {}
+    out = []
+    for r, p in zip(rows, preds, strict=True):
+        ok = (
+            met(p["F"], r["drawbar_pull_N_mean"], "F"),
+            met(p["Fy"], r["lateral_force_N_mean"], "F"),
+            met(p["z"], r["sinkage_m_mean"], "z"),
+        )
+        c = counts.setdefault(r["slip_angle_deg"], [0, 0, 0, 0])
+        c[0] += 1
+        for i, o in enumerate(ok):
+            c[i + 1] += int(o)
+        table.add_row(
+            r["wheel"],
+            f"{r['slip_angle_deg']:.0f}",
+            f"{r['vry_cmd_mmps']:.0f}",
+            f"{p['F']:.2f}",
+            f"{r['drawbar_pull_N_mean']:.2f}",
+            f"{p['Fy']:.2f}",
+            f"{r['lateral_force_N_mean']:.2f}",
+            f"{p['z'] * 1e3:.1f}",
+            f"{r['sinkage_m_mean'] * 1e3:.1f}",
+            " ".join("y" if o else "-" for o in ok),
+            p["status"],
+            f"{p['wall_s']:.2f}",
+        )
+        out.append({**r, **{f"pred_{k}": v for k, v in p.items()}, "met": ok})
+    console = Console()
+    console.print(table)
+    summary = Table(title="conditions met (F, Fy within max(1.5 N, 20 %); z within 3 mm)")
+    for col in ("beta [deg]", "conditions", "F", "Fy", "z"):
+        summary.add_column(col, justify="right")
+    for beta, (n, f, fy, z) in sorted(counts.items()):
+        summary.add_row(f"{beta:.0f}", str(n), str(f), str(fy), str(z))
+    total = [sum(c[i] for c in counts.values()) for i in range(4)]
+    summary.add_row("all", *map(str, total))
+    console.print(summary)
+    if args.json:
+        args.json.write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
