@@ -15,7 +15,7 @@ from scipy.optimize import minimize_scalar
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_swt
 from scm_core.simulator.layout import P_V, P_VLAT, pack
-from scm_core.simulator.side import passive_force_per_length
+from scm_core.simulator.side import passive_force_3d
 
 #: short runs of the paper's wheel (coarse numerics: the checks are relations, not values)
 FAST = {"duration": 12.0, "dt": 0.04, "dx": 0.01, "offset_F": 6.0, "offset_T": 6.0, "offset_z": 6.0}
@@ -77,16 +77,47 @@ def _coulomb_passive(gamma: float, c: float, phi_deg: float, h: float) -> float:
         (0.0, 1200.0, 30.0, 0.04),
     ],
 )
-def test_side_passive_force_is_coulombs_wedge(gamma, c, phi, h) -> None:
-    """Rankine's passive force of a smooth vertical wall equals Coulomb's least wedge force
-    (here found numerically, independently of the closed form) to 1e-6; phi = 30 deg gives
+def test_a_long_side_gets_coulombs_wedge(gamma, c, phi, h) -> None:
+    """A long wall (length 1e6 times its depth: the side crescents' share r / w ~ 1e-6) gets
+    Coulomb's least wedge force per length (found numerically here, independently of the
+    closed form) to 1e-5: Rankine's 1/2 gamma h^2 K_p + 2 c h sqrt(K_p); phi = 30 deg gives
     K_p = 3: 1.5 gamma h^2 without cohesion."""
     tan_phi = math.tan(math.radians(phi))
-    got = passive_force_per_length(gamma, c, tan_phi, h)
-    assert got == pytest.approx(_coulomb_passive(gamma, c, phi, h), rel=1e-6)
+    w = 1e6 * h
+    got = passive_force_3d(gamma, c, tan_phi, h, w) / w
+    assert got == pytest.approx(_coulomb_passive(gamma, c, phi, h), rel=1e-5)
     if phi == 30.0 and c == 0.0:
-        assert got == pytest.approx(1.5 * gamma * h * h, rel=1e-12)
-    assert passive_force_per_length(gamma, c, tan_phi, -0.01) == 0.0
+        assert got == pytest.approx(1.5 * gamma * h * h, rel=1e-5)
+    assert passive_force_3d(gamma, c, tan_phi, -0.01, 0.1) == 0.0
+
+
+def _mckyes_scan(gamma: float, c: float, phi_deg: float, d: float, w: float) -> float:
+    """McKyes & Ali's wedge and crescents for a smooth vertical wall, minimised by a dense scan
+    of the failure plane's angle (written out here from McKyes 1985, ch. 4, not from side.py)."""
+    phi = math.radians(phi_deg)
+    betas = np.linspace(1e-4, math.pi / 2 - phi - 1e-4, 200_001)
+    r = d / np.tan(betas)
+    den = 1.0 / np.tan(betas + phi)  # cos(alpha + delta) + sin(alpha + delta) cot(beta + phi)
+    n_g = r / (2 * d) * (1 + 2 / 3 * r / w) / den
+    n_c = (1 + 1 / np.tan(betas) / np.tan(betas + phi)) * (1 + r / w) / den
+    return float(np.min(w * (gamma * d * d * n_g + c * d * n_c)))
+
+
+@pytest.mark.parametrize(("d", "w"), [(0.05, 0.09), (0.08, 0.11), (0.03, 0.3), (0.06, 0.06)])
+@pytest.mark.parametrize(("c", "phi"), [(0.0, 33.9), (600.0, 28.0)])
+def test_a_short_side_fails_in_three_dimensions(d, w, c, phi) -> None:
+    """The wheel's side is about as long as it is deep, and its failure spreads beyond its ends
+    (McKyes & Ali 1977): the golden-section search finds the scanned minimum to 1e-7, the force
+    exceeds the long wall's Rankine force over the same length, by more the shorter the wall
+    (up to about twice for a square wall in this sand)."""
+    gamma = 13047.0
+    tan_phi = math.tan(math.radians(phi))
+    got = passive_force_3d(gamma, c, tan_phi, d, w)
+    assert got == pytest.approx(_mckyes_scan(gamma, c, phi, d, w), rel=1e-7)
+    kp = math.tan(math.radians(45 + phi / 2)) ** 2
+    rankine = (0.5 * gamma * d * d * kp + 2 * c * d * math.sqrt(kp)) * w
+    assert 1.0 < got / rankine < 2.5
+    assert passive_force_3d(gamma, c, tan_phi, d, 2 * w) / (2 * w) < got / w
 
 
 def test_a_locked_wheel_dragged_along_its_axle_slides_on_its_base() -> None:
