@@ -18,6 +18,7 @@ TOOLS_BEFORE = {
 TOOLS_AFTER = {
     "check": "services.cli.check:check",
     "diagnose": "services.cli.runs:diagnose",
+    "compare": "services.cli.compare:compare",
     "export": "services.cli.export:export",
     "db": "services.cli.db:db",
     "serve": "services.cli.serve:serve",
