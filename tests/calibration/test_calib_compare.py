@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -140,22 +138,13 @@ def test_bad_comparisons_are_refused(models, needle) -> None:
         ModelEvidence("c", (math.nan,), (0.1,))
 
 
-def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "services.cli", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-
-
 def test_the_command_runs_cases_and_reads_results_folders(tmp_path: Path) -> None:
     """`compare` on two case files runs each twice (run groups under OUT, as `calibrate
     --runs 2`), ranks the classes by the mean of their runs' ln Z and writes compare.json;
     given the run groups' folders instead it reads them and gives the same file; one source,
     or a file that is not a case, is refused in one line."""
     from test_calib_cli import CASE
+    from test_calib_cli import run_cli as _cli
 
     synth = _cli("synth", "--set", "phi=27", "--set", "J=0.004", "--set", "dx=0.015", "--set",
                  "dt=0.05", "--duration", "8", "--ramp", "1", "--seed", "3", "--out", "log.csv",
