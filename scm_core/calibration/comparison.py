@@ -22,7 +22,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 __all__ = [
     "BayesFactor",
@@ -103,6 +102,8 @@ class BayesFactor:
     @property
     def half_width(self) -> float:
         """Half the 95 % interval of ln B (Student's t with :attr:`dof`)."""
+        from scipy import stats  # scipy.stats is slow to import: only when a verdict is made
+
         q = stats.norm.ppf if math.isinf(self.dof) else (lambda p: stats.t.ppf(p, self.dof))
         return float(q(0.5 + LEVEL / 2.0)) * self.se
 

@@ -56,6 +56,7 @@ from .routes import (
     ERROR_DESCRIPTIONS,
     ERROR_HEADERS,
     cases,
+    comparison,
     datasets,
     health,
     pooled,
@@ -398,7 +399,10 @@ def create_app(
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     app.add_middleware(TokenFirstMiddleware)  # outermost: runs first
     _install_error_handlers(app)
-    routers = [m.router for m in (health, datasets, presets, cases, studies, study_events, pooled)]
+    routers = [
+        m.router
+        for m in (health, datasets, presets, cases, studies, study_events, pooled, comparison)
+    ]
     routers += [kind_router(k) for k in KINDS.values() if k.http is not None]
     if settings.dashboard:
         routers.append(dashboard_router(app.state.figure_warmer))

@@ -468,6 +468,38 @@ class AgreementOut(BaseModel):
     log_evidence_sd: float | None
 
 
+class ModelClassOut(BaseModel):
+    name: str = Field(description="The class: its studies' name and ids.")
+    study_ids: list[int] = Field(description="Its runs: completed calibrations, one case.")
+    runs: int
+    log_evidence: float = Field(description="Mean of the runs' ln Z.")
+    se: float = Field(
+        description="Standard error of the mean from the runs' spread (one run: its own)."
+    )
+    spread: float | None = Field(description="Sample sd of the runs' ln Z (null for one run).")
+    run_log_evidence: list[float]
+
+
+class BayesFactorOut(BaseModel):
+    better: str
+    worse: str
+    log_bayes_factor: float = Field(description="ln B = ln Z_better - ln Z_worse.")
+    se: float
+    dof: float | None = Field(description="Welch-Satterthwaite (null: a normal interval).")
+    half_width_95: float
+    decided: bool = Field(description="True when the 95 % interval leaves out 0.")
+    strength: str = Field(description="Kass & Raftery's (1995) words for ln B.")
+    verdict: str
+
+
+class ComparisonOut(BaseModel):
+    """Model classes (runs of one calibration each) ranked by log evidence, and the best one's
+    Bayes factor over each other (scm_core.calibration.comparison)."""
+
+    classes: list[ModelClassOut] = Field(description="Best first.")
+    bayes_factors: list[BayesFactorOut] = Field(description="The best over each other class.")
+
+
 class PooledOut(BaseModel):
     study_ids: list[int]
     n_per_study: int

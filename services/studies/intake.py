@@ -7,6 +7,7 @@ The kinds (:mod:`.kinds`) check the rest of a request (datasets, limits, configu
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
@@ -17,7 +18,19 @@ from services.store import StudySpec
 
 from .errors import StudyRequestError
 
-__all__ = ["base_case", "run_specs", "with_overrides"]
+__all__ = ["base_case", "group_name", "run_name", "run_specs", "with_overrides"]
+
+_RUN_SUFFIX = re.compile(r" \(run [0-9]+/[0-9]+\)$")
+
+
+def run_name(name: str, k: int, runs: int) -> str:
+    """The name of run ``k`` (from 1) of ``runs`` of the study ``name``."""
+    return f"{name} (run {k}/{runs})"[:200]
+
+
+def group_name(name: str) -> str:
+    """The study's name without its run's suffix (:func:`run_name`)."""
+    return _RUN_SUFFIX.sub("", name)
 
 
 def base_case(preset: str | None, document: Mapping[str, Any] | None) -> CaseDefinition:
@@ -75,6 +88,6 @@ def run_specs(case: CaseDefinition, spec: StudySpec, runs: int) -> list[StudySpe
         raise StudyRequestError(f"runs: {exc}") from None
     out = []
     for k, seed in enumerate(seeds):
-        run = case.with_changes(seed=seed, name=f"{case.name} (run {k + 1}/{runs})"[:200])
+        run = case.with_changes(seed=seed, name=run_name(case.name, k + 1, runs))
         out.append(replace(spec, name=run.name, case=run.to_dict(), seed=run.seed))
     return out

@@ -31,7 +31,7 @@ from services.limits import INT64_MAX
 from services.plots.choices import default_pairs
 from services.plots.figures import FORMATS
 from services.store import NotFoundError, Store, StudyRecord
-from services.studies.comparable import why_not_runs
+from services.studies.comparable import compare_studies, why_not_runs
 from services.studies.kinds import KINDS, posterior_kinds
 
 from ..deps import StoreDep, require_read
@@ -563,7 +563,15 @@ def _comparison(store: Store, studies: list[StudyRecord]) -> dict[str, Any]:
         for n in shared or []
     ]
     same_data = len({tuple(sorted(s.dataset_ids)) for s in studies}) == 1
+    classes, why_no_classes = None, None
+    if same_data and not_runs is not None:  # runs of one calibration: their agreement above
+        try:
+            classes = compare_studies(studies)[0]
+        except ValueError as exc:
+            why_no_classes = str(exc).removeprefix("study_ids: ")
     return {
+        "classes": classes,
+        "why_no_classes": why_no_classes,
         "agreement": agreement,
         "not_runs": not_runs,
         "rows": rows,
