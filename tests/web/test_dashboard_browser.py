@@ -570,6 +570,13 @@ def test_compare_page_shows_evidences_and_a_bayes_factor(server, browser) -> Non
             f"{server['base']}/pooled", params={"study_ids": f"{server['a']},{server['b']}"}
         )
         assert pooled.status_code == 422 and w.page.locator("p.verdict").count() == 0
+        # two calibrations of the same data: two model classes, the verdict the API gives
+        ids = f"{server['a']},{server['b']}"
+        api = httpx.get(f"{server['base']}/comparison", params={"study_ids": ids})
+        assert api.status_code == 200, api.text
+        assert w.page.locator("table.classes tbody tr").count() == 2
+        said = w.page.locator("p.comparison").all_inner_texts()
+        assert said == [bf["verdict"] for bf in api.json()["bayes_factors"]]
         w.clean()
     finally:
         w.close()
