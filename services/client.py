@@ -174,7 +174,7 @@ class SCMCalibClient:
         self, summary: Mapping[str, Any] | str | Path, metadata: Mapping[str, Any] | None = None
     ) -> dict[str, Any]:
         """Upload a summary dataset: a JSON-ready dict (``name``, ``conditions``,
-        ``responses`` {F, T, z: {mean, sd, unit}}, ``n_trials``) or a summary file."""
+        ``responses`` {F, T, z, Fy: {mean, sd, unit}}, ``n_trials``) or a summary file."""
         if isinstance(summary, str | Path):
             return self.upload_log(summary, metadata)
         if metadata:

@@ -6,7 +6,8 @@ the simulator settings, the sampler settings and the datasets. It is written as 
     name = "case1"
     seed = 1
     likelihood = "normalized"          # eq. (12)-(15); or "gaussian", eq. (6)
-    responses = ["F", "T", "z"]        # steady means entering the likelihood
+    responses = ["F", "T", "z"]        # steady means entering the likelihood (the default;
+                                       # a steered wheel's lateral force "Fy" only if named)
     trials = "mean"                    # a summary of repeated trials is one test at its mean;
                                        # "each": every trial is a test (its mean, sd, n_trials)
 
@@ -38,8 +39,9 @@ the simulator settings, the sampler settings and the datasets. It is written as 
 Calibratable names: the float fields of :class:`~scm_core.simulator.SoilParams` (``n``, ``k_c``,
 ``k_phi``, ``c``, ``phi`` [deg], ``D_soil``, ``J``, ``K``, ...) and of
 :class:`~scm_core.simulator.WheelGeometry` (``R``, ``b``, ...), plus the prediction-error standard
-deviations ``sigma_F`` [N], ``sigma_T`` [N m], ``sigma_z`` [m]. One sigma per response, shared
-by all datasets of the study.
+deviations ``sigma_F`` [N], ``sigma_T`` [N m], ``sigma_z`` [m], ``sigma_Fy`` [N]. One sigma per
+response, shared by all datasets of the study; a dataset that did not measure a response (NaN:
+the CMU data's torque, a straight test's lateral force) has no term for it.
 
 Every problem is reported as :class:`CaseError` with a one-line message that names the field
 (``parameters.k_c``, ``nominal.J``, ``sampler.n_samples`` ...).
@@ -74,7 +76,7 @@ from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc_stage import TMCMCSettings
 from scm_core.inference.tmcmc_types import MOVES
 from scm_core.seeds import SEED_MAX
-from scm_core.signals.responses import RESPONSE_KEYS, response
+from scm_core.signals.responses import DEFAULT_KEYS, RESPONSE_KEYS, response
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry
 from scm_core.validation_text import first_error, one_line
 
@@ -350,7 +352,7 @@ class CaseDefinition(_Strict):
     seed: int = Field(0, ge=0, le=SEED_MAX)
     likelihood: Literal["normalized", "gaussian"] = "normalized"
     trials: Literal["mean", "each"] = "mean"
-    responses: tuple[Literal[RESPONSE_KEYS], ...] = RESPONSE_KEYS
+    responses: tuple[Literal[RESPONSE_KEYS], ...] = DEFAULT_KEYS
     parameters: dict[str, PriorSpec]
     nominal: dict[str, float | int | bool | str] = Field(default_factory=dict)
     simulator: dict[str, float | int | bool | str] = Field(default_factory=dict)
@@ -452,7 +454,8 @@ class CaseDefinition(_Strict):
             if name not in NOMINAL_NAMES:
                 raise CaseError(
                     f"nominal.{name}: unknown name {name!r}; accepted: simulator keys "
-                    "(see `scm-calib simulate` keys), sigma_F, sigma_T, sigma_z or z_offset"
+                    f"(see `scm-calib simulate` keys), {', '.join(SIGMA_NAMES.values())} or "
+                    f"{', '.join(OFFSET_NAMES.values())}"
                 )
         for name in self.simulator:
             if name not in RIG_FIELDS:

@@ -8,11 +8,12 @@ For a batch X (m, d) and n datasets, the m * n simulator configurations are buil
 :meth:`StudyModel.configs` for the precedence) and run in ONE
 :func:`scm_core.simulator.simulate_packed` call (numba threads, rows independent, so results do
 not depend on how the rows are batched). The likelihood is the product over datasets and used
-responses of eq. (12)-(15) (``normalized``) or eq. (6) (``gaussian``) with the steady means of
-the log as x_exp. The prediction-error sigmas are one per response (sigma_F, sigma_T, sigma_z),
-shared by all datasets: each dataset's residual is scaled by the same sigma, as the paper's
-single-dataset likelihood generalises when the model error is assumed the same at every test
-condition (give each condition its own study to relax that).
+responses of eq. (12)-(15) (``normalized``) or eq. (6) (``gaussian``) with the steady means of the
+log as x_exp; a response a dataset did not measure (NaN: the CMU data's torque, a straight test's
+lateral force) has no term. The prediction-error sigmas are one per response (sigma_F, sigma_T,
+sigma_z, sigma_Fy), shared by all datasets: each dataset's residual is scaled by the same sigma, as
+the paper's single-dataset likelihood generalises when the model error is assumed the same at every
+test condition (give each condition its own study to relax that).
 
 A run that fails (status != "ok") or whose configuration is invalid (e.g. a calibrated R that
 makes the grousers too high for the rim: pydantic refuses it) gives log L = -inf and NaN
@@ -34,7 +35,7 @@ from pydantic import ValidationError
 from scm_core.inference import portable
 from scm_core.inference.likelihood import LOG_SQRT_2PI, log_likelihood_trials
 from scm_core.signals import SWTDataset
-from scm_core.signals.responses import N_RESPONSES
+from scm_core.signals.responses import N_RESPONSES, widened
 from scm_core.simulator import (
     RigConfig,
     SoilParams,
@@ -56,9 +57,9 @@ __all__ = ["DatasetTerms", "StudyModel", "dataset_terms"]
 @dataclass(frozen=True)
 class DatasetTerms:
     """What the likelihood needs from one dataset: its name, simulator condition keys (W, slip,
-    omega, R, b, n_grousers, grouser_height, as available), the steady means (F N, T N m,
-    z m) with their standard errors (NaN where unknown) and, for a summary of repeated trials,
-    their number and sample sds (same units)."""
+    omega, R, b, n_grousers, grouser_height, slip_angle, as available), the steady means (F N,
+    T N m, z m, Fy N) with their standard errors (NaN where unknown) and, for a summary of
+    repeated trials, their number and sample sds (same units)."""
 
     name: str
     conditions: dict[str, float | int | str]
@@ -68,10 +69,23 @@ class DatasetTerms:
     trial_sd: tuple[float, ...] = (np.nan,) * N_RESPONSES
     standard_errors: tuple[float, ...] = (np.nan,) * N_RESPONSES
 
+    def __post_init__(self) -> None:
+        """Values given for the first responses only (F, T, z: made before the lateral force
+        was declared) read with the others NaN, not measured
+        (:func:`~scm_core.signals.responses.widened`)."""
+        for name in ("means", "trial_sd", "standard_errors"):
+            values = tuple(float(x) for x in widened(getattr(self, name), 1))
+            object.__setattr__(self, name, values)
+
     @property
     def measured(self) -> tuple[str, ...]:
-        """The responses (F, T, z) this dataset measured."""
+        """The responses (F, T, z, Fy) this dataset measured."""
         return tuple(r for r, x in zip(RESPONSE_KEYS, self.means, strict=True) if np.isfinite(x))
+
+    @property
+    def steered(self) -> bool:
+        """Whether its wheel runs at a slip angle (the lateral force is then not zero)."""
+        return bool(self.conditions.get("slip_angle"))
 
 
 def dataset_terms(dataset: SWTDataset | DatasetTerms) -> DatasetTerms:
@@ -138,7 +152,7 @@ class StudyModel:
     """Batch likelihood of a calibration case over one or more SWT datasets (picklable).
 
     ``names``: calibrated parameters (sample columns); ``response_names``: the columns of the
-    responses returned with the likelihood, F/T/z per dataset (``F[name]``...). Pass
+    responses returned with the likelihood, F/T/z/Fy per dataset (``F[name]``...). Pass
     :class:`~scm_core.signals.SWTDataset` objects or :class:`DatasetTerms`.
     """
 
@@ -370,9 +384,10 @@ class StudyModel:
         self, X: NDArray[np.float64], R: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The output of :meth:`log_likelihood_batch` had the lab-side means been R
-        (m, 3 n_datasets)."""
+        (m, N_RESPONSES n_datasets; fewer per dataset: stored before the later responses,
+        see :func:`~scm_core.signals.responses.widened`)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        R = np.asarray(R, dtype=float).reshape(X.shape[0], self.n_datasets, N_RESPONSES)
+        R = widened(R, self.n_datasets).reshape(X.shape[0], self.n_datasets, N_RESPONSES)
         return self._output(X, R)
 
     # ------------------------------------------------------------ parts (early rejection)

@@ -3,9 +3,11 @@
 Draws of a finished study's posterior are simulated under other test conditions (held-out
 datasets, a slip sweep). Per condition and response the result gives the median and the central
 95 % band of the simulated steady means (the parameter uncertainty), the same with the study's
-prediction-error noise added (sigma_F, sigma_T, sigma_z of each draw: where a new measurement is
-expected to fall), and, where the condition has a measurement, the measured value and whether it
-lies inside the bands.
+prediction-error noise added (sigma_F, sigma_T, sigma_z, sigma_Fy of each draw: where a new
+measurement is expected to fall), and, where the condition has a measurement, the measured value
+and whether it lies inside the bands. The responses predicted are F, T and z, and the lateral
+force Fy where the case fits it, a condition measured it or a condition is steered
+(:func:`predicted_keys`): a straight wheel's is zero.
 
 Deterministic for a seed: the draws are chosen with ``SeedSequence([seed, 0])`` and the noise
 with ``SeedSequence([seed, 1])``; every simulation is independent of its batch, so any ``map``
@@ -24,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
-from scm_core.signals.responses import N_RESPONSES
+from scm_core.signals.responses import N_FIRST, N_RESPONSES, keys_for
 from scm_core.slip import SlipError, resolve_speeds
 
 from .case import RESPONSE_KEYS, SIGMA_NAMES, CaseDefinition
@@ -36,6 +38,7 @@ __all__ = [
     "ResponsePrediction",
     "choose_draws",
     "predict",
+    "predicted_keys",
     "prediction_draws",
     "summarize_predictions",
     "sweep_loads",
@@ -199,14 +202,22 @@ def sweep_targets(
     base = {k: x for k, x in cond.items() if k not in ("slip", "slip_convention", "omega")}
     if v is not None:
         base["carriage_speed"] = v
-    nan3 = (math.nan, math.nan, math.nan)
+    unmeasured = (math.nan,) * N_RESPONSES
     out = []
     for s in values:
         cond_s = {**base, "slip": float(s), "slip_convention": "symmetric"}
         if loads is not None:
             cond_s["W"] = float(np.interp(s, loads[0], loads[1]))
-        out.append(DatasetTerms(name=f"slip {s:.4g}", conditions=cond_s, means=nan3))
+        out.append(DatasetTerms(name=f"slip {s:.4g}", conditions=cond_s, means=unmeasured))
     return out
+
+
+def predicted_keys(case: CaseDefinition, targets: Sequence[DatasetTerms]) -> tuple[str, ...]:
+    """The responses a prediction gives, in :data:`RESPONSES` order: those every run gives
+    (F, T, z), and a steered wheel's (Fy) where the case fits it, a target measured it or a
+    target is steered."""
+    measured = (t.measured for t in targets)
+    return keys_for(any(t.steered for t in targets), case.responses, *measured)
 
 
 def prediction_draws(
@@ -231,16 +242,23 @@ def summarize_predictions(
     seed: int,
     roles: Sequence[str] | None = None,
 ) -> list[ConditionPrediction]:
-    """Bands per target and response from the simulated steady ``means`` (draws, targets, 3)
-    of ``draws`` (whether each run succeeded: ``ok`` (draws, targets)); the prediction noise
-    is drawn from ``SeedSequence([seed, 1])``."""
+    """Bands per target and response (:func:`predicted_keys`) from the simulated steady
+    ``means`` (draws, targets, N_RESPONSES) of ``draws`` (whether each run succeeded: ``ok``
+    (draws, targets)); the prediction noise is drawn from ``SeedSequence([seed, 1])``: one
+    normal per draw, target and response, first for the responses declared at first (F, T,
+    z), then for the later ones, so that those are the numbers they always were."""
     sigma = _sigmas(case, draws)  # response -> (draws,) or None
     rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
-    noise = rng.standard_normal((draws.shape[0], len(targets), N_RESPONSES))
+    size = (draws.shape[0], len(targets))
+    first = rng.standard_normal((*size, N_FIRST))
+    noise = np.concatenate([first, rng.standard_normal((*size, N_RESPONSES - N_FIRST))], axis=2)
+    keys = predicted_keys(case, targets)
     out = []
     for k, t in enumerate(targets):
         responses = {}
         for i, r in enumerate(RESPONSE_KEYS):
+            if r not in keys:
+                continue
             sim = means[:, k, i]
             pred = None
             values = sim
@@ -285,7 +303,7 @@ def predict(
     model = StudyModel(case, terms)
     chunks = [Xd[i : i + batch_size] for i in range(0, Xd.shape[0], batch_size)]
     parts = list(map(model.simulate_means, chunks))
-    means = np.concatenate([p[0] for p in parts], axis=0)  # (draws, targets, 3)
+    means = np.concatenate([p[0] for p in parts], axis=0)  # (draws, targets, N_RESPONSES)
     ok = np.concatenate([p[1] for p in parts], axis=0)
     return summarize_predictions(case, terms, Xd, means, ok, seed, roles)
 

@@ -18,7 +18,8 @@ and J, and documented choices for the rest:
 * D_soil: 0 .. 1e6 N s/m^3 (at SWT penetration rates of a few mm/s, up to ~5 kPa of damping
   stress, a quarter of the static stress).
 
-Responses: the steady means F, T, z of the simulated SWT under one dataset's conditions. A run
+Responses: the steady means F, T, z of the simulated SWT under one dataset's conditions (and
+the lateral force Fy where the dataset's wheel is steered; a straight wheel's is zero). A run
 that fails (e.g. bottoms out on a soft, high-n soil) gives NaN; the elementary effects that
 touch it are left out and mu, mu*, sigma are taken over the remaining trajectories (counts in
 ``n_effects``). Indices as in :mod:`scm_core.inference.morris`: linear = mu* / sum mu*,
@@ -38,7 +39,7 @@ from pydantic import ValidationError
 from scm_core.inference.morris import MorrisDesign, morris_analyze, morris_design
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
-from scm_core.signals.responses import N_RESPONSES
+from scm_core.signals.responses import N_RESPONSES, keys_of, response
 from scm_core.simulator import simulate_packed
 from scm_core.simulator.layout import N_PARAMS, STATUS_NAMES, pack
 
@@ -119,8 +120,9 @@ def screening_factors(
 
 
 class MorrisModel:
-    """Picklable ``func_batch``: factor points (m, d) -> (steady means (m, 3) [N, N m, m]
-    under one dataset's conditions, NaN for failed or invalid runs; status codes (m,), see
+    """Picklable ``func_batch``: factor points (m, d) -> (steady means (m, N_RESPONSES)
+    [N, N m, m, N] under one dataset's conditions, NaN for failed or invalid runs; status
+    codes (m,), see
     :data:`~scm_core.calibration.failures.INVALID_CODE`), rows run in one
     :func:`~scm_core.simulator.simulate_packed` call."""
 
@@ -142,6 +144,11 @@ class MorrisModel:
         )
         self.simulator = dict(case.simulator) if case else {}
         self.dataset = dataset_terms(dataset)
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """The responses screened: those the dataset's wheel gives (:func:`keys_of`)."""
+        return keys_of(self.dataset.steered)
 
     def values(self, x: NDArray[np.float64]) -> dict[str, float]:
         out: dict[str, float] = {}
@@ -180,7 +187,8 @@ class MorrisModel:
 
 @dataclass(frozen=True, eq=False)
 class SensitivityResult:
-    """Morris statistics (d, 3) per factor and response F, T, z; see the module doc."""
+    """Morris statistics (d, N_RESPONSES) per factor and response F, T, z, Fy, reported for
+    ``keys`` (Fy only for a steered wheel); see the module doc."""
 
     names: tuple[str, ...]
     bounds: NDArray[np.float64]
@@ -198,6 +206,7 @@ class SensitivityResult:
     seed: int
     dataset: str
     status: NDArray[np.int64] | None = None  # per point (see failures.INVALID_CODE)
+    keys: tuple[str, ...] = keys_of(steered=False)
 
     @property
     def n_runs(self) -> int:
@@ -205,15 +214,18 @@ class SensitivityResult:
 
     @property
     def n_failed(self) -> int:
-        return int(np.count_nonzero(~np.all(np.isfinite(self.outputs), axis=1)))
+        reported = self.outputs[:, [RESPONSE_KEYS.index(r) for r in self.keys]]
+        return int(np.count_nonzero(~np.all(np.isfinite(reported), axis=1)))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible (NaN as null)."""
 
+        columns = [(RESPONSE_KEYS.index(r), r) for r in self.keys]
+
         def table(a: NDArray[np.float64]) -> dict[str, dict[str, float | None]]:
             return {
                 resp: {n: finite_or_none(a[i, k]) for i, n in enumerate(self.names)}
-                for k, resp in enumerate(RESPONSE_KEYS)
+                for k, resp in columns
             }
 
         return {
@@ -227,7 +239,7 @@ class SensitivityResult:
                 }
                 for i, n in enumerate(self.names)
             ],
-            "responses": {"F": "N", "T": "N m", "z": "m"},
+            "responses": {r: response(r).unit for r in self.keys},
             "r": self.r,
             "levels": self.levels,
             "seed": self.seed,
@@ -243,7 +255,7 @@ class SensitivityResult:
             "nonlinear_index": table(self.nonlinear_index),
             "n_effects": {
                 resp: {n: int(self.n_effects[i, k]) for i, n in enumerate(self.names)}
-                for k, resp in enumerate(RESPONSE_KEYS)
+                for k, resp in columns
             },
         }
 
@@ -342,12 +354,14 @@ def analyze_sensitivity(
     outputs: ArrayLike,
     dataset: str = "",
     status: ArrayLike | None = None,
+    keys: tuple[str, ...] = keys_of(steered=False),
 ) -> SensitivityResult:
-    """Morris statistics from the outputs (n_points, 3) of the design's points, in order
-    (NaN rows for failed runs: the elementary effects that touch them are left out);
-    ``status``: the runs' status codes, kept to say why runs failed."""
+    """Morris statistics from the outputs (n_points, N_RESPONSES) of the design's points, in
+    order (NaN rows for failed runs: the elementary effects that touch them are left out);
+    ``status``: the runs' status codes, kept to say why runs failed; ``keys``: the responses
+    reported (:attr:`MorrisModel.keys`)."""
     Y = np.asarray(outputs, dtype=float)
-    if Y.shape != (design.n_points, len(RESPONSE_KEYS)):
+    if Y.shape != (design.n_points, N_RESPONSES):
         raise ValueError(
             f"outputs have shape {Y.shape}, expected ({design.n_points}, {N_RESPONSES})"
         )
@@ -370,6 +384,7 @@ def analyze_sensitivity(
         seed=design.seed,
         dataset=dataset,
         status=None if status is None else np.asarray(status, dtype=np.int64),
+        keys=tuple(keys),
     )
 
 
@@ -392,4 +407,4 @@ def run_sensitivity(
     runs = list(map(model, chunks))
     Y = np.concatenate([np.asarray(y) for y, _ in runs], axis=0)
     status = np.concatenate([s for _, s in runs])
-    return analyze_sensitivity(design, Y, model.dataset.name, status)
+    return analyze_sensitivity(design, Y, model.dataset.name, status, model.keys)

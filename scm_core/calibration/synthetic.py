@@ -12,9 +12,11 @@ real SWT (paper section 4.3: about 180 s), then
    Ornstein-Uhlenbeck process of correlation time ``drift_time_s``, stationary from t = 0),
    all drawn from ``numpy.random.SeedSequence(seed)``, so a seed gives the same log.
 
-The result carries the arrays, the test conditions (metadata for
-:func:`scm_core.signals.write_log`) and the true parameters. The lab's nominal radius in the
-metadata is the rig's ``slip_radius`` (the rim radius R of the truth may differ: cases 2).
+A steered rig (``slip_angle``) also gives the lateral force Fy, whose noise is drawn after the
+other channels' (a straight log's numbers do not change). The result carries the arrays, the test
+conditions (metadata for :func:`scm_core.signals.write_log`) and the true parameters. The lab's
+nominal radius in the metadata is the rig's ``slip_radius`` (the rim radius R of the truth may
+differ: cases 2).
 """
 
 from __future__ import annotations
@@ -26,12 +28,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.signals.responses import RESPONSE_KEYS
+from scm_core.signals.responses import RESPONSE_KEYS, keys_of
 from scm_core.simulator import RigConfig, SoilParams, SWTResult, WheelGeometry, simulate_swt
 
 __all__ = ["NoiseModel", "SyntheticError", "SyntheticLog", "synthesize_log"]
 
-CHANNELS = (*RESPONSE_KEYS, "normal_force")
+#: a straight log's channels in the order their noise is drawn, then a steered wheel's
+STRAIGHT = (*keys_of(steered=False), "normal_force")
+CHANNELS = (*STRAIGHT, *(k for k in RESPONSE_KEYS if k not in STRAIGHT))
 
 
 class SyntheticError(ValueError):
@@ -43,15 +47,16 @@ class NoiseModel:
     """Sensor noise per channel (SI: N, N m, m, N): white sd and drift sd.
 
     Defaults are typical of an SWT rig's force-torque sensor and sinkage potentiometer: a few N
-    of white noise on F, 0.2 N m on T, 0.2 mm on z; drift of about 1 % of the steady values.
+    of white noise on F and Fy, 0.2 N m on T, 0.2 mm on z; drift of about 1 % of the steady
+    values.
     ``scale`` multiplies every level (0: a noise-free log).
     """
 
     white: dict[str, float] = field(
-        default_factory=lambda: {"F": 2.0, "T": 0.2, "z": 2.0e-4, "normal_force": 2.0}
+        default_factory=lambda: {"F": 2.0, "T": 0.2, "z": 2.0e-4, "normal_force": 2.0, "Fy": 2.0}
     )
     drift: dict[str, float] = field(
-        default_factory=lambda: {"F": 0.5, "T": 0.05, "z": 1.0e-4, "normal_force": 1.0}
+        default_factory=lambda: {"F": 0.5, "T": 0.05, "z": 1.0e-4, "normal_force": 1.0, "Fy": 0.5}
     )
     drift_time_s: float = 30.0
     scale: float = 1.0
@@ -74,10 +79,10 @@ class NoiseModel:
 
 @dataclass(frozen=True, eq=False)
 class SyntheticLog:
-    """A synthetic SWT log: series in SI (t s, F N, T N m, z m, normal_force N, slip -),
-    ``metadata`` (test conditions and provenance with the true parameters, ready for
-    :func:`scm_core.signals.write_log`), ``truth`` (soil, wheel and rig dicts) and the clean
-    simulation it was made from."""
+    """A synthetic SWT log: series in SI (t s, F N, T N m, z m, normal_force N, slip -; Fy N
+    for a steered rig, else None), ``metadata`` (test conditions and provenance with the true
+    parameters, ready for :func:`scm_core.signals.write_log`), ``truth`` (soil, wheel and rig
+    dicts) and the clean simulation it was made from."""
 
     t: NDArray[np.float64]
     F: NDArray[np.float64]
@@ -88,6 +93,7 @@ class SyntheticLog:
     metadata: dict[str, Any]
     truth: dict[str, dict[str, Any]]
     simulation: SWTResult
+    Fy: NDArray[np.float64] | None = None
 
     @property
     def rate_hz(self) -> float:
@@ -156,18 +162,15 @@ def synthesize_log(
 
     s = result.series
     t_sim = np.concatenate([[0.0], s["t"]])
-    clean = {
-        "F": np.concatenate([[0.0], s["F"]]),
-        "T": np.concatenate([[0.0], s["T"]]),
-        "z": np.concatenate([[0.0], s["z"]]),
-        "normal_force": np.concatenate([[0.0], s["normal_force"]]),
-    }
+    steered = bool(rig.slip_angle)
+    channels = CHANNELS if steered else STRAIGHT
+    clean = {ch: np.concatenate([[0.0], s[ch]]) for ch in channels}
     n = int(math.floor(duration * rate_hz + 1e-9)) + 1
     t = np.arange(n) / rate_hz
     ramp = _ramp(t, ramp_s)
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed))))
     out: dict[str, NDArray[np.float64]] = {}
-    for ch in CHANNELS:
+    for ch in channels:
         x = np.interp(t, t_sim, clean[ch])
         if ch in ("F", "T"):
             x = x * ramp
@@ -194,6 +197,8 @@ def synthesize_log(
     }
     if convention != "drive" or slip < 0:
         conditions["slip_convention"] = convention
+    if steered:
+        conditions["slip_angle"] = rig.slip_angle
     if res.omega > 0:
         conditions["omega"] = res.omega
     else:
@@ -218,4 +223,5 @@ def synthesize_log(
         metadata={**conditions, **provenance},
         truth=truth,
         simulation=result,
+        Fy=out.get("Fy"),
     )

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from scm_core.inference.tmcmc_loop import PopulationStart
 from scm_core.inference.tmcmc_stage import StageState
-from scm_core.signals.responses import N_RESPONSES
+from scm_core.signals.responses import N_RESPONSES, widened
 
 from .model import StudyModel
 
@@ -25,7 +25,8 @@ __all__ = ["UpdateLikelihood"]
 
 class UpdateLikelihood:
     """``model`` over the old datasets (the first ``n_old``) and then the new ones: X (m, d) ->
-    (log L(new) (m,), responses (m, 3 n_datasets), log L(old) (m,), failure reasons (m,)). One
+    (log L(new) (m,), responses (m, N_RESPONSES n_datasets), log L(old) (m,), failure reasons
+    (m,)). One
     simulator run per point covers all datasets, as in a joint calibration. Picklable."""
 
     def __init__(self, model: StudyModel, n_old: int) -> None:
@@ -62,12 +63,17 @@ class UpdateLikelihood:
         return PopulationStart(np.asarray(final.samples, dtype=float), tuning, known)
 
     def base_parts(self, responses: ArrayLike) -> dict[int, NDArray[np.float64]]:
-        """The old datasets' parts {k: lab-side means (m, 3)} from the responses (m, >= 3 n_old)
-        the earlier study returned at its population (its datasets are the first n_old, in
-        order): stage 0 of the update then runs the new datasets only (``known_parts`` of
-        :func:`~scm_core.inference.tmcmc_stage.evaluate_points`), with the same result."""
+        """The old datasets' parts {k: lab-side means (m, N_RESPONSES)} from the responses
+        (m, N_RESPONSES n_old) the earlier study returned at its population (its datasets are
+        the first n_old, in order): stage 0 of the update then runs the new datasets only
+        (``known_parts`` of :func:`~scm_core.inference.tmcmc_stage.evaluate_points`), with the
+        same result. A study stored before the later responses were declared returned fewer
+        per dataset (F, T, z): those read as NaN (:func:`~scm_core.signals.responses.widened`;
+        no old dataset measured them, so no likelihood term reads them)."""
         R = np.asarray(responses, dtype=float)
         k_r = N_RESPONSES
+        if R.ndim == 2 and R.shape[1] < k_r * self.n_old and R.shape[1] % self.n_old == 0:
+            R = widened(R, self.n_old)
         if R.ndim != 2 or R.shape[1] < k_r * self.n_old:
             raise ValueError(
                 f"responses of shape {R.shape} do not hold {self.n_old} datasets' {k_r} means"
@@ -83,7 +89,8 @@ class UpdateLikelihood:
         self, X: NDArray[np.float64], R: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        R = np.asarray(R, dtype=float).reshape(X.shape[0], -1, N_RESPONSES)
+        n = self.model.n_datasets
+        R = widened(R, n).reshape(X.shape[0], n, N_RESPONSES)
         return self._output(X, R)
 
     # parts (early rejection): the model's datasets; the old ones form the base density

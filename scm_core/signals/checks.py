@@ -5,9 +5,12 @@ message naming the file and the fix:
 
 * a per-trial summary of very many rows: a time series whose header lacks the time column is
   read as a summary of one trial per row (its mean includes the start-up);
-* magnitudes no single-wheel test gives: |F| or |T| / r above 10 W (a wheel pulls or brakes at
-  most a few W, Wong 2008 ch. 4), sinkage beyond the wheel radius (the axle below the surface),
-  usually a unit error (kN under an ``[N]`` header, mm under ``[m]``);
+* magnitudes no single-wheel test gives: |F|, |Fy| or |T| / r above 10 W (a wheel pulls or
+  brakes at most a few W, Wong 2008 ch. 4; the CMU wheels dragged sideways, three), sinkage
+  beyond the wheel radius (the axle below the surface), usually a unit error (kN under an
+  ``[N]`` header, mm under ``[m]``);
+* a lateral force without a slip angle: read as a straight wheel's (0 deg), which is probably
+  not what the lab ran;
 * a response measured in some datasets of a set but not in others: a study's likelihood uses a
   response only where it was measured.
 """
@@ -17,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from .dataset import SWTDataset
-from .responses import RESPONSE_KEYS, response
+from .responses import RESPONSE_KEYS, RESPONSES, response
 
 __all__ = ["MAX_FORCE_OVER_W", "MAX_SUMMARY_TRIALS", "dataset_warnings", "set_warnings"]
 
@@ -25,6 +28,8 @@ __all__ = ["MAX_FORCE_OVER_W", "MAX_SUMMARY_TRIALS", "dataset_warnings", "set_wa
 MAX_FORCE_OVER_W = 10.0
 #: a per-trial summary with more rows than this is most likely a log without its time column
 MAX_SUMMARY_TRIALS = 100
+#: the responses that are forces (drawbar pull, lateral force)
+_FORCES = tuple(r for r in RESPONSES if r.quantity == "force")
 
 
 def dataset_warnings(ds: SWTDataset, label: str) -> list[str]:
@@ -37,11 +42,12 @@ def dataset_warnings(ds: SWTDataset, label: str) -> list[str]:
         )
     W = ds.conditions.W
     means = ds.means
-    if "F" in means and abs(means["F"]) > MAX_FORCE_OVER_W * W:
-        out.append(
-            f"{label}: drawbar pull {means['F']:g} N is over {MAX_FORCE_OVER_W:g} W "
-            f"({MAX_FORCE_OVER_W * W:g} N): check the unit in its header (N, not kN)"
-        )
+    for r in _FORCES:
+        if r.key in means and abs(means[r.key]) > MAX_FORCE_OVER_W * W:
+            out.append(
+                f"{label}: {r.words} {means[r.key]:g} N is over {MAX_FORCE_OVER_W:g} W "
+                f"({MAX_FORCE_OVER_W * W:g} N): check the unit in its header (N, not kN)"
+            )
     R = ds.conditions.R
     if "T" in means and R is not None and abs(means["T"]) / R > MAX_FORCE_OVER_W * W:
         out.append(
@@ -52,6 +58,12 @@ def dataset_warnings(ds: SWTDataset, label: str) -> list[str]:
         out.append(
             f"{label}: sinkage {1000 * means['z']:g} mm is beyond the wheel radius "
             f"{1000 * R:g} mm: check the unit in its header (mm or m)"
+        )
+    if "Fy" in means and ds.conditions.slip_angle is None:
+        out.append(
+            f"{label}: lateral force (Fy) measured but no slip_angle given: the slip angle is "
+            "read as 0 deg (a wheel driven straight); give slip_angle in its conditions if the "
+            "wheel was steered"
         )
     return out
 

@@ -27,7 +27,8 @@ def _frozen(x: Any) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class SWTSeries:
     """Time (s) with raw and low-pass-filtered channels in SI, keyed by column name
-    (drawbar_pull N, torque Nm, sinkage m, optional normal_force N, slip -). Read-only arrays."""
+    (drawbar_pull N, torque Nm, sinkage m, lateral_force N, optional normal_force N, slip -).
+    Read-only arrays."""
 
     t: np.ndarray
     raw: dict[str, np.ndarray]
@@ -54,8 +55,8 @@ class SWTSeries:
 
 @dataclass(frozen=True)
 class SWTDataset:
-    """One SWT dataset: conditions, steady responses F (N), T (Nm), z (m) (those measured: at
-    least one) and provenance.
+    """One SWT dataset: conditions, steady responses F (N), T (Nm), z (m), Fy (N) (those
+    measured: at least one) and provenance.
 
     ``source_kind`` "timeseries": from a log, with ``window`` (s), ``n_samples``, ``rate_hz``,
     ``offset`` (s), ``cutoff_hz`` and usually ``series``. "summary": reported means and sds with
@@ -78,8 +79,8 @@ class SWTDataset:
 
     @property
     def means(self) -> dict[str, float]:
-        """Steady means ``{"F": N, "T": Nm, "z": m}`` (the experimental means of eq. (15)) of
-        the responses the dataset measured."""
+        """Steady means ``{"F": N, "T": Nm, "z": m, "Fy": N}`` (the experimental means of eq.
+        (15)) of the responses the dataset measured."""
         return {k: self.responses[k].mean for k in RESPONSE_KEYS if k in self.responses}
 
     @property
@@ -134,7 +135,7 @@ class SWTDataset:
                 k: ResponseStat(**d["responses"][k]) for k in RESPONSE_KEYS if k in d["responses"]
             }
             if not responses:
-                raise LogFormatError("dataset dict: no response (F, T or z)")
+                raise LogFormatError(f"dataset dict: no response ({', '.join(RESPONSE_KEYS)})")
             kind = d["source_kind"]
             if kind not in ("timeseries", "summary"):
                 raise LogFormatError(f"unknown source_kind {quoted(kind)}")

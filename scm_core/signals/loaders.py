@@ -15,7 +15,7 @@ from .csvtext import TableReader, text_lines
 from .dataset import DICT_FORMAT, SWTDataset, SWTSeries
 from .errors import LogFormatError
 from .hashing import finish_log_hash, log_digest, summary_hash
-from .logformat import format_log, parse_header_field, parse_log_stream
+from .logformat import RESPONSE_COLUMNS, format_log, parse_header_field, parse_log_stream
 from .metadata import Metadata, merge_metadata
 from .processing import DEFAULT_ORDER, lowpass, steady_response
 from .summary import MAX_SUMMARY_BYTES, Summary, parse_summary_csv, parse_summary_json
@@ -110,10 +110,8 @@ def load_log(
         except LogFormatError as exc:
             raise LogFormatError(f"{label}: {exc}") from None
     cols = table.columns
-    steady = steady_response(
-        t, cols.get("drawbar_pull"), cols.get("torque"), cols.get("sinkage"), offset, cutoff_hz,
-        order,
-    )  # fmt: skip
+    F, T, z, Fy = (cols.get(column) for column in RESPONSE_COLUMNS)
+    steady = steady_response(t, F, T, z, offset, cutoff_hz, order, Fy)
     series = None
     if keep_series:
         raw = {k: v for k, v in cols.items() if k != "time"}
@@ -242,6 +240,7 @@ def write_log(
     z: np.ndarray,
     metadata: Mapping[str, Any] | TestConditions,
     *,
+    Fy: np.ndarray | None = None,
     normal_force: np.ndarray | None = None,
     slip: np.ndarray | None = None,
     units: Mapping[str, str] | None = None,
@@ -250,7 +249,8 @@ def write_log(
 ) -> Path:
     """Write a log: ``# key: value`` metadata lines, header, rows; plus a JSON sidecar.
 
-    Inputs in SI: t (s), F (N), T (Nm), z (m), normal_force (N), slip (-). ``units`` picks file
+    Inputs in SI: t (s), F (N), T (Nm), z (m), Fy (N, the lateral force, + against the side
+    slip), normal_force (N), slip (-). ``units`` picks file
     units per column, e.g. ``{"sinkage": "mm", "time": "ms"}``. Metadata is validated first
     and written with canonical keys (W, slip, omega, ...) in SI. Returns the CSV path.
     """
@@ -259,6 +259,8 @@ def write_log(
     flat = {k: v for k, v in meta.conditions.to_dict().items() if v is not None}
     flat.update(meta.provenance)
     columns = {"time": t, "drawbar_pull": F, "torque": T, "sinkage": z}
+    if Fy is not None:
+        columns["lateral_force"] = Fy
     if normal_force is not None:
         columns["normal_force"] = normal_force
     if slip is not None:

@@ -29,6 +29,8 @@ COLUMNS: dict[str, tuple[str, tuple[str, ...]]] = {
     "drawbar_pull": ("force", ("drawbar_pull", "drawbar", "drawbar_force", "dp", "f", "fx")),
     "torque": ("torque", ("torque", "wheel_torque", "driving_torque", "m", "my")),
     "sinkage": ("length", ("sinkage", "z", "wheel_sinkage")),
+    # along the axle, + against the side slip (examples/cmu_steering/README.md)
+    "lateral_force": ("force", ("lateral_force", "fy", "side_force")),
     "normal_force": ("force", ("normal_force", "fz", "fn", "normal_load")),
     "slip": ("slip", ("slip", "slip_ratio", "s")),
 }
@@ -80,11 +82,7 @@ def _parse_header(header: list[str], line: int) -> dict[str, tuple[int, str]]:
         if name is None:
             continue
         if unit is None:
-            quantity = COLUMNS[name][0]
-            raise LogFormatError(
-                f"line {line}: column {quoted(field)} (column {i + 1}) has no unit in brackets, "
-                f"e.g. {quoted(f'{field} [{SI_UNIT[quantity]}]')}"
-            )
+            raise LogFormatError(f"line {line}: {no_unit(field, name, i)}")
         if name in found:
             other = header[found[name][0]]
             raise LogFormatError(
@@ -94,13 +92,30 @@ def _parse_header(header: list[str], line: int) -> dict[str, tuple[int, str]]:
         found[name] = (i, unit)
     missing = [c for c in REQUIRED_COLUMNS if c not in found]
     if missing or not any(c in found for c in RESPONSE_COLUMNS):
+        columns = ", ".join(RESPONSE_COLUMNS)
+        lacking = ", ".join(missing) or one_of(RESPONSE_COLUMNS)
         raise LogFormatError(
-            f"line {line}: missing required column(s) "
-            f"{', '.join(missing) or 'drawbar_pull, torque or sinkage'} (header has: "
-            f"{quoted(', '.join(header), 200)}; required: time and at least one of drawbar_pull, "
-            "torque, sinkage, or t and F, T, z, each with its unit in brackets)"
+            f"line {line}: missing required column(s) {lacking} "
+            f"(header has: {quoted(', '.join(header), 200)}; required: time and at least one "
+            f"of {columns}, or t and {', '.join(COLUMN_OF)}, each with its unit in brackets)"
         )
     return found
+
+
+def one_of(names: tuple[str, ...]) -> str:
+    """``a, b or c``."""
+    return " or ".join((", ".join(names[:-1]), names[-1])) if len(names) > 1 else names[0]
+
+
+def no_unit(field: str, name: str, index: int) -> str:
+    """Why the header ``field`` (canonical column ``name``, at ``index``) is refused without
+    its unit: the field as written, the column it reads as, an example with the SI unit."""
+    known = "" if field.strip() == name else f": {name}"
+    example = quoted(f"{field.strip()} [{SI_UNIT[COLUMNS[name][0]]}]")
+    return (
+        f"column {quoted(field)} (column {index + 1}{known}) has no unit in brackets, "
+        f"e.g. {example}"
+    )
 
 
 def cells_to_float(cells: list[str], rows: list[int], header: str) -> np.ndarray:
@@ -287,8 +302,9 @@ def format_log(
 ) -> str:
     """Log text: ``# key: value`` lines, a header with units, then one row per sample.
 
-    ``columns`` maps canonical names (time, drawbar_pull, torque, sinkage[, normal_force, slip])
-    to SI arrays; ``units`` optionally picks file units per column (e.g. ``{"sinkage": "mm"}``).
+    ``columns`` maps canonical names (time and the :data:`COLUMNS` a log carries, e.g.
+    drawbar_pull, torque, sinkage, lateral_force, normal_force, slip) to SI arrays; ``units``
+    optionally picks file units per column (e.g. ``{"sinkage": "mm"}``).
     ``precision`` significant digits (17 round-trips a float64 exactly).
     """
     units = dict(units or {})

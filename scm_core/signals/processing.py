@@ -40,8 +40,8 @@ class ResponseStat:
 
 @dataclass(frozen=True)
 class SteadyResponse:
-    """Steady F (N), T (Nm), z (m) over the window [t0, t1] (s) of ``n_samples`` samples; a
-    response the log does not carry is None."""
+    """Steady F (N), T (Nm), z (m) and Fy (N) over the window [t0, t1] (s) of ``n_samples``
+    samples; a response the log does not carry is None."""
 
     F: ResponseStat | None
     T: ResponseStat | None
@@ -50,9 +50,10 @@ class SteadyResponse:
     n_samples: int
     rate_hz: float
     cutoff_hz: float
+    Fy: ResponseStat | None = None
 
     def stats(self) -> dict[str, ResponseStat]:
-        """``{"F": ..., "T": ..., "z": ...}`` of the responses present."""
+        """``{"F": ..., "T": ..., "z": ..., "Fy": ...}`` of the responses present."""
         return {k: getattr(self, k) for k in RESPONSE_KEYS if getattr(self, k) is not None}
 
 
@@ -182,9 +183,10 @@ def steady_response(
     offset: float = 40.0,
     cutoff_hz: float | None = None,
     order: int = DEFAULT_ORDER,
+    Fy: np.ndarray | None = None,
 ) -> SteadyResponse:
-    """Filter F (N), T (Nm), z (m) and average them over t >= t[0] + offset (s); a response
-    passed as None (not measured) stays None.
+    """Filter F (N), T (Nm), z (m) and Fy (N) and average them over t >= t[0] + offset (s); a
+    response passed as None (not measured) stays None.
 
     Assumes a checked, regularly sampled time axis ``t`` (s); see ``validation``.
     """
@@ -196,7 +198,7 @@ def steady_response(
         raise ValueError(f"no samples after the offset {offset:g} s")
     stats = {
         key: None if x is None else steady_stat(x, lowpass(x, rate, cutoff, order), mask)
-        for key, x in zip(RESPONSE_KEYS, (F, T, z), strict=True)
+        for key, x in zip(RESPONSE_KEYS, (F, T, z, Fy), strict=True)
     }
     t_win = t[mask]
     return SteadyResponse(

@@ -7,7 +7,8 @@ JSON::
      "provenance": {...},                               (optional, free)
      "responses": {"F": {"mean": 20.1, "sd": 1.2, "unit": "N"},
                    "T": {"mean": 5.3, "sd": 0.4, "unit": "Nm"},
-                   "z": {"mean": 12.0, "sd": 1.0, "unit": "mm"}},
+                   "z": {"mean": 12.0, "sd": 1.0, "unit": "mm"},
+                   "Fy": {"mean": 8.2, "sd": 0.5, "unit": "N"}},   (a steered wheel)
      "n_trials": 3}
 
 CSV, one row per response, conditions and ``n_trials`` as ``# key: value`` lines::
@@ -25,7 +26,8 @@ or one row per trial (no ``time`` column; mean and sd, ddof=1, across >= 2 rows)
     trial,drawbar_pull [N],torque [Nm],sinkage [mm]
     1,20.3,5.2,11.8
 
-Missing ``unit`` means SI. Standard error = sd / sqrt(n_trials).
+Missing ``unit`` means SI, but for the lateral force ``Fy`` (refused without one). Standard
+error = sd / sqrt(n_trials).
 For users: docs/data-formats.md (both formats, every metadata key, examples).
 """
 
@@ -41,10 +43,17 @@ from scm_core.validation_text import quoted
 
 from .csvtext import CsvTable, split_table
 from .errors import LogFormatError
-from .logformat import COLUMNS, cells_to_float, check_plausible, column_name, parse_header_field
+from .logformat import (
+    COLUMNS,
+    cells_to_float,
+    check_plausible,
+    column_name,
+    no_unit,
+    parse_header_field,
+)
 from .metadata import Metadata, merge_metadata, parse_metadata_lines
 from .processing import ResponseStat
-from .responses import COLUMN_OF
+from .responses import COLUMN_OF, RESPONSE_KEYS, response
 from .units import SI_UNIT, plausible_message, unit_factor
 
 #: response key -> log column it is measured as
@@ -58,7 +67,7 @@ MAX_SUMMARY_BYTES = 4 * 1024 * 1024
 
 @dataclass(frozen=True)
 class Summary:
-    """A parsed summary: metadata, SI statistics per response F, T, z, trial count, name."""
+    """A parsed summary: metadata, SI statistics per response F, T, z, Fy, trial count, name."""
 
     metadata: Metadata
     stats: dict[str, ResponseStat]
@@ -67,8 +76,28 @@ class Summary:
 
 
 def response_key(name: str) -> str | None:
-    """``F``/``drawbar_pull`` -> ``F``, ``T``/``torque`` -> ``T``, ``z``/``sinkage`` -> ``z``."""
+    """``F``/``drawbar_pull`` -> ``F``, ``T``/``torque`` -> ``T``, ``z``/``sinkage`` -> ``z``,
+    ``Fy``/``lateral_force``/``side_force`` -> ``Fy``."""
     return _COLUMN_RESPONSE.get(column_name(name) or "")
+
+
+def _unknown(at: str) -> LogFormatError:
+    return LogFormatError(f"{at}: unknown response (accepted: {', '.join(RESPONSE_KEYS)})")
+
+
+def _unit(key: str, given: Any, at: str) -> str:
+    """The unit of a summary's response ``key`` as given (None: SI, but for a response that
+    must state its unit)."""
+    if given is not None and not isinstance(given, str):
+        raise LogFormatError(f"{at}: unit must be a string, got {quoted(given)}")
+    if given is not None:
+        return given
+    r = response(key)
+    if r.unit_required:
+        raise LogFormatError(
+            f"{at}: {r.column} has no unit; give it (e.g. {quoted(SI_UNIT[r.quantity])})"
+        )
+    return SI_UNIT[r.quantity]
 
 
 def _stat(key: str, mean: float, sd: float, n_trials: int, unit: str, where: str) -> ResponseStat:
@@ -88,9 +117,8 @@ def _stat(key: str, mean: float, sd: float, n_trials: int, unit: str, where: str
 
 def _check_complete(stats: Mapping[str, Any], where: str) -> None:
     if not stats:
-        raise LogFormatError(
-            f"{where}: no response; give at least one of F (drawbar_pull), T (torque), z (sinkage)"
-        )
+        named = ", ".join(f"{k} ({c})" for k, c in RESPONSE_COLUMNS.items())
+        raise LogFormatError(f"{where}: no response; give at least one of {named}")
 
 
 def _n_trials(value: Any, where: str) -> int:
@@ -141,7 +169,7 @@ def parse_summary_json(
         key = response_key(raw_key)
         at = f"{where} response {quoted(raw_key)}"
         if key is None:
-            raise LogFormatError(f"{at}: unknown response (accepted: F, T, z)")
+            raise _unknown(at)
         if key in stats:
             raise LogFormatError(f"{at}: response {key} given twice")
         if not isinstance(entry, Mapping) or "mean" not in entry or "sd" not in entry:
@@ -149,9 +177,7 @@ def parse_summary_json(
         extra = set(entry) - {"mean", "sd", "unit"}
         if extra:
             raise LogFormatError(f"{at}: unknown field(s) {sorted(extra)}")
-        unit = entry.get("unit", SI_UNIT[COLUMNS[RESPONSE_COLUMNS[key]][0]])
-        if not isinstance(unit, str):
-            raise LogFormatError(f"{at}: unit must be a string, got {quoted(unit)}")
+        unit = _unit(key, entry.get("unit"), at)
         mean, sd = _number(entry["mean"], f"{at} mean"), _number(entry["sd"], f"{at} sd")
         stats[key] = _stat(key, mean, sd, n_trials, unit, at)
     _check_complete(stats, where)
@@ -185,13 +211,12 @@ def _per_response(table: CsvTable, n_trials: int, where: str) -> dict[str, Respo
         key = response_key(raw_key)
         at = f"line {line}, response {quoted(raw_key)}"
         if key is None:
-            raise LogFormatError(f"{at}: unknown response (accepted: F, T, z)")
+            raise _unknown(at)
         if key in stats:
             raise LogFormatError(f"{at}: response {key} given twice")
         mean = float(cells_to_float([row[cols["mean"]]], [line], "mean")[0])
         sd = float(cells_to_float([row[sd_col]], [line], table.header[sd_col])[0])
-        unit = row[cols["unit"]].strip() if "unit" in cols else ""
-        unit = unit or SI_UNIT[COLUMNS[RESPONSE_COLUMNS[key]][0]]
+        unit = _unit(key, (row[cols["unit"]].strip() if "unit" in cols else "") or None, at)
         stats[key] = _stat(key, mean, sd, n_trials, unit, at)
     _check_complete(stats, where)
     return stats
@@ -210,10 +235,7 @@ def _per_trial(table: CsvTable, where: str) -> tuple[dict[str, ResponseStat], in
         if key is None:
             continue
         if unit is None:
-            raise LogFormatError(
-                f"line {table.header_line}: column {quoted(field)} (column {i + 1}) has no unit in "
-                "brackets"
-            )
+            raise LogFormatError(f"line {table.header_line}: {no_unit(field, name, i)}")
         if key in found:
             raise LogFormatError(f"line {table.header_line}: duplicate column for {key}")
         found[key] = (i, unit)

@@ -88,6 +88,10 @@ S_FN = 4
 S_BEFF = 5
 S_FY = 6  # lateral force along the axle [N] (a steered wheel; 0 straight)
 N_SERIES = 7
+#: the series columns of the steady means, in the order of the responses
+#: (scm_core.signals.responses.RESPONSES: F, T, z, Fy)
+MEAN_COLUMNS = (S_F, S_TORQUE, S_Z, S_FY)
+N_MEANS = len(MEAN_COLUMNS)
 
 # diagnostics vector
 D_STEPS = 0
@@ -568,11 +572,13 @@ def settled(series: np.ndarray, prm: np.ndarray, duration: float) -> bool:
 
 @njit(cache=True, nogil=True)
 def steady_means(series: np.ndarray, prm: np.ndarray) -> np.ndarray:
-    """Means of F, T and z over t >= their offsets (paper section 4.3: 20 s, 20 s, 1 s)."""
-    out = np.full(3, np.nan)
-    offs = (prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z])
-    cols = (S_F, S_TORQUE, S_Z)
-    for q in range(3):
+    """Means (N_MEANS,) of F, T, z and Fy (the order of scm_core.signals.responses.RESPONSES)
+    over t >= their offsets (paper section 4.3: 20 s, 20 s, 1 s; Fy over F's window); NaN
+    for an empty window."""
+    out = np.full(N_MEANS, np.nan)
+    offs = (prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z], prm[P_OFF_F])
+    cols = MEAN_COLUMNS
+    for q in range(N_MEANS):
         s = 0.0
         n = 0
         for i in range(series.shape[0]):

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -20,7 +19,9 @@ from .rig import ResolvedRig, resolve_rig
 
 @dataclass(frozen=True)
 class SteadyMeans:
-    """Steady means over the averaging windows (paper section 4.3)."""
+    """Steady means over the averaging windows (paper section 4.3), as
+    :func:`kernel.steady_means` gives them (the fields in the order of
+    :data:`scm_core.signals.responses.RESPONSES`)."""
 
     F: float  # drawbar pull [N]
     T: float  # driving torque [N m]
@@ -79,11 +80,7 @@ def simulate_swt(
     means_arr = kernel.steady_means(series, prm)
     wall = time.perf_counter() - t0
     status_name = STATUS_NAMES[status]
-    means = None
-    if status == STATUS_OK:
-        window = series[:, kernel.S_T] >= resolved.offset_F - 1e-9
-        fy = float(np.mean(series[window, kernel.S_FY])) if window.any() else math.nan
-        means = SteadyMeans(*map(float, means_arr), Fy=fy)
+    means = SteadyMeans(*map(float, means_arr)) if status == STATUS_OK else None
     d = {name: float(diag[i]) for i, name in enumerate(_DIAG_NAMES)}
     dy = d["dy"]
     ny = h.shape[1]
@@ -137,7 +134,8 @@ _DIAG_NAMES = (
 
 @dataclass(frozen=True)
 class BatchResult:
-    """Steady means (n, 3) = F [N], T [N m], z [m] (NaN where status != 'ok') and statuses."""
+    """Steady means (n, kernel.N_MEANS) = F [N], T [N m], z [m], Fy [N] (NaN where status !=
+    'ok'; :class:`SteadyMeans`'s fields) and statuses."""
 
     means: np.ndarray
     status: list[str]
@@ -180,7 +178,7 @@ def _run_row(prm: np.ndarray) -> tuple[np.ndarray, int]:
     """Steady means (NaN unless ok) and status of one packed run (the kernel releases the GIL)."""
     series, _, status, _, _ = kernel.run_swt(prm)
     if status != STATUS_OK:
-        return np.full(3, np.nan), int(status)
+        return np.full(kernel.N_MEANS, np.nan), int(status)
     return kernel.steady_means(series, prm), int(status)
 
 
@@ -202,7 +200,7 @@ def simulate_packed(prms: np.ndarray) -> BatchResult:
         with ThreadPoolExecutor(max_workers=threads) as pool:
             out = list(pool.map(_run_row, rows))
     wall = time.perf_counter() - t0
-    means = np.array([m for m, _ in out]).reshape(len(rows), 3)
+    means = np.array([m for m, _ in out]).reshape(len(rows), kernel.N_MEANS)
     return BatchResult(means=means, status=[STATUS_NAMES[s] for _, s in out], wall_time_s=wall)
 
 

@@ -19,6 +19,7 @@ from scm_core.calibration.convergence import RHAT_LIMIT, diagnose_runs
 from scm_core.inference import Failures, StageCounts, count_fields
 from scm_core.inference.posterior import credible_interval, summarize
 from scm_core.jsondoc import finite_or_none
+from scm_core.signals.responses import N_RESPONSES, widened
 from services.store import NotFoundError, StageRecord, Store, StudyRecord
 from services.store.records import Page
 from services.studies.kinds import kind_of, study_terms
@@ -81,8 +82,22 @@ def parameter_units(study: StudyRecord) -> dict[str, str | None]:
     return study_terms(study).parameter_units
 
 
+def named_responses(R: np.ndarray, names: list[str]) -> tuple[np.ndarray, list[str]]:
+    """Stored responses (n, w) with their column names: ``names`` (:func:`response_names`),
+    the responses widened to them where they were stored with fewer per dataset (a study
+    stored before the lateral force: Fy NaN), else ``r0``, ``r1``, ... when they do not fit
+    (an update's, whose responses cover its parent's datasets too)."""
+    if R.shape[1] == len(names):
+        return R, names
+    groups = len(names) // N_RESPONSES
+    if groups and R.shape[1] % groups == 0 and R.shape[1] < len(names):
+        return widened(R, groups), names
+    return R, [f"r{k}" for k in range(R.shape[1])]
+
+
 def response_names(store: Store, study: StudyRecord) -> list[str]:
-    """Columns of the stored responses: F, T, z per dataset (``F[name]``), as the model."""
+    """Columns of the stored responses: F, T, z, Fy per dataset (``F[name]``), as the
+    model."""
     out = []
     for did in study.dataset_ids:
         try:

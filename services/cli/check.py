@@ -22,9 +22,7 @@ from rich.table import Table
 
 from scm_core.signals import LogFormatError, SWTDataset, load_dataset
 from scm_core.signals.checks import dataset_warnings, set_warnings
-from scm_core.signals.responses import RESPONSE_KEYS
-
-_SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
+from scm_core.signals.responses import RESPONSES, Response
 
 
 def _conditions(ds: SWTDataset) -> dict[str, Any]:
@@ -64,6 +62,13 @@ def _report(ds: SWTDataset, path: Path) -> dict[str, Any]:
     return out
 
 
+def _shown(reports: list[dict[str, Any]]) -> list[Response]:
+    """The responses a table shows: a steered wheel's (the lateral force) only where a file
+    carries it."""
+    carried = {k for r in reports for k in r["responses"]}
+    return [r for r in RESPONSES if not r.steered or r.key in carried]
+
+
 def _fmt(x: float | None, digits: int = 4) -> str:
     return "-" if x is None else f"{x:.{digits}g}"
 
@@ -72,9 +77,11 @@ def _print(reports: list[dict[str, Any]], warnings: list[str], errors: list[str]
     console = Console(width=None if sys.stdout.isatty() else 160)
     table = Table(title="SWT datasets as a study reads them")
     steered = any(r["conditions"]["slip_angle_deg"] for r in reports)
+    shown = _shown(reports)
     columns = ("file", "kind", "W [N]", "slip drive / sym.", "v / rim [mm/s]")
-    columns += ("slip angle [deg]",) * steered + ("F [N]",)
-    for col in (*columns, "T [N m]", "z [mm]", "window / trials"):
+    columns += ("slip angle [deg]",) * steered
+    columns += tuple(f"{resp.key} [{resp.shown_in}]" for resp in shown)
+    for col in (*columns, "window / trials"):
         table.add_column(escape(col), justify="left" if col in ("file", "kind") else "right")
     for r in reports:
         c = r["conditions"]
@@ -88,13 +95,13 @@ def _print(reports: list[dict[str, Any]], warnings: list[str], errors: list[str]
             for k in ("carriage_speed_m_s", "rim_speed_m_s")
         )
         cells = []
-        for key in RESPONSE_KEYS:
-            resp = r["responses"].get(key)
-            scale, _ = _SCALE[key]
+        for resp in shown:
+            stat = r["responses"].get(resp.key)
+            scale = resp.scale
             cells.append(
                 "absent"
-                if resp is None
-                else f"{scale * resp['mean']:.4g} ± {scale * resp['se']:.2g}"
+                if stat is None
+                else f"{scale * stat['mean']:.4g} ± {scale * stat['se']:.2g}"
             )
         if r["kind"] == "summary":
             extent = f"{r['n_trials']} trials"

@@ -29,7 +29,7 @@ from scm_core.calibration.predict import ConditionPrediction, sweep_loads, sweep
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError, SWTDataset
 from scm_core.signals.metadata import merge_metadata
-from scm_core.signals.responses import N_RESPONSES, RESPONSE_KEYS
+from scm_core.signals.responses import N_RESPONSES, RESPONSES
 from services.studies import StudyRequestError
 from services.studies.batching import local_batch_size
 from services.studies.kinds import kind_of
@@ -50,7 +50,7 @@ from .folder_store import FolderStore, open_folder_store
 from .parent import load_parents, stored_posterior
 from .results import write_json
 
-_SCALE = {"F": (1.0, "N"), "T": (1.0, "N m"), "z": (1000.0, "mm")}
+_SCALE = {r.key: (r.scale, r.shown_in) for r in RESPONSES}
 
 
 #: wheel geometry an ``--at`` condition takes from the study's datasets when it leaves it out
@@ -346,9 +346,15 @@ def _predict(
 
 
 def _shown_responses(case: CaseDefinition, preds: list[ConditionPrediction]) -> tuple[str, ...]:
-    """The case's responses plus any other one a dataset measured."""
+    """The case's responses plus any other one a dataset measured, and a steered wheel's
+    (the lateral force) where a condition is steered."""
     measured = {r for p in preds for r, x in p.responses.items() if x.measured is not None}
-    return tuple(r for r in RESPONSE_KEYS if r in case.responses or r in measured)
+    steered = any(p.conditions.get("slip_angle") for p in preds)
+    return tuple(
+        r.key
+        for r in RESPONSES
+        if r.key in case.responses or r.key in measured or (r.steered and steered)
+    )
 
 
 def _print_table(preds: list[ConditionPrediction], out: Path) -> None:

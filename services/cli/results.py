@@ -7,7 +7,7 @@ Layout::
     DIR/checkpoints/manifest.json      what the checkpoints belong to (case and data hashes)
     DIR/checkpoints/stage_NNN.json     StageState.to_dict() of each finished stage + wall time
     DIR/samples/stage_NN.csv           samples of every stage: parameters, log_likelihood,
-                                       log_prior, simulated responses F/T/z per dataset
+                                       log_prior, simulated responses F/T/z/Fy per dataset
     DIR/posterior.csv                  the final stage's samples (same columns)
     DIR/summary.json                   posterior summary, evidence, diagnostics, settings
     DIR/figures/prior_posterior.png    Figure 5-like
@@ -31,6 +31,7 @@ from scm_core.calibration import CaseDefinition, CaseError, StudyModel, study_su
 from scm_core.inference import LOG_SCALE_KINDS, StageState, TMCMCResult
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
+from scm_core.signals.responses import keys_for
 from services.stages import FolderStages, StageStoreError
 from services.stages.folder import write_json
 
@@ -170,12 +171,13 @@ def write_outputs(
             sim = None
         sims.append(sim)
         m = sim.means if sim is not None else None
+        keys = keys_for(bool(ds.conditions.slip_angle), case.responses, ds.responses)
         map_responses[ds.name] = {
             "status": None if sim is None else sim.status,
             "simulated": {
-                r: finite_or_none(getattr(m, r) + offsets.get(r, 0.0)) if m else None for r in "FTz"
+                r: finite_or_none(getattr(m, r) + offsets.get(r, 0.0)) if m else None for r in keys
             },
-            "measured": {r: float(ds.responses[r].mean) for r in "FTz" if r in ds.responses},
+            "measured": {r: float(ds.responses[r].mean) for r in keys if r in ds.responses},
         }
     summary = study_summary(result, case, model, wall_times, extra_settings, map_responses)
     for entry, path in zip(summary["datasets"], paths or (), strict=False):

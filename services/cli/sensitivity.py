@@ -12,7 +12,6 @@ from rich.table import Table
 from scm_core.calibration import MorrisSettings
 from scm_core.calibration.failures import describe_failures
 from scm_core.seeds import SEED_MAX
-from scm_core.signals.responses import RESPONSE_KEYS
 from services.studies import StudyRequestError, sensitivity_spec
 from services.studies.batching import local_batch_size
 from worker.here import run_here
@@ -165,7 +164,8 @@ def _print_indices(res: dict, out: Path) -> None:
         "linear / non-linear index"
     )
     table.add_column("factor")
-    for resp in RESPONSE_KEYS:
+    keys = list(res["responses"])  # those the screening reports
+    for resp in keys:
         table.add_column(resp, justify="right")
 
     def g(v: float | None) -> str:
@@ -174,7 +174,7 @@ def _print_indices(res: dict, out: Path) -> None:
     lin, non = res["linear_index"], res["nonlinear_index"]
     for f in res["factors"]:
         name = f["name"]
-        table.add_row(name, *(f"{g(lin[k][name])} / {g(non[k][name])}" for k in RESPONSE_KEYS))
+        table.add_row(name, *(f"{g(lin[k][name])} / {g(non[k][name])}" for k in keys))
     console = Console()
     console.print(table)
     console.print(f"results in {out}")

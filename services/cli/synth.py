@@ -9,7 +9,7 @@ from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import NoiseModel, SyntheticError, synthesize_log
-from scm_core.signals import LogFormatError, load_log, write_log
+from scm_core.signals import RESPONSES, LogFormatError, load_log, write_log
 
 from .common import CLIError
 from .overrides import OverrideError, build_configs, set_option
@@ -86,6 +86,7 @@ def synth(
         log.T,
         log.z,
         log.metadata,
+        Fy=log.Fy,
         normal_force=log.normal_force,
         slip=log.slip,
         precision=precision,
@@ -99,9 +100,11 @@ def synth(
     table.add_column("response")
     table.add_column(f"steady mean (t >= {offset:g} s)", justify="right")
     table.add_column("standard error", justify="right")
-    for key, unit, scale in (("F", "N", 1.0), ("T", "N m", 1.0), ("z", "mm", 1000.0)):
-        r = ds.responses[key]
-        table.add_row(key, f"{r.mean * scale:.4g} {unit}", f"{r.se * scale:.2g} {unit}")
+    for resp in RESPONSES:
+        if resp.key not in ds.responses:
+            continue
+        r, unit, scale = ds.responses[resp.key], resp.shown_in, resp.scale
+        table.add_row(resp.key, f"{r.mean * scale:.4g} {unit}", f"{r.se * scale:.2g} {unit}")
     Console().print(table)
     click.echo(
         "true: "

@@ -11,12 +11,13 @@ several):
   the log posterior density) of each draw.
 * ``tempering`` (a group of this tool's own): per run and stage (dims chain, stage) the
   tempering ``exponent``, the ``acceptance_rate`` and the ``log_evidence`` so far.
-* ``observed_data``: the datasets' steady means of F [N], T [N m] and z [m] (dim ``dataset``;
-  NaN where a dataset lacks the response), and their standard errors (``F_se``, ...).
-* ``posterior_predictive`` (when ``scm-calib predict`` was run on the study's datasets): F, T
-  and z of each predicted posterior draw under each dataset's conditions, with the prediction
-  noise (dims chain, draw, dataset; NaN for a failed run or a dataset not predicted), so that
-  ``az.plot_ppc`` sets them against ``observed_data``.
+* ``observed_data``: the datasets' steady means of F [N], T [N m] and z [m], and of the
+  lateral force Fy [N] where a dataset measured it (dim ``dataset``; NaN where a dataset lacks
+  the response), and their standard errors (``F_se``, ...).
+* ``posterior_predictive`` (when ``scm-calib predict`` was run on the study's datasets): F, T,
+  z (and Fy, where predicted) of each predicted posterior draw under each dataset's conditions,
+  with the prediction noise (dims chain, draw, dataset; NaN for a failed run or a dataset not
+  predicted), so that ``az.plot_ppc`` sets them against ``observed_data``.
 
 Attributes: the case (JSON), the run status, whether it is a posterior (the tempering reached
 exponent 1), the log evidence and the versions of scm-calib, numpy and ArviZ.
@@ -35,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.arviz_import import arviz
-from scm_core.signals.responses import RESPONSE_KEYS, response
+from scm_core.signals.responses import RESPONSE_KEYS, RESPONSES, response
 
 __all__ = ["RunPopulation", "StageRow", "inference_data"]
 
@@ -114,6 +115,15 @@ def _predictive(
     return out
 
 
+def _observed_keys(observed: Mapping[str, Mapping[str, Mapping[str, float | None]]]) -> list[str]:
+    """The responses of ``observed_data``: F, T and z, and a steered wheel's (Fy) where a
+    dataset measured it."""
+    measured = {
+        r for d in observed.values() for r, v in (d.get("means") or {}).items() if v is not None
+    }
+    return [r.key for r in RESPONSES if not r.steered or r.key in measured]
+
+
 def inference_data(
     names: Sequence[str],
     runs: Sequence[RunPopulation],
@@ -150,11 +160,12 @@ def inference_data(
     coords: dict[str, Any] = {}
     dims: dict[str, list[str]] = {}
     observed_data = None
+    shown = _observed_keys(observed or {})
     if observed:
         datasets = list(observed)
         coords["dataset"] = datasets
         observed_data = {}
-        for r in RESPONSE_KEYS:
+        for r in shown:
             for key, suffix in (("means", ""), ("standard_errors", "_se")):
                 values = [(observed[d].get(key) or {}).get(r) for d in datasets]
                 observed_data[r + suffix] = np.array(
@@ -184,7 +195,7 @@ def inference_data(
             if units.get(n):
                 group[n].attrs["units"] = str(units[n])
     if observed_data is not None:
-        for r in RESPONSE_KEYS:
+        for r in shown:
             idata.observed_data[r].attrs["units"] = RESPONSE_UNITS[r]
             idata.observed_data[r + "_se"].attrs["units"] = RESPONSE_UNITS[r]
     for r in posterior_predictive or {}:

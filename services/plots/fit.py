@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from scm_core.signals import SWTDataset, TestConditions, lowpass
-from scm_core.signals.responses import RESPONSE_KEYS, RESPONSES
+from scm_core.signals.responses import DEFAULT_KEYS, RESPONSE_KEYS, RESPONSES
 from scm_core.simulator import ResolvedRig, SWTResult
 
 from .chart import Axis, Chart, Panel, hline, hspan, line, segment, text, vspan
@@ -83,8 +83,8 @@ def decimated(
     return t[keep], y[keep]
 
 
-#: the units of the responses as drawn (F, T in SI; z in mm)
-UNITS = {"F": "N", "T": "N m", "z": "mm"}
+#: the units of the responses as drawn (F, T, Fy in SI; z in mm)
+UNITS = {r.key: r.shown_in for r in RESPONSES}
 
 
 def _steady_range(values: Sequence[np.ndarray], means: Sequence[float]) -> tuple[float, float]:
@@ -121,7 +121,9 @@ def fit_chart(
         row for row in _ROWS if row[0] in responses and any(row[0] in d.responses for d in datasets)
     ]
     if not rows:
-        rows = [row for row in _ROWS if row[0] in responses] or list(_ROWS)
+        rows = [row for row in _ROWS if row[0] in responses] or [
+            row for row in _ROWS if row[0] in DEFAULT_KEYS
+        ]
     offsets = offsets or {}
     ncols = len(datasets)
     grid: list[list[Panel]] = [[] for _ in rows]

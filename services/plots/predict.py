@@ -39,13 +39,15 @@ def predictions_chart(
     title: str | None = None,
     responses: Sequence[str] = RESPONSE_KEYS,
 ) -> Chart:
-    """One panel per response against the symmetric lab slip (-1 = locked): the sweep's
+    """One panel per response of ``responses`` that the predictions give (the lateral force
+    only where predicted) against the symmetric lab slip (-1 = locked): the sweep's
     median and 95 % bands (simulated means, and with the prediction-error noise), each
     dataset's predicted median (a tick) and 95 % predictive interval (the bar), and its
     measurement where it has one (circles: used in the calibration; squares: held out). A
     study of several wheels draws each wheel's bars and points in a colour of its own, set
     apart by a small slip offset (``DODGE``), and names the wheel in the legend."""
-    rows = [p for p in _PANELS if p[0] in responses]
+    given = {r for c in (*datasets, *sweep) for r in c.responses}
+    rows = [p for p in _PANELS if p[0] in responses and p[0] in given]
     sw = sorted((c for c in sweep if c.slip_symmetric is not None), key=lambda c: c.slip_symmetric)
     shown = [c for c in datasets if c.slip_symmetric is not None]
     panels: list[Panel | None] = []

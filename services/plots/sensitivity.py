@@ -10,11 +10,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from scm_core.signals.responses import RESPONSES
+from scm_core.signals.responses import DEFAULT_KEYS, response
 
 from .figures import save
-
-_RESPONSES = tuple((r.key, f"{r.words} {r.key}") for r in RESPONSES)
 
 
 def indices_figure(
@@ -22,16 +20,19 @@ def indices_figure(
     linear_index: NDArray[np.float64],
     nonlinear_index: NDArray[np.float64],
     title: str,
+    keys: Sequence[str] = DEFAULT_KEYS,
 ) -> Figure:
     """Grouped bars per factor: normalised linear index mu* / sum mu* and non-linear index
-    sigma / sum sigma (tables factor x response F, T, z), one panel per response."""
+    sigma / sum sigma (tables factor x response of ``keys``: F, T, z, and Fy for a steered
+    wheel), one panel per response."""
     names = list(names)
     linear_index = np.asarray(linear_index, dtype=float)
     nonlinear_index = np.asarray(nonlinear_index, dtype=float)
     x = np.arange(len(names))
-    fig = Figure(figsize=(12, 3.8), layout="constrained")
-    axes = fig.subplots(1, 3, sharey=True)
-    for k, (ax, (_, label)) in enumerate(zip(axes, _RESPONSES, strict=True)):
+    fig = Figure(figsize=(4 * len(keys), 3.8), layout="constrained")
+    axes = fig.subplots(1, len(keys), sharey=True)
+    labels = [f"{response(r).words} {r}" for r in keys]
+    for k, (ax, label) in enumerate(zip(axes, labels, strict=True)):
         lin = np.nan_to_num(linear_index[:, k])
         non = np.nan_to_num(nonlinear_index[:, k])
         ax.bar(x - 0.2, lin, width=0.4, color="tab:blue", label="linear (mu*)")
@@ -48,14 +49,16 @@ def indices_figure(
 
 def stored_indices_figure(doc: Mapping[str, Any], title: str, note: str = "") -> Figure:
     """The bars of :func:`indices_figure` from a stored result document
-    (:meth:`SensitivityResult.to_dict`: tables response -> factor -> index, null for NaN);
-    ``title`` is followed by its settings and run counts, then ``note``."""
+    (:meth:`SensitivityResult.to_dict`: tables response -> factor -> index, null for NaN;
+    a panel per response it reports); ``title`` is followed by its settings and run counts,
+    then ``note``."""
     names = [f["name"] for f in doc["factors"]]
+    keys = list(doc["responses"])
 
     def table(key: str) -> NDArray[np.float64]:
         t = doc[key]
         return np.array(
-            [[np.nan if t[r][n] is None else t[r][n] for r, _ in _RESPONSES] for n in names],
+            [[np.nan if t[r][n] is None else t[r][n] for r in keys] for n in names],
             dtype=float,
         )
 
@@ -65,6 +68,7 @@ def stored_indices_figure(doc: Mapping[str, Any], title: str, note: str = "") ->
         table("nonlinear_index"),
         f"{title} (r = {doc['r']}, {doc['levels']} levels, {doc['n_runs']} runs, "
         f"{doc['n_failed_runs']} failed){note}",
+        keys,
     )
 
 

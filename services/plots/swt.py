@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from scm_core.signals import SWTDataset
-from scm_core.signals.responses import RESPONSES
+from scm_core.signals.responses import RESPONSES, keys_of
 from scm_core.simulator import SWTResult, WheelGeometry
 
 from .chart import Axis, Chart, Panel, line, segment, vspan
@@ -22,15 +22,18 @@ def conditions_text(result: SWTResult, wheel: WheelGeometry | None = None) -> st
 
 
 def swt_figure(result: SWTResult, title: str | None = None, wheel: WheelGeometry | None = None):
-    """F, T and z against time with the averaging windows shaded and the means marked (with
-    their units); the title gives the test conditions (and the wheel, when given)."""
+    """F, T and z (and Fy, for a steered wheel) against time with the averaging windows shaded
+    and the means marked (with their units); the title gives the test conditions (and the
+    wheel, when given)."""
     from matplotlib.figure import Figure
 
     rig = result.rig
-    fig = Figure(figsize=(8, 7.5), layout="constrained")
-    axes = fig.subplots(3, 1, sharex=True)
+    keys = keys_of(bool(rig.slip_angle))
+    panels = [p for p in _PANELS if p[0] in keys]
+    fig = Figure(figsize=(8, 2.5 * len(panels)), layout="constrained")
+    axes = fig.subplots(len(panels), 1, sharex=True)
     t = result.series["t"]
-    for ax, (key, label, scale, offset_name) in zip(axes, _PANELS, strict=True):
+    for ax, (key, label, scale, offset_name) in zip(axes, panels, strict=True):
         ax.plot(t, result.series[key] * scale, lw=0.8, color="tab:blue", label="simulation")
         offset = getattr(rig, offset_name)
         ax.axvspan(offset, rig.duration, color="tab:orange", alpha=0.12, label="averaging window")

@@ -405,7 +405,7 @@ def test_calibrate_writes_samples_summary_and_figures(reference: Path) -> None:
     )
     assert summary["map_responses"]["log"]["status"] == "ok"
     header = (reference / "posterior.csv").read_text().splitlines()[0]
-    assert header == "phi,n,log_likelihood,log_prior,F[log],T[log],z[log]"
+    assert header == "phi,n,log_likelihood,log_prior,F[log],T[log],z[log],Fy[log]"
     assert len((reference / "samples" / "stage_00.csv").read_text().splitlines()) == 61
     assert len(list((reference / "samples").glob("stage_*.csv"))) == n_stages + 1
     for fig in ("prior_posterior.png", "posterior_pairs.png", "fit_map.png"):

@@ -14,6 +14,7 @@ from scm_core.calibration import (
     run_tmcmc,
 )
 from scm_core.inference import JointPrior, TMCMCSettings, TruncatedNormal, Uniform
+from scm_core.signals.responses import N_RESPONSES
 
 PRIOR = JointPrior({"a": Uniform(-3.0, 3.0), "b": TruncatedNormal(0.5, 1.0, -2.0, 4.0)})
 
@@ -120,4 +121,4 @@ def test_stopped_by_max_stages_then_continued_with_the_model() -> None:
         start=Resume(part.stages),
     )
     assert same(rest, full)
-    assert rest.final.responses is not None and rest.final.responses.shape == (40, 3)
+    assert rest.final.responses is not None and rest.final.responses.shape == (40, N_RESPONSES)

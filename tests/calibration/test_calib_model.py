@@ -12,6 +12,7 @@ import pytest
 from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, build_configs
 from scm_core.inference import TMCMCSettings, evaluate_points, run_tmcmc
 from scm_core.inference.early_rejection import is_parted
+from scm_core.signals.responses import N_RESPONSES, RESPONSE_KEYS
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_batch
 
 SIM = {"duration": 12.0, "dx": 0.01, "dt": 0.04, "offset_F": 6.0, "offset_T": 6.0, "offset_z": 6.0}
@@ -64,7 +65,8 @@ def make_case(likelihood: str) -> CaseDefinition:
 
 @pytest.fixture(scope="module")
 def hand_means() -> np.ndarray:
-    """Means (2 valid points, 2 datasets, 3) from simulate_batch with configs built by hand."""
+    """Means (2 valid points, 2 datasets, N_RESPONSES) from simulate_batch with configs built
+    by hand."""
     soils, wheels, rigs = [], [], []
     for k_phi, n, phi, R, _ in POINTS[:2]:
         for d in DATASETS:
@@ -76,20 +78,21 @@ def hand_means() -> np.ndarray:
             )
     res = simulate_batch(soils, wheels, rigs)
     assert res.ok.all()
-    return res.means.reshape(2, 2, 3)
+    return res.means.reshape(2, 2, N_RESPONSES)
 
 
 @pytest.mark.parametrize("likelihood", ["normalized", "gaussian"])
 def test_likelihood_equals_hand_computation(likelihood: str, hand_means: np.ndarray) -> None:
     model = StudyModel(make_case(likelihood), DATASETS)
     ll, resp, _, _ = model.log_likelihood_batch(POINTS)
-    assert resp.shape == (4, 6)
-    np.testing.assert_array_equal(resp[:2], hand_means.reshape(2, 6))
+    assert resp.shape == (4, 2 * N_RESPONSES)
+    np.testing.assert_array_equal(resp[:2], hand_means.reshape(2, 2 * N_RESPONSES))
     for i in range(2):
         sigma = np.array([POINTS[i, 4], 0.4, 0.0008])
         expected = 0.0
         for k, d in enumerate(DATASETS):
-            xi = (np.array(d.means) - hand_means[i, k]) / sigma  # eq. (14)-(15)
+            # the case's responses: F, T, z (eq. (14)-(15))
+            xi = (np.array(d.means[:3]) - hand_means[i, k, :3]) / sigma
             terms = -0.5 * xi**2 - 0.5 * math.log(2 * math.pi)  # eq. (13)
             if likelihood == "gaussian":
                 terms = terms - np.log(sigma)  # eq. (6): the 1/sigma factor
@@ -105,8 +108,8 @@ def test_failed_and_invalid_runs_count_as_failed() -> None:
     ev = evaluate_points(POINTS, model.log_likelihood_batch)
     assert ev.failed_runs == 2
     assert np.isfinite(ev.log_likelihood[:2]).all() and np.isneginf(ev.log_likelihood[2:]).all()
-    assert ev.responses is not None and ev.responses.shape == (4, 6)
-    assert model.response_names == ("F[s02]", "T[s02]", "z[s02]", "F[s05]", "T[s05]", "z[s05]")
+    assert ev.responses is not None and ev.responses.shape == (4, 2 * N_RESPONSES)
+    assert model.response_names == tuple(f"{r}[{d}]" for d in ("s02", "s05") for r in RESPONSE_KEYS)
 
 
 def test_rows_do_not_depend_on_batch_and_model_pickles() -> None:
@@ -127,7 +130,9 @@ def test_simulate_at_gives_the_series() -> None:
     res = model.simulate_at(POINTS[0], 1)
     assert res.ok and res.series["t"][-1] == pytest.approx(SIM["duration"])
     means, _ = model.simulate_means(POINTS[:1])
-    assert (res.means.F, res.means.T, res.means.z) == pytest.approx(tuple(means[0, 1]))
+    assert (res.means.F, res.means.T, res.means.z, res.means.Fy) == pytest.approx(
+        tuple(means[0, 1])
+    )
     same = model.simulate_at(POINTS[0], DATASETS[1])  # any dataset, not only the model's
     np.testing.assert_array_equal(same.series["F"], res.series["F"])
 
@@ -162,7 +167,7 @@ def test_datasets_as_parts_assemble_the_batch_likelihood_bit_for_bit(likelihood:
     np.testing.assert_array_equal(ll2, ll)
     np.testing.assert_array_equal(resp2, resp)
     for k, (term, means, why) in enumerate(parts):
-        np.testing.assert_array_equal(means, resp[:, 3 * k : 3 * k + 3])
+        np.testing.assert_array_equal(means, resp[:, N_RESPONSES * k : N_RESPONSES * (k + 1)])
         ok = np.isfinite(term)
         assert ok[:2].all() and not ok[2:].any()
         assert np.all(term[ok] <= model.part_bound(POINTS, k)[ok])

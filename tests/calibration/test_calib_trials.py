@@ -13,6 +13,7 @@ from scipy import stats
 
 from scm_core.calibration import CaseDefinition, CaseError, StudyModel
 from scm_core.signals import load_dataset
+from scm_core.signals.responses import N_RESPONSES
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 SUMMARY = EXAMPLES / "cmu_smooth" / "cmu_smooth_sm050.csv"
@@ -44,8 +45,8 @@ def make_case(likelihood: str, trials: str | None) -> CaseDefinition:
 
 
 def injected_means(rng: np.random.Generator, m: int) -> np.ndarray:
-    """Simulated means (m, 1, 3) around the data: F, T (unused), z."""
-    means = np.zeros((m, 1, 3))
+    """Simulated means (m, 1, N_RESPONSES) around the data: F, T (unused), z, Fy (unused)."""
+    means = np.zeros((m, 1, N_RESPONSES))
     means[:, 0, 0] = -17.0 + 3.0 * rng.standard_normal(m)
     means[:, 0, 2] = 0.024 + 0.004 * rng.standard_normal(m)
     return means
@@ -91,12 +92,12 @@ def test_a_log_is_one_test_and_the_bound_holds() -> None:
     sigma = np.array([[SIGMA_F, SIGMA_Z]])
     bound = model.part_bound(X, 1)
     # the bound is reached where the simulated mean is the trial mean, and nowhere exceeded
-    at_mean = np.zeros((1, 2, 3))
+    at_mean = np.zeros((1, 2, N_RESPONSES))
     at_mean[0, 1] = model.x_exp[1]
     assert model.log_likelihood_from_means(at_mean, sigma, [1])[0] == pytest.approx(bound[0])
     rng = np.random.default_rng(5)
     for _ in range(20):
-        means = np.zeros((1, 2, 3))
+        means = np.zeros((1, 2, N_RESPONSES))
         means[:, 1:] = injected_means(rng, 1)
         assert model.log_likelihood_from_means(means, sigma, [1])[0] < bound[0]
 

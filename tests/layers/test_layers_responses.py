@@ -13,11 +13,11 @@ from scm_core.signals.responses import COLUMN_OF, RESPONSE_KEYS, RESPONSES
 ROOT = Path(__file__).resolve().parents[2]
 DECLARED = ROOT / "scm_core" / "signals" / "responses.py"
 #: a sequence of the response keys or of their columns written out, in any order
+_KEY = r"""["'](F|T|z|Fy)["']"""
+_COLUMN = r"""["'](drawbar_pull|torque|sinkage|lateral_force)["']"""
 _LISTS = [
-    re.compile(r"""["'](F|T|z)["'],\s*["'](F|T|z)["'],\s*["'](F|T|z)["']"""),
-    re.compile(
-        r"""["'](drawbar_pull|torque|sinkage)["'],\s*["'](drawbar_pull|torque|sinkage)["']"""
-    ),
+    re.compile(rf"{_KEY},\s*{_KEY},\s*{_KEY}"),
+    re.compile(rf"{_COLUMN},\s*{_COLUMN}"),
 ]
 #: (file, line text) where such a list is not a list of the responses
 ALLOWED: set[tuple[str, str]] = {
@@ -51,4 +51,9 @@ def test_what_is_derived_from_the_declaration() -> None:
     assert calibration.RESPONSE_KEYS == RESPONSE_KEYS == tuple(r.key for r in RESPONSES)
     assert {k: f"sigma_{k}" for k in RESPONSE_KEYS} == calibration.SIGMA_NAMES
     assert tuple(COLUMN_OF[k] for k in RESPONSE_KEYS) == RESPONSE_COLUMNS
-    assert [row[2] for row in _ROWS] == ["drawbar pull F [N]", "torque T [N m]", "sinkage z [mm]"]
+    assert [row[2] for row in _ROWS] == [
+        "drawbar pull F [N]",
+        "torque T [N m]",
+        "sinkage z [mm]",
+        "lateral force Fy [N]",
+    ]

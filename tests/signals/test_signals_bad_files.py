@@ -60,7 +60,7 @@ def test_log_without_any_response_is_refused_naming_the_header(tmp_path):
     header = HEADER.replace("drawbar_pull", "drawbr").replace("torque", "torqe")
     header = header.replace("sinkage", "sinkge")
     msg = refuse(tmp_path, log_text(header=header))
-    assert "missing required column(s) drawbar_pull, torque or sinkage" in msg
+    assert "missing required column(s) drawbar_pull, torque, sinkage or lateral_force" in msg
     assert "torqe [Nm]" in msg
 
 

@@ -43,8 +43,9 @@ def test_stiffer_soil_sinks_less():
 def test_more_slip_more_torque_pull_and_sinkage():
     slips = (0.05, 0.2, 0.4)
     res = simulate_batch([SoilParams()] * 3, rigs=[RigConfig(slip=s) for s in slips])
-    F, T, z = res.means.T
+    F, T, z, Fy = res.means.T  # the responses' order (scm_core.signals.responses)
     assert np.all(np.diff(F) > 0) and np.all(np.diff(T) > 0)
+    assert np.all(Fy == 0.0)  # driven straight: no lateral force
     assert np.all(np.diff(z) > 0.001)  # slip sinkage: the parallel flow digs the wheel in
 
 

@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+from scm_core.signals.responses import N_RESPONSES
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_batch
 from scm_core.simulator.flow import sliding_face_height
 
@@ -50,7 +51,7 @@ def run_all(pairs, slips, **rig):
     ]
     res = simulate_batch(soils, wheels, rigs)
     k = len(slips)
-    means = res.means.reshape(len(pairs), k, 3)
+    means = res.means.reshape(len(pairs), k, N_RESPONSES)
     ok = res.ok.reshape(len(pairs), k).all(axis=1)
     return means, ok
 
@@ -118,7 +119,7 @@ def test_skid_brakes_and_sinks_more_as_it_grows(wheel, load, k_range, ploughing)
     assert set(res.status) <= {"ok", "bottomed_out"}
     ok = res.ok.reshape(len(soils), len(SKIDS)).all(axis=1)
     assert ok.sum() >= 7
-    means = res.means.reshape(len(soils), len(SKIDS), 3)[ok]
+    means = res.means.reshape(len(soils), len(SKIDS), N_RESPONSES)[ok]
     F, z = means[:, :, 0], means[:, :, 2]
     assert np.all(F < 0)
     assert np.all(np.diff(F, axis=1) < 0)  # more skid, more braking
@@ -161,7 +162,7 @@ def test_ploughing_deepens_and_brakes_a_skid_and_leaves_drive_alone():
     ]
     res = simulate_batch(soils, wheel, rigs)
     assert res.ok.all()
-    m = res.means.reshape(len(kappas), len(slips), 3)
+    m = res.means.reshape(len(kappas), len(slips), N_RESPONSES)
     F, z = m[:, :2, 0], m[:, :2, 2]  # skids: rows kappa, columns locked / 0.5
     assert np.all(np.diff(z, axis=0) > 0)  # more ploughing, deeper
     assert np.all(np.diff(F, axis=0) < 0)  # and more braking
@@ -190,7 +191,7 @@ def small_wheel_means(soil: SoilParams, slips, variants: list[dict]) -> np.ndarr
     ]
     res = simulate_batch([soil] * len(rigs), wheel, rigs)
     assert res.ok.all(), res.status
-    return res.means.reshape(len(variants), len(slips), 3)
+    return res.means.reshape(len(variants), len(slips), N_RESPONSES)
 
 
 def test_mobilised_digging_saturates_with_the_shear_and_leaves_skid_alone():

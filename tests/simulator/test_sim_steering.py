@@ -191,3 +191,38 @@ def test_a_wheel_dragged_sideways_digs_its_shear_band(shear: str) -> None:
     dug, z = _rut_below_start(0.005, shear)
     assert 0.5 * 0.005 <= dug - none <= 0.005
     assert z > z0 + 0.002  # the wheel sinks into what it digs
+
+
+@pytest.mark.parametrize("beta", [0.0, 45.0, -60.0])
+def test_batch_lateral_force_is_the_single_runs_bit_for_bit(beta: float) -> None:
+    """The batch simulator's steady means (simulate_batch: kernel.steady_means on a thread)
+    carry the lateral force as the fourth mean, over F's window, and are the single run's
+    SteadyMeans bit for bit (one computation for both paths); the columns are the responses'
+    (scm_core.signals.responses), in order."""
+    from dataclasses import fields
+
+    from scm_core.signals.responses import RESPONSE_KEYS
+    from scm_core.simulator import SteadyMeans, simulate_batch
+
+    soil = SoilParams(bulk_density=1330.0)
+    rig = RigConfig(slip_angle=beta, **FAST)
+    one = simulate_swt(soil, rig=rig)
+    many = simulate_batch([soil, soil], rigs=rig)
+    assert tuple(f.name for f in fields(SteadyMeans)) == RESPONSE_KEYS
+    assert one.ok and many.means.shape == (2, len(RESPONSE_KEYS)) and all(many.ok)
+    expected = [getattr(one.means, k) for k in RESPONSE_KEYS]
+    for row in many.means:
+        assert row.tolist() == expected  # bit for bit, Fy included
+    window = one.series["t"] >= rig.offset_F - 1e-9
+    assert one.means.Fy == pytest.approx(float(np.mean(one.series["Fy"][window])), rel=1e-12)
+    assert (one.means.Fy > 0.0) == (beta > 0.0) and (beta != 0.0 or one.means.Fy == 0.0)
+
+
+def test_a_failed_batch_row_has_every_mean_nan() -> None:
+    from scm_core.signals.responses import N_RESPONSES
+    from scm_core.simulator import simulate_batch
+
+    rig = RigConfig(W=5000.0, slip_angle=30.0, **FAST)  # far beyond the wheel: bottoms out
+    res = simulate_batch([SoilParams(k_phi=1e5, k_c=0.0)], rigs=rig)
+    assert res.status[0] != "ok" and res.means.shape == (1, N_RESPONSES)
+    assert np.all(np.isnan(res.means))

@@ -79,7 +79,8 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     # driving torque and sinkage are positive where a run succeeded (drawbar pull may be
     # negative: on soft soils the motion resistance exceeds the thrust at slip 0.2)
     ok = np.all(np.isfinite(a.responses), axis=1)
-    assert ok.sum() >= 15 and np.all(a.responses[ok, 1:] > 0)
+    assert ok.sum() >= 15 and np.all(a.responses[ok, 1:3] > 0)
+    assert np.all(a.responses[ok, 3] == 0.0)  # driven straight: no lateral force
     # why the others failed, one reason per failed run
     assert sum(done.result["failed_runs_by"].values()) == done.result["n_failed_runs"]
     # the stage keeps them as a calibration's stages do (StageCounts' failed_by)

@@ -27,6 +27,7 @@ from fastapi.templating import Jinja2Templates
 from scm_core.calibration import PRESETS, preset_cost
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals.conditions import condition_unit
+from scm_core.signals.responses import RESPONSES
 from services.limits import INT64_MAX
 from services.plots.choices import default_pairs
 from services.plots.figures import FORMATS
@@ -85,6 +86,9 @@ def _templates() -> Jinja2Templates:
         LIST_POLL_SECONDS=LIST_POLL_SECONDS,
         ACTIVE=ACTIVE,
         DRAW_SECONDS=DRAW_SECONDS,
+        RESPONSES=RESPONSES,
+        RESPONSE_UNITS={r.key: r.shown_in for r in RESPONSES},
+        RESPONSE_SCALES={r.key: r.scale for r in RESPONSES},
     )
     return t
 
@@ -363,12 +367,17 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
         offset: Annotated[int, Query(ge=0, le=INT64_MAX)] = 0,
     ) -> Response:
         page_ = store.datasets.list(limit=PAGE_SIZE, offset=offset)
+        items = [dataset_out(d) for d in page_.items]
         return _fragment(
             templates,
             request,
             "_datasets_table.html",
             None,
-            items=[dataset_out(d) for d in page_.items],
+            items=items,
+            # a steered wheel's lateral force only where a dataset of the page has it
+            responses=[
+                r for r in RESPONSES if not r.steered or any(r.key in d.means for d in items)
+            ],
             total=page_.total,
             offset=offset,
             limit=PAGE_SIZE,

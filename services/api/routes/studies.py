@@ -50,6 +50,7 @@ from ..schemas import (
     SummaryOut,
 )
 from ..views import (
+    named_responses,
     num_list,
     page_out,
     parameter_names,
@@ -245,10 +246,10 @@ def get_samples(
     study = store.studies.get(study_id)
     page = store.samples.page(study_id, st.stage_index, start=offset, limit=limit)
     a = page.arrays
-    rnames = response_names(store, study)
     has_resp = a.responses is not None and len(a) > 0
-    if has_resp and a.responses.shape[1] != len(rnames):
-        rnames = [f"r{k}" for k in range(a.responses.shape[1])]
+    responses, rnames = (
+        named_responses(a.responses, response_names(store, study)) if has_resp else (None, [])
+    )
     return SamplesPage(
         study_id=study_id,
         stage=st.stage_index,
@@ -262,15 +263,15 @@ def get_samples(
         samples=num_list(a.samples) if len(a) else [],
         log_likelihood=num_list(a.log_likelihood),
         log_prior=num_list(a.log_prior),
-        responses=num_list(a.responses) if has_resp else None,
+        responses=num_list(responses) if has_resp else None,
     )
 
 
 def _csv_chunks(store: Store, study_id: int, stage: int, names: list[str], rnames: list[str]):
     first = store.samples.page(study_id, stage, start=0, limit=CSV_CHUNK)
     with_resp = first.arrays.responses is not None and len(first.arrays) > 0
-    if with_resp and first.arrays.responses.shape[1] != len(rnames):
-        rnames = [f"r{k}" for k in range(first.arrays.responses.shape[1])]
+    if with_resp:
+        _, rnames = named_responses(first.arrays.responses, rnames)
 
     def render(rows: list[list[Any]]) -> str:
         buf = io.StringIO()
@@ -284,12 +285,13 @@ def _csv_chunks(store: Store, study_id: int, stage: int, names: list[str], rname
         page = first
         while len(page.arrays):
             a = page.arrays
+            R = named_responses(a.responses, rnames)[0] if a.responses is not None else None
             rows = []
             for i in range(len(a)):
                 row: list[Any] = [page.start + i, *a.samples[i].tolist()]
                 row += [float(a.log_likelihood[i]), float(a.log_prior[i])]
-                if with_resp and a.responses is not None:
-                    row += a.responses[i].tolist()
+                if with_resp and R is not None:
+                    row += R[i].tolist()
                 rows.append(row)
             yield render(rows)
             if page.next_start is None:

@@ -5,7 +5,9 @@ Stage 0 evaluates the likelihood at ``n_samples`` prior draws (rows of
 runs the chains of its plan (``scm_core.inference.tmcmc_stage``). The reducer is
 ``initial_state``/``reduce_stage`` followed by ``plan_stage`` or the end of the study. Plans
 and batch results are stored as :mod:`services.store.codec` blobs; a stage's population as
-sample rows with the scalar fields of its ``StageState`` as ``meta``.
+sample rows with the scalar fields of its ``StageState`` as ``meta``. What a study stored
+before a response was declared (three responses per dataset: F, T, z) is read with the later
+ones NaN (:func:`scm_core.calibration.stored.with_all_responses`), so that it goes on.
 """
 
 from __future__ import annotations
@@ -14,11 +16,12 @@ import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from scm_core.calibration import CaseDefinition, StudyModel
+from scm_core.calibration.stored import with_all_responses
 from scm_core.inference.tmcmc_loop import PopulationStart, StageStep, Tempering, evaluate_zero
 from scm_core.inference.tmcmc_moves import move_of
 from scm_core.inference.tmcmc_stage import (
@@ -62,6 +65,8 @@ from .base import (
 from .checks import check_runs, prior_medians
 
 __all__ = ["KIND", "CalibrationRun", "calibration_spec"]
+
+T = TypeVar("T")
 
 
 # ---------------------------------------------------------------------------- requests
@@ -191,9 +196,14 @@ class CalibrationRun:
             blob = store.stages.plan(key.study_id, key.stage_index)
             if blob is None:
                 raise ValueError(f"stage {key.stage_index} of study {key.study_id} has no plan")
-            plan = decode(blob, StagePlan)
+            plan = self.stored(decode(blob, StagePlan))
             self._plans = {key.stage_index: plan}
         return plan
+
+    def stored(self, obj: T) -> T:
+        """A stored plan, batch result or stage of the study with every response the
+        likelihood returns (see the module doc)."""
+        return with_all_responses(obj, self.model.n_datasets)
 
     def reducer(self, workers: int) -> Reducer:
         """The stage's population, then the next plan (batches cut for ``workers`` workers,
@@ -201,10 +211,12 @@ class CalibrationRun:
 
         def reduce(inp: ReduceInput) -> StageAdvance:
             if inp.stage.stage_index == 0:
-                step = self.tempering.begin([decode(b, PointEvaluation) for b in inp.results])
+                points = [self.stored(decode(b, PointEvaluation)) for b in inp.results]
+                step = self.tempering.begin(points)
             else:
-                chains = [decode(b, ChainBatchResult) for b in inp.results]
-                step = self.tempering.advance(decode(inp.plan or b"", StagePlan), chains)
+                chains = [self.stored(decode(b, ChainBatchResult)) for b in inp.results]
+                plan = self.stored(decode(inp.plan or b"", StagePlan))
+                step = self.tempering.advance(plan, chains)
             return self.advance_of(step, inp.study.batch_size, workers)
 
         return reduce
@@ -240,6 +252,7 @@ class CalibrationRun:
         is pure, so it is the plan that stage ran), and what follows stage k by this study's
         settings; the next stages then continue the run bit for bit. ValueError if a stage
         does not follow from the one before under these settings (another run's stages)."""
+        states = [self.stored(s) for s in states]
         pairs: list[tuple[PlannedStage | None, ReducedStage]] = [(None, reduced_stage(states[0]))]
         for prev, state in itertools.pairwise(states):
             step = self.tempering.next(prev)

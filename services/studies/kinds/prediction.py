@@ -15,8 +15,8 @@ the draw only, so the result is the CLI's bit for bit however the draws were bat
 Stored: ``case`` the calibrated study's (its priors and settings derived from it), ``n_samples``
 the draws, ``seed`` the prediction seed, ``dataset_ids`` the target datasets, ``payload``
 ``{"study_id", "conditions", "pooled_with"}``; the stage's samples are the draws with their
-simulated F, T, z per target; ``result`` ``{"study_id", "pooled_with", "draws", "seed", "level",
-"predictions": [...]}``.
+simulated F, T, z, Fy per target (F, T, z in a prediction stored before Fy: read with Fy NaN);
+``result`` ``{"study_id", "pooled_with", "draws", "seed", "level", "predictions": [...]}``.
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ from scm_core.inference.posterior import pool_samples
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError
 from scm_core.signals.conditions import make_conditions
+from scm_core.signals.responses import N_RESPONSES, widened
 from services.config import Settings
 from services.limits import INT32_MAX, INT64_MAX, LimitError, check_study_size
 from services.store import (
@@ -149,7 +150,8 @@ class ConditionPredictionOut(BaseModel):
     n_draws: int
     n_failed: int
     responses: dict[str, ResponsePredictionOut] = Field(
-        description="F [N], T [N m], z [m]: median and 95 % bands."
+        description="F [N], T [N m], z [m] (and Fy [N] for a steered wheel or a case "
+        "fitting it): median and 95 % bands."
     )
 
 
@@ -273,17 +275,17 @@ def _targets(
 ) -> list[DatasetTerms]:
     if conditions is None:
         return [dataset_terms(d) for d in load_datasets(store, case, dataset_ids)]
-    nan3 = (math.nan, math.nan, math.nan)
+    unmeasured = (math.nan,) * N_RESPONSES
     return [
-        DatasetTerms(str(c["name"]), {k: v for k, v in c.items() if k != "name"}, nan3)
+        DatasetTerms(str(c["name"]), {k: v for k, v in c.items() if k != "name"}, unmeasured)
         for c in conditions
     ]
 
 
 @dataclass
 class SimulatedDraws:
-    """A batch's result: steady means (draws, targets, 3) [N, N m, m] and whether each run
-    succeeded (draws, targets)."""
+    """A batch's result: steady means (draws, targets, N_RESPONSES) [N, N m, m, N] and whether
+    each run succeeded (draws, targets)."""
 
     means: NDArray[np.float64] | None
     ok: NDArray[np.bool_] | None
@@ -310,7 +312,7 @@ class PredictionRun:
 
     @cached_property
     def model_function(self):
-        """Draws (m, d) -> (means (m, targets, 3), ok (m, targets))."""
+        """Draws (m, d) -> (means (m, targets, N_RESPONSES), ok (m, targets))."""
         return StudyModel(self.case, self.targets).simulate_means
 
     def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
@@ -319,7 +321,8 @@ class PredictionRun:
 
     def summarize(self, means: NDArray[np.float64], ok: NDArray[np.bool_]) -> list[Any]:
         """The predictions (:class:`~scm_core.calibration.predict.ConditionPrediction`, with
-        each draw's values) from the draws' steady means (draws, targets, 3) and ok mask."""
+        each draw's values) from the draws' steady means (draws, targets, N_RESPONSES) and ok
+        mask."""
         return summarize_predictions(
             self.case, self.targets, self.draws, means, ok, self.seed, self.roles
         )
@@ -330,16 +333,22 @@ class PredictionRun:
         out)."""
         meta, population = store.stages.population(study.id, 0)
         n = self.draws.shape[0]
-        means = np.asarray(population.responses, dtype=float).reshape(n, len(self.targets), 3)
-        ok = decode_array(meta["ok"]) if "ok" in meta else np.isfinite(means).all(axis=2)
-        return self.summarize(means, np.asarray(ok, dtype=bool))
+        stored = np.asarray(population.responses, dtype=float).reshape(n, len(self.targets), -1)
+        ok = decode_array(meta["ok"]) if "ok" in meta else np.isfinite(stored).all(axis=2)
+        return self.summarize(self._widened(stored), np.asarray(ok, dtype=bool))
+
+    def _widened(self, means: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Means (draws, targets, k) stored with k responses per target as (draws, targets,
+        N_RESPONSES), the later ones NaN (:func:`~scm_core.signals.responses.widened`)."""
+        n, t = means.shape[0], len(self.targets)
+        return widened(means.reshape(n, -1), t).reshape(n, t, N_RESPONSES)
 
     def reducer(self, workers: int) -> Reducer:
         """The bands of the study's only stage (``workers`` is not needed)."""
 
         def reduce(inp: ReduceInput) -> StageAdvance:
             parts = [decode(b, SimulatedDraws) for b in inp.results]
-            means = np.concatenate([p.means for p in parts], axis=0)
+            means = np.concatenate([self._widened(p.means) for p in parts], axis=0)
             ok = np.concatenate([p.ok for p in parts], axis=0)
             preds = self.summarize(means, ok)
             n = self.draws.shape[0]
@@ -380,7 +389,8 @@ class PredictionKind:
         result=PredictionResult,
         description="Simulate ``draws`` samples of a completed calibration's posterior under "
         "the test conditions of stored datasets (``dataset_ids``) or of ``conditions``; the "
-        "result gives per target and response (F N, T N m, z m) the median and 95 % bands "
+        "result gives per target and response (F N, T N m, z m; Fy N for a steered wheel) the "
+        "median and 95 % bands "
         "without and with the prediction noise, and the measured mean with whether it falls "
         "inside. Bit-identical to ``scm-calib predict`` for the same seed. Any problem "
         "answers 422 naming the field, and nothing is stored.",

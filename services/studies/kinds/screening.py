@@ -7,7 +7,7 @@ with every factor's bounds resolved (so the design can be rebuilt exactly, whate
 defaults become), ``n_samples`` = the number of design points r (d + 1), ``seed`` = the design
 seed; the factor box (names, bounds, scale, units: the columns of the stage's samples) is
 derived from them when read (:meth:`ScreeningKind.terms`). The stage's
-samples are the design points with their steady F, T, z; the study's ``result`` is
+samples are the design points with their steady F, T, z, Fy; the study's ``result`` is
 :meth:`scm_core.calibration.SensitivityResult.to_dict`. Outputs depend only on the point, so
 the result is bit-identical to ``run_sensitivity`` however the points were batched.
 """
@@ -38,6 +38,7 @@ from scm_core.inference import LOG_SCALE_KINDS
 from scm_core.inference.tmcmc_stage import PointEvaluation
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import SWTDataset
+from scm_core.signals.responses import widened
 from scm_core.validation_text import first_error, one_line
 from services.config import Settings
 from services.limits import (
@@ -223,8 +224,8 @@ class MorrisRun:
 
     @property
     def model_function(self):
-        """Points (m, d) -> (steady means (m, 3) [N, N m, m], NaN rows for failed runs; the
-        runs' status codes (m,))."""
+        """Points (m, d) -> (steady means (m, N_RESPONSES) [N, N m, m, N], NaN rows for failed
+        runs; the runs' status codes (m,))."""
         return self.model
 
     def compute(self, store: Store, lease: BatchLease, model_function: Any) -> BatchOutput:
@@ -240,11 +241,14 @@ class MorrisRun:
 
         def reduce(inp: ReduceInput) -> StageAdvance:
             points = [decode(b, PointEvaluation) for b in inp.results]
-            Y = np.concatenate([np.asarray(p.responses) for p in points], axis=0)
+            # a batch stored before the later responses were simulated: those are NaN
+            Y = np.concatenate([widened(p.responses, 1) for p in points], axis=0)
             # the reasons of failed runs (None if a batch was stored before they were kept)
             known = all(p.status is not None for p in points)
             status = np.concatenate([p.status for p in points]) if known else None
-            result = analyze_sensitivity(self.design, Y, self.model.dataset.name, status)
+            result = analyze_sensitivity(
+                self.design, Y, self.model.dataset.name, status, self.model.keys
+            )
             n = self.design.n_points
             nan = np.full(n, np.nan)
             reduced = ReducedStage(
