@@ -380,6 +380,18 @@ class StudyModel:
         offsets = {col for _, col, _ in self.offsets if col is not None}
         return tuple(sorted({j for j, _ in self.physical} | offsets))
 
+    @property
+    def response_outputs(self) -> tuple[int, ...]:
+        """The columns of the responses (N_RESPONSES per dataset) its likelihood reads: each
+        dataset's measured responses that the case fits."""
+        return tuple(
+            sorted(
+                k * N_RESPONSES + self.used[u]
+                for k in range(self.n_datasets)
+                for u in self.likelihood_columns[k]
+            )
+        )
+
     def from_responses(
         self, X: NDArray[np.float64], R: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

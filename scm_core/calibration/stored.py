@@ -5,8 +5,9 @@ A stage's population, plan and batch results keep the responses the likelihood r
 group of k per dataset (:data:`scm_core.signals.responses.RESPONSES`, in order). A study stored
 with fewer per dataset (three: F, T, z) reads with the later ones NaN
 (:func:`~scm_core.signals.responses.widened`); no dataset of such a study measured them, so no
-likelihood term reads them, and the delayed-acceptance surrogate fits no column that has no
-finite value (:func:`scm_core.inference.surrogate.fit_surrogate`).
+likelihood term reads them, and the delayed-acceptance surrogate fits only the columns the
+likelihood reads (``StudyModel.response_outputs``): the study goes on bit for bit as it would
+have.
 """
 
 from __future__ import annotations

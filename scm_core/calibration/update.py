@@ -68,8 +68,9 @@ class UpdateLikelihood:
         the first n_old, in order): stage 0 of the update then runs the new datasets only
         (``known_parts`` of :func:`~scm_core.inference.tmcmc_stage.evaluate_points`), with the
         same result. A study stored before the later responses were declared returned fewer
-        per dataset (F, T, z): those read as NaN (:func:`~scm_core.signals.responses.widened`;
-        no old dataset measured them, so no likelihood term reads them)."""
+        per dataset (F, T, z): those read as NaN (:func:`~scm_core.signals.responses.widened`),
+        so that stage 0 runs its old datasets again, as it does any known part with a
+        non-finite response: the same bits, at the cost of a full stage 0."""
         R = np.asarray(responses, dtype=float)
         k_r = N_RESPONSES
         if R.ndim == 2 and R.shape[1] < k_r * self.n_old and R.shape[1] % self.n_old == 0:
@@ -84,6 +85,10 @@ class UpdateLikelihood:
     @property
     def response_inputs(self) -> tuple[int, ...]:
         return self.model.response_inputs
+
+    @property
+    def response_outputs(self) -> tuple[int, ...]:
+        return self.model.response_outputs
 
     def from_responses(
         self, X: NDArray[np.float64], R: NDArray[np.float64]

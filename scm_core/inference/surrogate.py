@@ -59,7 +59,11 @@ class ResponseLikelihood(Protocol):
     """A likelihood whose output at X follows from X and its responses R (m, k) alone:
     ``from_responses(X, R)`` returns what ``f(X)`` returns when the model gives R.
     ``response_inputs``: the parameter columns the responses depend on (the others, e.g. the
-    prediction-error sigmas, act only in the likelihood)."""
+    prediction-error sigmas, act only in the likelihood). Optionally ``response_outputs``:
+    the columns of R the output reads (a study's: the responses its datasets measured and its
+    case fits); the surrogate predicts only those (NaN for the others), so a response no
+    likelihood term reads is neither fitted nor needed in the training states (the lateral
+    force of a study stored before it was simulated: NaN)."""
 
     response_inputs: tuple[int, ...]
 
@@ -181,9 +185,12 @@ class ResponseSurrogate:
     neighbors: int
     smoothing: float
     n_points: int
+    outputs: tuple[int, ...] = ()  # the response columns fitted
+    width: int = 0  # k: the responses' columns in all
 
     def predict(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Responses (m, k) at X (m, d); a row's value does not depend on the batch."""
+        """Responses (m, k) at X (m, d), NaN in the columns not fitted; a row's value does not
+        depend on the batch."""
         U = (np.asarray(X, dtype=float)[:, list(self.inputs)] - self.center) / self.scale
         out = np.empty((U.shape[0], self.y_center.shape[0]))
         for start in range(0, U.shape[0], CHUNK):
@@ -193,7 +200,12 @@ class ResponseSurrogate:
             out[start : start + CHUNK] = local_tps(
                 self.points, self.values, idx, rows, self.smoothing
             )
-        return out * self.y_scale + self.y_center
+        fitted = out * self.y_scale + self.y_center
+        if len(self.outputs) == self.width:
+            return fitted
+        full = np.full((U.shape[0], self.width), np.nan)
+        full[:, list(self.outputs)] = fitted
+        return full
 
 
 def fit_surrogate(
@@ -202,14 +214,22 @@ def fit_surrogate(
     inputs: tuple[int, ...],
     neighbors: int,
     smoothing: float,
+    outputs: tuple[int, ...] | None = None,
 ) -> ResponseSurrogate | None:
-    """Fit on the distinct rows of ``samples`` (n, d) with finite ``responses`` (n, k); inputs
-    and responses standardised by their mean and sd over the training set. None when there are
-    fewer than :data:`MIN_POINTS` such rows or no responses."""
+    """Fit the columns ``outputs`` of ``responses`` (n, k) (None: all) on the distinct rows of
+    ``samples`` (n, d) where they are finite; inputs and responses standardised by their mean
+    and sd over the training set. None when there are fewer than :data:`MIN_POINTS` such rows
+    or no responses."""
     if responses is None or responses.shape[1] == 0 or not inputs:
+        return None
+    width = int(responses.shape[1])
+    outputs = tuple(range(width)) if outputs is None else tuple(int(c) for c in outputs)
+    if not outputs:
         return None
     X = np.asarray(samples, dtype=float)
     R = np.asarray(responses, dtype=float)
+    if len(outputs) < width:
+        R = R[:, list(outputs)]
     finite = np.all(np.isfinite(R), axis=1) & np.all(np.isfinite(X), axis=1)
     X, R = X[finite], R[finite]
     if X.shape[0] == 0:
@@ -240,4 +260,6 @@ def fit_surrogate(
         neighbors=k,
         smoothing=float(smoothing),
         n_points=int(X.shape[0]),
+        outputs=outputs,
+        width=width,
     )

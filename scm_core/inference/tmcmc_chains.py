@@ -59,6 +59,7 @@ def _surrogate_for(plan: StagePlan, f: LogLikelihoodBatch) -> ResponseSurrogate 
         tuple(f.response_inputs),
         settings.surrogate_neighbors,
         settings.surrogate_smoothing,
+        getattr(f, "response_outputs", None),
     )
 
 

@@ -246,3 +246,26 @@ def test_surrogate_is_scipys_local_thin_plate_spline_row_by_row() -> None:
     for i in (0, 17, CHUNK, CHUNK + 43):
         assert np.array_equal(surrogate.predict(Q[i : i + 1])[0], mine[i])
     assert np.array_equal(surrogate.predict(Q[9:]), mine[9:])  # other chunk boundaries
+
+
+def test_surrogate_fits_only_the_responses_the_likelihood_reads() -> None:
+    """``outputs``: the columns the likelihood reads are fitted, to the same bytes as when
+    every column is (each column's system is its own); the others are predicted NaN and
+    need not be finite in the training states (a response a stored study did not carry)."""
+    from scm_core.inference.surrogate import fit_surrogate
+
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(120, 3))
+    R = np.column_stack([X[:, 0] ** 2, np.nan * X[:, 1], np.cos(X[:, 2]), X[:, 0] * X[:, 1]])
+    R[:40, 3] = np.nan  # the fourth column carried by some states only
+    full = fit_surrogate(X[40:], R[40:][:, [0, 2, 3]], (0, 1, 2), neighbors=30, smoothing=1e-3)
+    some = fit_surrogate(X, R, (0, 1, 2), neighbors=30, smoothing=1e-3, outputs=(0, 2))
+    assert full is not None and some is not None and some.n_points == 120
+    Q = rng.normal(size=(50, 3))
+    got = some.predict(Q)
+    assert got.shape == (50, 4) and np.isnan(got[:, [1, 3]]).all()
+    alone = fit_surrogate(X, R[:, [0, 2]], (0, 1, 2), neighbors=30, smoothing=1e-3)
+    assert got[:, [0, 2]].tobytes() == alone.predict(Q).tobytes()
+    assert np.isfinite(full.predict(Q)).all()
+    # without outputs a state with any non-finite response is left out, as before
+    assert fit_surrogate(X, R, (0, 1, 2), neighbors=30, smoothing=1e-3) is None
