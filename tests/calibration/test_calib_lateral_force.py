@@ -118,3 +118,29 @@ def test_a_steered_wheel_is_calibrated_back_to_its_soil() -> None:
     assert result.final.responses.shape == (40, N_RESPONSES)
     assert np.all(result.final.responses[:, RESPONSE_KEYS.index("Fy")] > 0.0)
     assert math.isfinite(result.log_evidence)
+
+
+def test_predictions_and_screenings_give_fy_where_it_is_not_zero_by_symmetry() -> None:
+    """A straight wheel's lateral force is zero: predictions and Morris screenings of straight
+    data report F, T and z as they always did; a steered condition, a case fitting Fy or a
+    measured Fy adds it."""
+    from scm_core.calibration import MorrisSettings, analyze_sensitivity, sensitivity_design
+    from scm_core.calibration.model import DatasetTerms
+    from scm_core.calibration.predict import predicted_keys
+
+    straight = DatasetTerms("s", {"W": 315.0, "slip": 0.2}, (1.0, 2.0, 0.01))
+    steered = DatasetTerms("b", {"W": 315.0, "slip": 0.2, "slip_angle": 30.0}, (np.nan,) * 3)
+    measured = DatasetTerms("m", {"W": 315.0, "slip": 0.2}, (1.0, np.nan, 0.01, 0.5))
+    fz = _case(["F", "Fy", "z"])
+    phi_only = {"phi": fz.to_dict()["parameters"]["phi"]}
+    ftz = fz.with_changes(responses=["F", "T", "z"], parameters=phi_only)
+    assert predicted_keys(ftz, [straight]) == ("F", "T", "z")
+    assert predicted_keys(ftz, [straight, steered]) == RESPONSE_KEYS
+    assert predicted_keys(ftz, [measured]) == RESPONSE_KEYS
+    assert predicted_keys(fz, [straight]) == RESPONSE_KEYS
+    design = sensitivity_design(ftz, MorrisSettings(r=2, levels=4, seed=1))
+    Y = np.random.default_rng(0).normal(size=(design.n_points, N_RESPONSES))
+    assert list(analyze_sensitivity(design, Y).to_dict()["responses"]) == ["F", "T", "z"]
+    doc = analyze_sensitivity(design, Y, keys=RESPONSE_KEYS).to_dict()
+    assert doc["responses"] == {"F": "N", "T": "N m", "z": "m", "Fy": "N"}
+    assert set(doc["mu_star"]) == set(RESPONSE_KEYS)
