@@ -279,8 +279,9 @@ def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
         record = _sample(folder, record, ckpt, console, options)
         if record.status == "failed":
             raise StudyFailed(f"the study failed: {record.error}")
-        states = stage_states(DatabaseStages(folder.store, record.id))
         run = kind_of(record.kind).build(folder.store, record)
+        # stages stored before the lateral force (three responses per dataset) read with Fy NaN
+        states = [run.stored(s) for s in stage_states(DatabaseStages(folder.store, record.id))]
         status = run.tempering.next(states[-1]).status or ""
     result = result_of(states, case.parameter_names, status)
     walls = [ckpt.stages.saved(i)[1] for i in range(len(states))]

@@ -18,6 +18,7 @@ import pytest
 from test_api_support import AUTH, EXAMPLES, api_client, fresh_database, upload_file
 
 from scm_core.inference import count_fields
+from scm_core.signals.responses import RESPONSE_KEYS
 from scm_core.simulator import STATUS_NAMES
 from services.client import SCMCalibClient
 from services.store import Store
@@ -133,7 +134,7 @@ def test_samples_json_pages_and_csv_are_exact(finished) -> None:
         resp += page["responses"]
         offset = page["next_offset"]
     assert page["names"] == ["k_phi", "n", "phi", "J"]
-    assert page["response_names"] == ["F[wf34_s020]", "T[wf34_s020]", "z[wf34_s020]"]
+    assert page["response_names"] == [f"{r}[wf34_s020]" for r in RESPONSE_KEYS]
     assert np.array(rows, dtype=float).tobytes() == ref.samples.tobytes()
     assert np.array(ll, dtype=float).tobytes() == ref.log_likelihood.tobytes()
     assert np.array(lp, dtype=float).tobytes() == ref.log_prior.tobytes()
@@ -143,7 +144,7 @@ def test_samples_json_pages_and_csv_are_exact(finished) -> None:
     assert r.status_code == 200 and r.headers["content-type"].startswith("text/csv")
     table = list(csv.reader(io.StringIO(r.text)))
     assert table[0] == ["sample", "k_phi", "n", "phi", "J", "log_likelihood", "log_prior",
-                        "F[wf34_s020]", "T[wf34_s020]", "z[wf34_s020]"]  # fmt: skip
+                        *(f"{r}[wf34_s020]" for r in RESPONSE_KEYS)]  # fmt: skip
     values = np.array(table[1:], dtype=float)
     assert values[:, 0].tolist() == list(range(60))
     assert values[:, 1:5].tobytes() == ref.samples.tobytes()

@@ -26,6 +26,7 @@ from test_api_support import (
 from scm_core.calibration import CaseDefinition, DatasetTerms
 from scm_core.calibration.predict import predict
 from scm_core.inference.posterior import pool_samples
+from scm_core.signals.responses import N_RESPONSES
 from services.store import Store
 from services.studies.datasets import load_datasets
 
@@ -96,9 +97,9 @@ def test_prediction_of_datasets_is_the_core_predict_bit_for_bit(calibrated) -> N
     posterior = _posterior(client, study_id)
     expected = _expected(url, study_id, posterior, ids, 13, 4, ["calibration", "predicted"])
     assert result["predictions"] == expected
-    # the draws are the stage's samples, with their simulated F, T, z per dataset
+    # the draws are the stage's samples, with their simulated F, T, z, Fy per dataset
     stage = client.get(f"/studies/{pid}/stages/0/samples?limit=100").json()
-    assert len(stage["samples"]) == 13 and len(stage["responses"][0]) == 6
+    assert len(stage["samples"]) == 13 and len(stage["responses"][0]) == 2 * N_RESPONSES
     for p in result["predictions"]:
         for band in p["responses"].values():
             sim = band["simulated"]

@@ -15,6 +15,7 @@ import pytest
 from test_api_support import AUTH, TOKEN, api_client, fresh_database, upload_file
 
 from scm_core.calibration import CaseDefinition, MorrisSettings, run_sensitivity
+from scm_core.signals.responses import N_RESPONSES, RESPONSE_KEYS
 from services.client import SCMCalibClient
 from services.store import Store
 from services.studies import work_batches
@@ -110,8 +111,8 @@ def test_design_points_are_the_stage_samples(finished) -> None:
     r = client.get(f"/studies/{study_id}/stages/-1/samples.csv")
     rows = list(csv.reader(io.StringIO(r.text)))
     assert rows[0][:7] == ["sample", "k_star", "n", "c", "phi", "D_soil", "J"]
-    assert rows[0][-3:] == ["F[wf34_s020]", "T[wf34_s020]", "z[wf34_s020]"]
-    Y = np.array([[float(v) for v in row[-3:]] for row in rows[1:]])
+    assert rows[0][-N_RESPONSES:] == [f"{r}[wf34_s020]" for r in RESPONSE_KEYS]
+    Y = np.array([[float(v) for v in row[-N_RESPONSES:]] for row in rows[1:]])
     assert np.array_equal(Y, ref.outputs, equal_nan=True)
 
 
