@@ -1,8 +1,32 @@
-"""The web dashboard served by the API at ``/`` (see :mod:`.pages`)."""
+"""The web dashboard served by the API at ``/`` (see :mod:`.pages`).
 
-from .drawing import FigureProcess
-from .figures import FigureCache
-from .pages import dashboard_router, mount_static
-from .warmer import FigureWarmer
+Its names load on first use (PEP 562): a figure process imports :mod:`.figures` without the
+pages (FastAPI, the templates).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .drawing import FigureProcess
+    from .figures import FigureCache
+    from .pages import dashboard_router, mount_static
+    from .warmer import FigureWarmer
 
 __all__ = ["FigureCache", "FigureProcess", "FigureWarmer", "dashboard_router", "mount_static"]
+
+_WHERE = {
+    "FigureCache": "figures",
+    "FigureProcess": "drawing",
+    "FigureWarmer": "warmer",
+    "dashboard_router": "pages",
+    "mount_static": "pages",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
