@@ -577,6 +577,7 @@ def test_compare_page_shows_evidences_and_a_bayes_factor(server, browser) -> Non
         assert w.page.locator("table.classes tbody tr").count() == 2
         said = w.page.locator("p.comparison").all_inner_texts()
         assert said == [bf["verdict"] for bf in api.json()["bayes_factors"]]
+        w.shoot("compare_classes_1280x800")
         w.clean()
     finally:
         w.close()
