@@ -19,7 +19,7 @@ from scm_core.calibration.comparison import Comparison, ModelEvidence, compare_m
 from scm_core.calibration.report import not_a_posterior
 
 from .common import CLIError
-from .results import load_results, write_json
+from .results import load_summary, write_json
 from .runs import expand_groups
 
 COMPARE_FILE = "compare.json"
@@ -31,7 +31,7 @@ def model_evidence(folder: Path, name: str | None = None) -> ModelEvidence:
     finished calibration."""
     z, se, case_name = [], [], None
     for run in expand_groups([folder]):
-        case, _, summary = load_results(run)
+        case, summary = load_summary(run)
         status = str(summary.get("status"))
         if status != "completed":
             why = not_a_posterior(status, summary.get("final_exponent"))

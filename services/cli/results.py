@@ -264,15 +264,10 @@ def read_population(path: Path, names: list[str]) -> tuple[np.ndarray, np.ndarra
     return table[:, :d], table[:, d], table[:, d + 1]
 
 
-def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, Any]]:
-    """(case, posterior samples (n, d), summary) of a ``calibrate`` results folder."""
+def load_summary(results: Path) -> tuple[CaseDefinition, dict[str, Any]]:
+    """(case, summary) of a ``calibrate`` results folder, without its samples."""
     summary_path = results / "summary.json"
-    post_path = results / "posterior.csv"
-    for p in (summary_path, post_path):
-        if not p.is_file():
-            raise CLIError(
-                f"{results}: no {p.name}; give the output folder of `scm-calib calibrate`"
-            )
+    _require(results, summary_path)
     try:
         summary = json.loads(summary_path.read_text(encoding="utf-8"))
         case = CaseDefinition.from_stored(summary["case"], base_dir=results)
@@ -280,6 +275,22 @@ def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, A
         raise CLIError(f"{summary_path}: unreadable study summary ({exc})") from None
     except CaseError as exc:
         raise CLIError(f"{summary_path}: {exc}") from None
+    return case, summary
+
+
+def _require(results: Path, path: Path) -> None:
+    if not path.is_file():
+        raise CLIError(
+            f"{results}: no {path.name}; give the output folder of `scm-calib calibrate`"
+        )
+
+
+def load_results(results: Path) -> tuple[CaseDefinition, np.ndarray, dict[str, Any]]:
+    """(case, posterior samples (n, d), summary) of a ``calibrate`` results folder."""
+    post_path = results / "posterior.csv"
+    _require(results, results / "summary.json")
+    _require(results, post_path)
+    case, summary = load_summary(results)
     samples, _, _ = read_population(post_path, list(case.parameter_names))
     if samples.size == 0:
         raise CLIError(f"{post_path}: no samples")

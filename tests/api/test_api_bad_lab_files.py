@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from test_api_support import AUTH, BACKENDS, api_client, detail, fresh_database, row_counts
+from test_api_support import AUTH, detail, row_counts
 
 from services.cli.check import check
 
@@ -42,12 +42,6 @@ BAD = [
     ("key_twice", _log(meta="# slip: 0.2\n# slip: 0.3\n# normal_load: 315\n"), "line 2"),
     ("grouser_too_tall", _log(meta=META + "# R: 0.1\n# grouser_height: 0.2\n"), "grouser"),
 ]
-
-
-@pytest.fixture(params=BACKENDS)
-def env(request: pytest.FixtureRequest, tmp_path):
-    with fresh_database(request.param, tmp_path) as url, api_client(url) as client:
-        yield client, url
 
 
 @pytest.mark.parametrize(("name", "text", "needle"), BAD, ids=[b[0] for b in BAD])

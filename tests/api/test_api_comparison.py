@@ -11,20 +11,11 @@ import pytest
 from scipy import stats
 from test_api_support import (
     AUTH,
-    BACKENDS,
-    api_client,
     detail,
-    fresh_database,
     run_inline,
     summary_doc,
     tiny_case,
 )
-
-
-@pytest.fixture(params=BACKENDS)
-def env(request: pytest.FixtureRequest, tmp_path):
-    with fresh_database(request.param, tmp_path) as url, api_client(url) as client:
-        yield client, url
 
 
 def _group(client, url, ds: int, name: str, case: dict, runs: int) -> list[int]:

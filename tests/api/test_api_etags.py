@@ -10,21 +10,14 @@ import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-import pytest
 import sqlalchemy as sa
-from test_api_support import AUTH, BACKENDS, api_client, fresh_database, summary_doc, tiny_case
+from test_api_support import AUTH, summary_doc, tiny_case
 
 from services.store import Store
 from worker.orchestrator import ContextCache, execute_batch
 
 #: tables a 304 must not read
 HEAVY = ("samples", "stages", "work_batches", "datasets", "events", "study_datasets")
-
-
-@pytest.fixture(params=BACKENDS)
-def env(request: pytest.FixtureRequest, tmp_path):
-    with fresh_database(request.param, tmp_path) as url, api_client(url) as client:
-        yield client, url
 
 
 @contextmanager

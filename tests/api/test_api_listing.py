@@ -11,21 +11,12 @@ import numpy as np
 import pytest
 from test_api_support import (
     AUTH,
-    BACKENDS,
-    api_client,
     detail,
-    fresh_database,
     run_inline,
     summary_doc,
     svg_text,
     tiny_case,
 )
-
-
-@pytest.fixture(params=BACKENDS)
-def env(request: pytest.FixtureRequest, tmp_path):
-    with fresh_database(request.param, tmp_path) as url, api_client(url) as client:
-        yield client, url
 
 
 def _pages(client, path: str, limit: int, **params) -> list[dict]:
