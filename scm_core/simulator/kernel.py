@@ -535,21 +535,21 @@ def run_swt(prm: np.ndarray):
 
 @njit(cache=True, nogil=True)
 def settled(series: np.ndarray, prm: np.ndarray, duration: float) -> bool:
-    """Whether the steady means of F, T and z so far are settled for early stop: each mean over
+    """Whether the steady means of F, T, z and Fy so far are settled for early stop: each mean over
     its window so far (offset to the last sample, length L), extrapolated linearly to the whole
     window (offset to ``duration``, length L_f), moves by at most the tolerance. For a mean
     drifting at rate a the two halves of the window so far differ by a L / 2 and the whole
     window's mean by a (L_f - L) / 2 from the one so far, so the test is
     |mean(second half) - mean(first half)| (L_f - L) / L <= tol, with tol = P_SETTLE times W
-    (F), W R (T) and R (z)."""
+    (F and Fy, over F's window), W R (T) and R (z); a straight wheel's Fy, zero, is settled."""
     n = series.shape[0]
     if n < 8:
         return False
     t_now = series[n - 1, S_T]
-    offs = (prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z])
-    cols = (S_F, S_TORQUE, S_Z)
-    scales = (prm[P_W], prm[P_W] * prm[P_R], prm[P_R])
-    for q in range(3):
+    offs = (prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z], prm[P_OFF_F])
+    cols = MEAN_COLUMNS
+    scales = (prm[P_W], prm[P_W] * prm[P_R], prm[P_R], prm[P_W])
+    for q in range(N_MEANS):
         i0 = 0
         while i0 < n and series[i0, S_T] < offs[q] - 1e-9:
             i0 += 1

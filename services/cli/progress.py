@@ -112,7 +112,8 @@ class StageDisplay:
                 f"failed {state.failed_runs}{reasons}, {wall:.1f} s"
             )
             if state.part_runs_saved:
-                text += f", {state.part_runs_saved} simulations saved by early rejection"
+                n = state.part_runs_saved
+                text += f", {n} simulation{'s' if n != 1 else ''} saved by early rejection"
             if state.surrogate_steps:
                 text += (
                     f", {state.surrogate_steps} surrogate steps (acceptance "

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_swt
-from scm_core.simulator.kernel import S_F, S_T, S_TORQUE, S_Z, settled
+from scm_core.simulator.kernel import S_F, S_FY, S_T, S_TORQUE, S_Z, settled
 from scm_core.simulator.layout import N_PARAMS, P_OFF_F, P_OFF_T, P_OFF_Z, P_R, P_SETTLE, P_W
 
 DURATION = 10.0  # s
@@ -31,7 +31,7 @@ def _prm(tol: float) -> np.ndarray:
 def _series(t_end: float, drift_F: float) -> np.ndarray:
     """Samples at 100 Hz up to t_end: F = -10 + drift_F t [N], T = 5 N m, z = 0.02 m."""
     t = np.arange(1, int(round(t_end * 100)) + 1) / 100.0
-    s = np.zeros((t.size, 6))
+    s = np.zeros((t.size, S_FY + 1))
     s[:, S_T] = t
     s[:, S_F] = -10.0 + drift_F * t
     s[:, S_TORQUE] = 5.0
@@ -57,6 +57,16 @@ def test_a_drift_is_extrapolated_to_the_whole_window(fraction: float) -> None:
     assert change == pytest.approx(a * (DURATION - t_now) / 2, rel=0.02)
     assert settled(s, _prm(1.02 * change / W), DURATION)
     assert not settled(s, _prm(0.98 * change / W), DURATION)
+
+
+def test_a_drifting_lateral_force_is_not_settled() -> None:
+    """A steered wheel's Fy counts as F does (tolerance tol W over F's window): F, T and z
+    constant and Fy drifting at 0.1 N/s move the whole window's Fy mean by 0.1 (6 - 1.5) / 2 =
+    0.225 N at the first check, over tol 0.002 (0.2 N of W 100 N) and under tol 0.003."""
+    s = _series(OFFSET + 0.25 * (DURATION - OFFSET), 0.0)
+    s[:, S_FY] = 3.0 + 0.1 * s[:, S_T]
+    assert not settled(s, _prm(0.002), DURATION)
+    assert settled(s, _prm(0.003), DURATION)
 
 
 def test_sinkage_tolerance_scales_with_the_radius() -> None:
