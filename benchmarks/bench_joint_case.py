@@ -26,7 +26,7 @@ from scm_core.simulator import simulate_swt
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "cmu_joint.toml"
-#: near the joint posterior's median (docs/calibration.md, "One soil for both wheels")
+#: near the joint posterior's median (docs/cmu-record.md, "One soil for both wheels")
 SOIL = dict(k_phi=3.0e6, n=1.28, phi=34.0, J=0.010, K=4.5e6, shear_band=0.017,
             bearing_inclination=1.8, interface_friction=0.87, pocket_fill=0.27)  # fmt: skip
 VARIANTS = {

@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/steering_transfer.py [--angles 0,30,60,90] [--threads 2] [--json OUT]``.
 
-The soil of ``examples/cmu_joint.toml`` as committed (its posterior medians, docs/calibration.md
+The soil of ``examples/cmu_joint.toml`` as committed (its posterior medians, docs/cmu-record.md
 "The joint calibration with both", the model options of the case file) predicts the development
 data of ``examples/cmu_steering/`` (``--data`` to point elsewhere): both CMU wheels at the
 slip angles 0, 30, 60 and 90 deg, the smooth wheel at its nine rim speeds, the grousered one at
@@ -33,7 +33,7 @@ from scm_core.simulator import simulate_swt
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "cmu_joint.toml"
 DATA = ROOT / "examples" / "cmu_steering"
-#: cmu_joint.toml's posterior medians (seed 1, 2026-12-06; docs/calibration.md)
+#: cmu_joint.toml's posterior medians (seed 1, 2026-12-06; docs/cmu-record.md)
 MEDIANS = {
     "k_phi": 2.86e6,
     "n": 1.30,

@@ -140,7 +140,7 @@ class LeaderMove:
 
 #: moves per chain of the waste-free form when ``n_steps`` is not set (P = 5 states per chain:
 #: on paper case 1 nearer the unaccelerated posterior than P = 10 at fewer model runs,
-#: docs/calibration.md)
+#: docs/sampler.md)
 WASTE_FREE_STEPS = 4
 
 
@@ -190,7 +190,7 @@ class WasteFreeMove:
 _MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove(), WasteFreeMove())}
 
 
-#: the accelerated accurate form (issue 12, docs/calibration.md): waste-free chains whose moves
+#: the accelerated accurate form (issue 12, docs/sampler.md): waste-free chains whose moves
 #: are surrogate transitions of ACCELERATED_STEPS inner steps, a share ACCELERATED_JUMPS of them
 #: population jumps, the log walk and multinomial resampling (a right evidence standard
 #: error); each part exact
@@ -215,7 +215,7 @@ _PLAIN = {
 }
 #: the move scheme of a study that names none: the accelerated accurate form (on paper case 1
 #: within issue 12's accuracy lines of the unaccelerated form at 1.2 times the leader form's
-#: model runs, docs/calibration.md)
+#: model runs, docs/sampler.md)
 STUDY_MOVES = "waste-free"
 
 

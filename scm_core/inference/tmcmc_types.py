@@ -73,7 +73,7 @@ class TMCMCSettings(_Fields):
     form instead (:data:`scm_core.inference.tmcmc_moves.STUDY_MOVES`, its settings from
     :func:`~scm_core.inference.tmcmc_moves.form_defaults`: waste-free chains of surrogate
     transitions, ``ACCELERATED_STEPS`` inner steps with a share ``ACCELERATED_JUMPS`` of
-    population jumps, the log walk and multinomial resampling; docs/calibration.md). Each part
+    population jumps, the log walk and multinomial resampling; docs/sampler.md). Each part
     is exact.
 
     moves: "resample-move" (default, accurate), "leader" (paper's budget, one run per sample) or

@@ -108,7 +108,7 @@ def multinomial_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -
     sorted (Ching & Chen's TMCMC draws the next stage's seeds this way). Independent draws are
     what :func:`genealogy_log_evidence_var` assumes: after systematic resampling, which has less
     variance of its own, that estimate comes out 1.5 times too small for resample-move and
-    negative for waste-free (``bench_evidence_error.py``, docs/calibration.md)."""
+    negative for waste-free (``bench_evidence_error.py``, docs/sampler.md)."""
     return _pick(weights, np.sort(rng.random(n)))
 
 

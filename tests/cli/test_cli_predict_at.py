@@ -32,7 +32,7 @@ def test_predict_at_takes_the_study_wheel_unless_told_otherwise() -> None:
 
 def test_a_cross_wheel_prediction_is_titled_by_the_wheel_it_predicts() -> None:
     """``predict --data``: the figure of a study's posterior on datasets of a wheel it never saw
-    names that wheel (the cross-wheel check of docs/calibration.md); on its own wheel, or on a
+    names that wheel (the cross-wheel check of docs/cmu-record.md); on its own wheel, or on a
     wheel among a joint study's, it keeps the plain title."""
     examples = Path(__file__).resolve().parents[2] / "examples"
     case = load_case(examples / "cmu_grouser.toml")
