@@ -13,11 +13,14 @@ All values are SI (m, N, s, Pa) except angles, which are in degrees.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from scm_core.slip import CONVENTION_HELP, SlipError, canonical_convention
+
+from .models import MODEL_NAMES, with_model_class
 
 GRAVITY = 9.81  # m/s^2
 
@@ -334,6 +337,17 @@ class RigConfig(_Frozen):
         description="Sinkage that counts as bottomed out [m]; default min(0.1 m, outer radius)",
     )
     side_margin: float = Field(0.04, ge=0.0, description="Soil beside the wheel track [m]")
+    model: Literal[MODEL_NAMES] | None = Field(  # type: ignore[valid-type]
+        None,
+        description="Named model class (scm_core.simulator.models; docs/simulator.md, 'Model "
+        "classes'): sets the physics options above that are not given ('scm': the paper's SCM, "
+        "the defaults; 'scm_flow': the soil a wheel drags flowing, favoured on the CMU wheels)",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _model_class(cls, data: Any) -> Any:
+        return with_model_class(data) if isinstance(data, Mapping) else data
 
     @model_validator(mode="after")
     def _check(self) -> RigConfig:

@@ -12,6 +12,7 @@ import pytest
 
 from scm_core.calibration import load_case
 from scm_core.signals import load_dataset
+from scm_core.simulator import RigConfig
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -87,7 +88,8 @@ def test_the_joint_case_reads_both_wheels_with_one_soil() -> None:
     assert "interface_friction" in extra and extra <= {"interface_friction", "pocket_fill"}
     # the smooth case's model but for how a locked grousered wheel's tips slide, which a smooth
     # wheel ignores bit for bit (test_grouser_slip_changes_only_a_rim_bearing_grousered_wheel)
-    assert case.simulator == {**smooth.simulator, "grouser_slip": "rim_drive"}
+    joint_rig = RigConfig.model_validate(case.simulator)
+    assert joint_rig == RigConfig.model_validate({**smooth.simulator, "grouser_slip": "rim_drive"})
     assert case.nominal == {**smooth.nominal, "bulk_density": 1330.0}  # the data README's
 
 
