@@ -1,0 +1,191 @@
+"""A case's ``[sampler]`` table: the TMCMC settings as a case writes and stores them.
+
+:class:`SamplerSettings` validates the table, fills what it leaves to its move scheme
+(:func:`scm_core.inference.tmcmc_moves.form_defaults`) and holds every tuning field of
+:class:`~scm_core.inference.TMCMCSettings` with its default, so that a stored case keeps every
+setting its samples depend on; :data:`TUNING_BEFORE` is what a case stored before then ran with.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, create_model, model_validator
+
+from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
+from scm_core.inference.tmcmc_stage import TMCMCSettings
+from scm_core.inference.tmcmc_types import MOVES
+
+__all__ = [
+    "TUNING",
+    "TUNING_BEFORE",
+    "WASTE_FREE_STEPS_BEFORE",
+    "SamplerSettings",
+    "StrictModel",
+]
+
+
+class StrictModel(BaseModel):
+    """A case's tables: unknown keys refused, immutable, no inf or NaN."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+#: the sampler's defaults (a case's ``[sampler]`` table leaves out what it keeps)
+_DEFAULT = TMCMCSettings()
+
+
+class _SamplerFields(StrictModel):
+    """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
+
+    ``moves``: "waste-free" (the default: the accelerated accurate form), "resample-move" (the
+    unaccelerated accurate form) or "leader" (the paper's form). ``n_steps`` (waste-free),
+    ``delayed_acceptance``, ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale`` and
+    ``resampling`` left out (or null) take the move scheme's defaults, filled in and stored with
+    the case (:func:`scm_core.inference.tmcmc_moves.form_defaults`): for "waste-free" 4 moves per
+    chain, surrogate transitions of 40 inner steps with population jumps, the log walk and
+    multinomial resampling; for "resample-move" and "leader" plain steps in the parameters and
+    systematic resampling (their ``n_steps`` left null adapts per stage).
+
+    ``batch_size``: chains per batch handed to the ``map`` (None: chosen by the runner; does
+    not change the results). ``max_stages``: stop (status "max_stages") after that many
+    tempering stages. ``early_rejection``: stop simulating a proposal's datasets once they
+    cannot lift it over the acceptance threshold (exact, same samples; see
+    :mod:`scm_core.inference.early_rejection`). ``delayed_acceptance``: move with a surrogate
+    of the responses fitted on the stage's starting states before simulating (exact, other
+    samples; :mod:`scm_core.inference.surrogate`): ``surrogate_steps`` Metropolis steps on the
+    surrogate per model run (1: Christen & Fox's delayed acceptance), of which a fraction
+    ``surrogate_jumps`` are independence proposals from the population's t
+    (:mod:`scm_core.inference.population_jump`). ``proposal_scale``:
+    "log" walks the log of every strictly positive parameter (exact; SCM's multiplicative
+    trade-offs become straight ridges, :mod:`scm_core.inference.walk_space`). ``resampling``:
+    "systematic" (less resampling noise; the evidence's standard error is a lower bound,
+    1.3-1.4 times too small) or "multinomial" (a right standard error).
+
+    The sampler's finer tuning (``min_steps``, ``beta0``, ``surrogate_neighbors`` ...: the
+    other fields of TMCMCSettings, :data:`TUNING`) is a field here too, generated from
+    TMCMCSettings with its defaults, so that a case's stored form (:meth:`CaseDefinition.to_dict`)
+    holds every setting its samples depend on: a later change of a default in code changes no
+    stored study. A stored case from before these were stored is read with the values they had
+    then (:data:`TUNING_BEFORE`, :meth:`CaseDefinition.from_stored`).
+    """
+
+    n_samples: int = Field(2000, ge=10, description="Samples per stage.")
+    moves: Literal[MOVES] = Field(
+        STUDY_MOVES,
+        description="Move scheme: waste-free (the default, the accelerated accurate form), "
+        "resample-move (unaccelerated) or leader (the paper's form).",
+    )
+    n_steps: int | None = Field(
+        _DEFAULT.n_steps,
+        ge=1,
+        description="Moves per chain: waste-free (default 4), resample-move (default adapted).",
+    )
+    batch_size: int | None = Field(None, ge=1)
+    max_stages: int = Field(
+        _DEFAULT.max_stages, ge=1, description="Stop after this many tempering stages."
+    )
+    target_cov: float = Field(_DEFAULT.target_cov, gt=0.0)
+    early_rejection: bool = Field(
+        _DEFAULT.early_rejection,
+        description="Stop simulating a proposal's datasets once they cannot lift it over the "
+        "acceptance threshold (exact: the same samples, fewer runs).",
+    )
+    delayed_acceptance: bool | None = Field(
+        None,
+        description="Screen proposals with a surrogate of the responses before simulating "
+        "them (default: true for waste-free moves, false for resample-move and leader; exact: "
+        "the chain still targets the posterior).",
+    )
+    surrogate_steps: int | None = Field(None, ge=1, le=100)
+    surrogate_jumps: float | None = Field(None, ge=0.0, lt=1.0)
+    proposal_scale: Literal["linear", "log"] | None = None
+    resampling: Literal["systematic", "multinomial"] | None = None
+
+    _filled: frozenset[str] = PrivateAttr(default=frozenset())
+
+    @model_validator(mode="after")
+    def _form_defaults(self) -> SamplerSettings:
+        """Fill what the case left to its move scheme; ``model_fields_set`` keeps what the
+        case gave (:meth:`CaseDefinition.with_changes` merges onto that alone)."""
+        filled = []
+        for key, value in form_defaults(self.moves).items():
+            if getattr(self, key) is None:
+                self.__dict__[key] = value
+                filled.append(key)
+        self._filled = frozenset(filled)
+        return self
+
+    @model_validator(mode="after")
+    def _valid_tuning(self) -> _SamplerFields:
+        self.tmcmc_settings()  # TMCMCSettings' own checks (ValueError names the field)
+        return self
+
+    def __eq__(self, other: object) -> bool:
+        # equal settings are equal whether the case named them or its move scheme filled them
+        if not isinstance(other, _SamplerFields):
+            return NotImplemented
+        return self.model_dump() == other.model_dump()
+
+    def __hash__(self) -> int:
+        return hash(tuple(sorted(self.model_dump().items())))
+
+    def given(self) -> dict[str, Any]:
+        """The settings the case gave (not the ones its move scheme filled in)."""
+        keys = set(self.model_fields_set) - self._filled
+        return self.model_dump(include=keys, exclude_none=True)
+
+    def tmcmc_settings(self) -> TMCMCSettings:
+        return TMCMCSettings(
+            **{name: getattr(self, name) for name in TUNING},
+            moves=self.moves,
+            n_steps=self.n_steps,
+            max_stages=self.max_stages,
+            target_cov=self.target_cov,
+            early_rejection=self.early_rejection,
+            delayed_acceptance=bool(self.delayed_acceptance),
+            surrogate_steps=int(self.surrogate_steps or 1),
+            surrogate_jumps=float(self.surrogate_jumps or 0.0),
+            proposal_scale=str(self.proposal_scale),
+            resampling=str(self.resampling),
+        )
+
+
+#: TMCMCSettings' fields a case's [sampler] table does not declare above: its finer tuning,
+#: generated into SamplerSettings with TMCMCSettings' defaults
+TUNING = tuple(
+    f.name for f in dataclasses.fields(TMCMCSettings) if f.name not in _SamplerFields.model_fields
+)
+
+#: the tuning's values before stored cases held it (its code defaults until then): what a case
+#: stored without it ran with. A record of the past, like a migration: never edit it when a
+#: default changes (issue 43)
+TUNING_BEFORE: dict[str, int | float] = {
+    "min_steps": 10,
+    "max_steps": 50,
+    "initial_steps": 20,
+    "move_probability": 0.99,
+    "beta0": 0.2,
+    "target_acceptance": 0.234,
+    "beta_gain": 1.0,
+    "beta_min": 0.02,
+    "beta_max": 3.0,
+    "stall_tol": 1e-8,
+    "stall_stages": 3,
+    "surrogate_neighbors": 50,
+    "surrogate_smoothing": 1e-3,
+    "surrogate_memory": 20_000,
+}
+
+#: moves per chain of a waste-free case stored before the form's default was stored with it
+#: (WASTE_FREE_STEPS until then); a record of the past, like TUNING_BEFORE
+WASTE_FREE_STEPS_BEFORE = 4
+
+SamplerSettings = create_model(
+    "SamplerSettings",
+    __base__=_SamplerFields,
+    __module__=__name__,
+    __doc__=_SamplerFields.__doc__,
+    **{name: (type(getattr(_DEFAULT, name)), getattr(_DEFAULT, name)) for name in TUNING},
+)
