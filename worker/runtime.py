@@ -10,10 +10,10 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 from services.config import Settings, get_settings
+from services.lifetime import exit_with_parent
 from services.store import Store
 from services.store.records import BatchKey
 
-from .lifetime import exit_with_parent
 from .orchestrator import ContextCache, Dispatcher, execute_batch
 
 #: niceness added to an embedded pool process: a study's batches take the cores the server's

@@ -1,11 +1,14 @@
 """The layer rules, read from the source (every ``import``, also inside functions):
 
-    scm_core  <-  services.store  <-  services.stages  <-  services.studies
-              <-  worker, services.api, services.cli
+    entry points (services.api.main, the API's app factory; services.cli, the commands)
+              ->  services.api (routes, dashboard), worker (the runtime)
+              ->  services.studies  ->  services.stages  ->  services.store  ->  scm_core
 
-plus ``services.config``/``services.limits`` (settings, usable from the store up) and
+plus ``services.config``/``services.limits`` (settings, usable from the store up),
+``services.lifetime`` (a child process's lifetime: a leaf every tier may use) and
 ``services.plots``/``services.client`` (figures and the HTTP client: numerics only). A module
-may import its own layer and the ones below it, never one above; the numerics know no
+may import its own layer and the ones below it, never one above; only the entry points compose
+the worker runtime (the routes and the dashboard do not reach it); the numerics know no
 database, queue or web, the store no HTTP or queue, the study service no HTTP, queue or worker.
 """
 
@@ -45,28 +48,32 @@ ALLOWED: dict[str, set[str]] = {
         "services.limits",
         "scm_core",
     },
+    "services.lifetime": {"services.lifetime"},
     "worker": {
         "worker",
         "services.studies",
         "services.stages",
         "services.store",
         "services.config",
+        "services.lifetime",
         "scm_core",
     },
 }
-ALLOWED["services.api"] = ALLOWED["worker"] | {
-    "worker",
+ALLOWED["services.api"] = (ALLOWED["worker"] - {"worker"}) | {
     "services.api",
     "services.limits",
     "services.plots",  # the dashboard's figures
     "services.exports",  # files for other tools (ArviZ)
 }
+#: the entry points: the one tier that composes the worker runtime
+ALLOWED["services.api.main"] = ALLOWED["services.api"] | {"worker"}
 ALLOWED["services.cli"] = ALLOWED["services.api"] | {
+    "worker",
     "services.cli",
-    "services.api",
     "services.plots",
     "services.client",
 }
+ENTRY_POINTS = ("services.api.main", "services.cli")
 ALLOWED["services"] = {"services"}  # the package's own __init__
 
 #: third-party packages a layer must not import
@@ -129,6 +136,12 @@ def violations(sources: list[tuple[str, Path]]) -> list[str]:
         for line, target in _imports(path, module):
             top = target.split(".")[0]
             where = f"{path.name}:{line} ({module})"
+            if (
+                path.name == "__init__.py"
+                and target.startswith(module + ".")
+                and _layer(target, ENTRY_POINTS)
+            ):
+                continue  # a package re-exports its entry point (services.api: create_app)
             if top in PACKAGES:
                 target_layer = _layer(target, ALLOWED) or target
                 if target_layer not in ALLOWED[layer]:
@@ -150,6 +163,8 @@ def test_every_import_follows_the_layer_rules() -> None:
         ("services.studies", "import worker.orchestrator\n", "imports worker.orchestrator"),
         ("scm_core", "def f():\n    import sqlalchemy\n", "imports sqlalchemy"),
         ("services.studies", "from ...api import deps\n", "imports services.api"),
+        ("services.api.routes", "from worker.local import LocalRuntime\n", "imports worker"),
+        ("services.api.dashboard", "import worker.lifetime\n", "imports worker"),
     ],
 )
 def test_the_rule_catches_an_upward_import(tmp_path, layer, source, expected) -> None:
@@ -157,3 +172,18 @@ def test_the_rule_catches_an_upward_import(tmp_path, layer, source, expected) ->
     planted = tmp_path / "planted.py"
     planted.write_text(source, encoding="utf-8")
     assert any(expected in v for v in violations([(f"{layer}.sub.planted", planted)]))
+
+
+def test_only_the_entry_points_reach_the_worker_runtime() -> None:
+    """Of ``services``, only the entry points import ``worker`` (the folders show the rule:
+    ``worker/`` is reached from the app factory and the commands, nothing else)."""
+    reaching = sorted(
+        {
+            module
+            for module, path in _sources()
+            if module.startswith("services")
+            and any(t == "worker" or t.startswith("worker.") for _, t in _imports(path, module))
+        }
+    )
+    assert reaching, "the entry points start the worker runtime"
+    assert all(_layer(m, ENTRY_POINTS) for m in reaching), reaching

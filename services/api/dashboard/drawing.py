@@ -9,7 +9,7 @@ not hold. The worker starts when a study page first polls (:meth:`FigureProcess.
 loads the figures' modules and the simulator's compiled code then, instead of with the first
 stage's figures; not matplotlib, which the page's charts do not use: an image loads it when
 first drawn) and ends with the server, even a killed one
-(:func:`worker.lifetime.exit_with_parent`: the kernel signals it when the thread that started
+(:func:`services.lifetime.exit_with_parent`: the kernel signals it when the thread that started
 it ends, so one long-lived thread of this class starts it and hands it every figure); if it
 dies, the next figure starts another. Measured with a study running beside two calibrations on
 two cores (tests/web, the page fetching two figures at a time): the last stage's figures
@@ -40,7 +40,7 @@ _worker: dict[str, Any] = {}
 
 
 def _start_worker(database_url: str) -> None:
-    from worker.lifetime import exit_with_parent
+    from services.lifetime import exit_with_parent
 
     exit_with_parent()
     from services.store import Store

@@ -1,4 +1,5 @@
-"""A pool process ends with the process that started it."""
+"""A child process ends with the process that started it (the pools of the worker runtime,
+the dashboard's figure processes): a leaf every tier may use, the standard library only."""
 
 from __future__ import annotations
 
