@@ -2,8 +2,8 @@
 
 The study is one of the results folder's database (:mod:`services.cli.folder_store`), made by
 the calibration (or update) kind's spec and run by the service's batches and stage advance
-(:func:`worker.here.run_here`); each finished stage is also saved to the folder's checkpoints
-and, at the end, the outputs are written (:mod:`services.cli.results`). Re-running the same
+(:func:`worker.here.run_here`), which holds its stages (the one copy); at the end, the outputs
+are written (:mod:`services.cli.results`). Re-running the same
 command resumes; a folder holding another study (the case, anything that changes the samples,
 the datasets or the updated study differ) is refused.
 
@@ -59,8 +59,8 @@ from .common import (
 )
 from .folder_store import DB_FILE, FolderStore, open_folder_store
 from .parent import ParentStudy, load_parent, stored_posterior
-from .progress import StageDisplay, StageWatch
-from .results import Checkpoints, write_outputs
+from .progress import StageDisplay, StageWatch, stored_wall
+from .results import LegacyCheckpoints, write_outputs
 from .runs import (
     POOLED_FILE,
     RUNS_FILE,
@@ -267,16 +267,14 @@ def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
     )
     console = Console(stderr=True)
     with open_folder_store(out, options.workers) as folder:
-        ckpt = Checkpoints(out, case, study.datasets, update_of=parent.identity if parent else None)
-        earlier, _ = ckpt.load()
-        record = _folder_study(folder, study, bs, earlier, console, options.quiet)
-        stages = DatabaseStages(folder.store, record.id)
-        ckpt.start(fresh=stages.count() == 0)
+        legacy = LegacyCheckpoints(out, case, study.datasets, parent.identity if parent else None)
+        record = _folder_study(folder, study, bs, legacy.load(), console, options.quiet)
+        done = DatabaseStages(folder.store, record.id).count()
         if not options.quiet:
-            _announce(console, study, stages.count(), ckpt, options.workers)
+            _announce(console, study, done, out, options.workers)
         compile_simulator_once(options.quiet)
         t0 = time.perf_counter()
-        record = _sample(folder, record, ckpt, console, options)
+        record, timed = _sample(folder, record, done, console, options)
         if record.status == "failed":
             raise StudyFailed(f"the study failed: {record.error}")
         run = kind_of(record.kind).build(folder.store, record)
@@ -284,7 +282,9 @@ def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
         states = [run.stored(s) for s in stage_states(DatabaseStages(folder.store, record.id))]
         status = run.tempering.next(states[-1]).status or ""
     result = result_of(states, case.parameter_names, status)
-    walls = [ckpt.stages.saved(i)[1] for i in range(len(states))]
+    walls = [
+        timed[i] if i in timed else stored_wall(folder.store, record, i) for i in range(len(states))
+    ]
     extra = {
         "batch_size": bs,
         "workers": options.workers,
@@ -302,8 +302,8 @@ def _folder_study(
     quiet: bool,
 ) -> StudyRecord:
     """The study of the results folder: the one it holds (to resume, or done), else a new
-    one, which takes over the stages of the folder's checkpoints (written before the folder
-    had a database) or of the folder's study stopped at a smaller ``max_stages`` (a larger
+    one, which takes over the stages of the folder's checkpoints (a folder written before
+    folders held a database) or of the folder's study stopped at a smaller ``max_stages`` (a larger
     one goes on from there)."""
     store, n_old = folder.store, study.n_old
     ids = folder.add_datasets(study.datasets[n_old:], study.paths[n_old:])
@@ -356,12 +356,10 @@ _OPTIONS = {
 }
 
 
-def _announce(
-    console: Console, study: _Study, done: int, ckpt: Checkpoints, workers: int | None
-) -> None:
+def _announce(console: Console, study: _Study, done: int, out: Path, workers: int | None) -> None:
     case, parent = study.case, study.parent
     if done:
-        console.print(f"resuming {case.name} from stage {done - 1} ({ckpt.dir})")
+        console.print(f"resuming {case.name} from stage {done - 1} ({out / DB_FILE})")
         return
     what = f"update of {parent.results} with" if parent else f"{len(case.parameters)} parameters,"
     console.print(
@@ -374,22 +372,25 @@ def _announce(
 def _sample(
     folder: FolderStore,
     record: StudyRecord,
-    ckpt: Checkpoints,
+    done: int,
     console: Console,
     options: _RunOptions,
-) -> StudyRecord:
-    """Run the folder's study to its end with the progress display, saving each finished
-    stage to the checkpoints; Ctrl-C stops it (exit 130) keeping every stage and batch run."""
+) -> tuple[StudyRecord, dict[int, float]]:
+    """Run the folder's study to its end with the progress display (stages from ``done``
+    on are shown as they finish); returns it and the wall times [s] of the stages finished
+    here. Ctrl-C stops it (exit 130) keeping every stage and batch run."""
     display = StageDisplay(options.quiet, console)
-    watch = StageWatch(display, ckpt.save, ckpt.stages.count())
+    watch = StageWatch(display, done)
     try:
         with display, one_line_logs():
-            return run_here(folder.store, record.id, folder.settings, options.workers, watch)
+            record = run_here(folder.store, record.id, folder.settings, options.workers, watch)
+            return record, watch.walls
     except KeyboardInterrupt:
-        n = ckpt.stages.count()
+        n = DatabaseStages(folder.store, record.id).count()
         saved = f"stages 0-{n - 1}" if n else "no finished stage"
         click.echo(
-            f"interrupted: {saved} saved in {ckpt.dir}; re-run the same command to resume",
+            f"interrupted: {saved} kept in {folder.out / DB_FILE}; re-run the same command to "
+            "resume",
             err=True,
         )
         raise SystemExit(130) from None

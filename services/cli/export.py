@@ -1,4 +1,5 @@
-"""``scm-calib export DIR --to netcdf|chrono``: a ``calibrate`` results folder for other tools.
+"""``scm-calib export DIR --to netcdf|chrono|stages``: a ``calibrate`` results folder for other
+tools.
 
 ``netcdf``: an ArviZ InferenceData file (``services.exports.inference_data``: posterior,
 prior, sample statistics, observed data), read back by ``arviz.from_netcdf``; default
@@ -8,6 +9,10 @@ prior, sample statistics, observed data), read back by ``arviz.from_netcdf``; de
 samples) as Chrono's ``SCMTerrain::SetSoilParameters`` calls for C++ and PyChrono and a JSON
 block, with the units stated (``services.exports.chrono``); default ``DIR/chrono_soil.json``
 beside ``chrono_soil.cpp`` and ``chrono_soil.py``.
+
+``stages``: every stage of the study, bit for bit, as ``stage_NNN.json`` (``StageState.to_dict()``
+and its wall time) with a ``manifest.json``, written from the folder's database (where the
+stages are kept, once); default ``DIR/stages/``.
 """
 
 from __future__ import annotations
@@ -18,22 +23,60 @@ from pathlib import Path
 import click
 import numpy as np
 
-from services.stages import FolderStages, StageStoreError, run_population
+from services.stages import FolderStages, StageStoreError, run_population, stage_states
 
 from .common import CLIError
-from .results import load_results, write_json
+from .results import load_results, results_stages, write_json
 from .runs import diagnose_folders, group_folders, pooled_posterior
 
-FORMATS = ("netcdf", "chrono")
+FORMATS = ("netcdf", "chrono", "stages")
+STAGES_FORMAT = "scm-calib-stages"
 
 
 def _run(results: Path):
     """(case, summary, RunPopulation) of one ``calibrate`` results folder."""
     case, _, summary = load_results(results)
     try:
-        return case, summary, run_population(FolderStages(results))
+        with results_stages(results, summary) as stages:
+            return case, summary, run_population(stages)
     except StageStoreError as exc:
         raise CLIError(f"{results}: {exc}") from None
+
+
+def write_stages(results: Path, out: Path) -> None:
+    """The stages of ``results`` as JSON files, ``out/stage_NNN.json`` (each
+    ``{"state": StageState.to_dict(), "wall_time_s": seconds}``, exact) and ``out/manifest.json``
+    (what study they are): the form folders kept before they held a database."""
+    case, _, summary = load_results(results)
+    walls = [s.get("wall_time_s") or 0.0 for s in summary.get("stages") or []]
+    target = FolderStages(results, directory=out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
+    if target.count():
+        raise CLIError(f"--out {out}: holds stage files already; give an empty folder")
+    try:
+        with results_stages(results, summary) as stages:
+            states = stage_states(stages)
+        for state in states:
+            wall = walls[state.stage] if state.stage < len(walls) else 0.0
+            target.save(state, float(wall))
+    except (StageStoreError, OSError) as exc:
+        raise CLIError(f"{results}: {exc}") from None
+    manifest = {
+        "format": STAGES_FORMAT,
+        "case": case.name,
+        "case_hash": summary.get("case_hash") or case.fingerprint(),
+        "data_hashes": [d.get("content_hash") for d in summary.get("datasets") or []],
+        "parameters": list(case.parameter_names),
+        "seed": case.seed,
+        "status": summary.get("status"),
+        "n_stages": len(states),
+        "results": str(results.resolve()),
+    }
+    write_json(out / "manifest.json", manifest, indent=2)
+    click.echo(f"wrote {len(states)} stages to {out}")
 
 
 def _predicted(results: Path, summary: dict) -> dict[str, dict[str, list]] | None:
@@ -164,11 +207,13 @@ def write_chrono(results: Path, out: Path, draws: int, seed: int, lossy: bool) -
 @click.option(
     "--to", "fmt", type=click.Choice(FORMATS), default="netcdf", show_default=True,
     help="netcdf: an ArviZ InferenceData file (arviz.from_netcdf reads it); chrono: "
-    "SCMTerrain::SetSoilParameters calls and a JSON block.",
+    "SCMTerrain::SetSoilParameters calls and a JSON block; stages: every stage as exact JSON "
+    "(stage_NNN.json and manifest.json; the study's database holds them).",
 )  # fmt: skip
 @click.option(
-    "--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
-    help="The file to write (default RESULTS/inference_data.nc or RESULTS/chrono_soil.json).",
+    "--out", type=click.Path(path_type=Path), default=None,
+    help="The file to write (default RESULTS/inference_data.nc or RESULTS/chrono_soil.json); "
+    "stages: the folder (default RESULTS/stages).",
 )  # fmt: skip
 @click.option("--draws", type=click.IntRange(0, 100_000), default=0, show_default=True,
               help="chrono: also this many posterior samples (drawn with --seed).")  # fmt: skip
@@ -180,6 +225,16 @@ def export(results: Path, fmt: str, out: Path | None, draws: int, seed: int, los
     """Export the calibration in RESULTS (a `scm-calib calibrate` folder, or a `--runs`
     group's folder: one chain per run in netcdf, the pooled posterior for chrono) for other
     tools."""
+    if fmt == "stages":
+        if group_folders(results) is not None and not (results / "summary.json").is_file():
+            raise CLIError(f"{results}: a group of runs; give one run's folder, e.g. run_1")
+        target = out or results / "stages"
+        if target.exists() and not target.is_dir():
+            raise CLIError(f"--out {target}: not a folder")
+        write_stages(results, target)
+        return
+    if out is not None and out.is_dir():
+        raise CLIError(f"--out {out}: a folder; give the file to write")
     if fmt == "chrono":
         write_chrono(results, out or results / "chrono_soil.json", draws, seed, lossy)
         return

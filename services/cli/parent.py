@@ -2,9 +2,10 @@
 what ``scm-calib predict DIR`` simulates.
 
 A results folder holds what they need: the case (``summary.json``), the final population bit for
-bit (the last ``checkpoints/stage_NNN.json``), the datasets behind the posterior (their files,
+bit (its study's stages in the folder's database; in a folder written before folders held one,
+the last ``checkpoints/stage_NNN.json``), the datasets behind the posterior (their files,
 recorded in ``summary.json`` with their content hashes), the log evidence (the total one if the
-folder is itself an update) and, when the folder holds its study's database, the study's id.
+folder is itself an update) and the study's id.
 :func:`stored_posterior` gives the posterior as a completed study of a folder's database.
 """
 
@@ -21,13 +22,14 @@ from typing import Any
 from scm_core.calibration import CaseDefinition, CaseError
 from scm_core.inference import StageState
 from scm_core.signals import SWTDataset
-from services.stages import FolderStages, StageStoreError, stage_states
+from services.stages import StageStoreError, stage_states
 from services.store import NotFoundError, StudyRecord
 from services.studies import calibration_spec
 from services.studies.kinds.calibration import KIND as CALIBRATION
 
 from .common import CLIError, read_datasets
 from .folder_store import FolderStore
+from .results import results_stages
 from .runs import group_folders
 
 
@@ -110,7 +112,8 @@ def load_parent(results: Path, option: str = "--update-of") -> ParentStudy:
             "updates existed); run that calibration again to update it"
         )
     try:
-        final = FolderStages(results).state(n_stages)
+        with results_stages(results, summary, option=option) as stages:
+            final = stages.state(n_stages)
     except StageStoreError as exc:
         raise CLIError(f"{option} {results}: its final stage: {exc}") from None
     update = summary.get("update") or {}
@@ -145,9 +148,10 @@ def stored_posterior(
     """``parent``'s posterior as a completed study of ``folder``'s database: the folder's own
     study when ``parent`` is the folder and its summary names it; else a calibration on all
     the datasets behind the posterior (read again from their files, likelihood order) whose
-    stages are ``parent``'s checkpoints, bit for bit, and whose result holds the total log
-    evidence of its data (an update's parent, a folder written before folders held a
-    database). ``datasets``: those already read by :meth:`ParentStudy.datasets`, if any."""
+    stages are ``parent``'s (:func:`~services.cli.results.results_stages`), bit for bit, and
+    whose result holds the total log evidence of its data (an update's parent, a folder
+    written before folders held a database). ``datasets``: those already read by
+    :meth:`ParentStudy.datasets`, if any."""
     store = folder.store
     if parent.study_id is not None and folder.out.resolve() == parent.results.resolve():
         with contextlib.suppress(NotFoundError):
@@ -163,7 +167,8 @@ def stored_posterior(
         return found
     record = store.studies.create(spec)
     try:
-        states = stage_states(FolderStages(parent.results))
+        with results_stages(parent.results, parent.summary, folder, option) as stages:
+            states = stage_states(stages)
         total = {"log_evidence_total": parent.log_evidence, "results": str(parent.results)}
         CALIBRATION.build(store, record).adopt(store, record, states, result=total)
     except (StageStoreError, ValueError) as exc:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from typing import Any
 
 from rich.console import Console
@@ -133,16 +132,14 @@ class StageDisplay:
 class StageWatch:
     """Follows a study run here (:data:`worker.here.Watch`: called after each batch, or at
     each look while a pool runs them): the display's stage starts, batches and finished
-    stages, and each finished stage saved to the results folder's checkpoints as soon as
-    the store holds it (stages finished before this session first, with the wall time the
-    store recorded)."""
+    stages, from the stage ``done`` (those the store held when the session began are not
+    shown again), and each finished stage's wall time [s] in :attr:`walls` (timed here if it
+    ran in this session, else from the store's times: :func:`stored_wall`)."""
 
-    def __init__(
-        self, display: StageDisplay, save: Callable[[StageState, float], None], saved: int
-    ):
+    def __init__(self, display: StageDisplay, done: int):
         self.display = display
-        self.save = save
-        self.saved = saved
+        self.saved = done
+        self.walls: dict[int, float] = {}
         self.stage: int | None = None
         self.planned: list[int] = []
         self.counted: set[int] = set()
@@ -154,7 +151,7 @@ class StageWatch:
         while self.saved < stages.count():
             state = stages.state(self.saved)
             wall = self._wall(store, study, self.saved)
-            self.save(state, wall)
+            self.walls[self.saved] = wall
             self.display.stage_done(state, wall)
             self.saved += 1
         if study.status not in ("queued", "running") or study.current_stage is None:
@@ -178,10 +175,16 @@ class StageWatch:
 
     def _wall(self, store: Any, study: Any, index: int) -> float:
         """Seconds stage ``index`` took: timed here if it ran in this session, else from
-        the store's times (its end less the previous stage's, or the study's start)."""
+        the store's times."""
         if index == self.stage:
             return time.perf_counter() - self.t_stage
-        rows = store.stages.list(study.id)
-        end = rows[index].finished_at
-        begin = rows[index - 1].finished_at if index else study.started_at
-        return max(0.0, (end - begin).total_seconds()) if end and begin else 0.0
+        return stored_wall(store, study, index)
+
+
+def stored_wall(store: Any, study: Any, index: int) -> float:
+    """Seconds stage ``index`` of ``study`` took by the store's times: its end less the
+    previous stage's (or the study's start); 0 if a time is missing."""
+    rows = store.stages.list(study.id)
+    end = rows[index].finished_at
+    begin = rows[index - 1].finished_at if index else study.started_at
+    return max(0.0, (end - begin).total_seconds()) if end and begin else 0.0

@@ -1,11 +1,10 @@
-"""The files of a ``scm-calib calibrate`` results folder: checkpoints (for resuming), outputs, and
-reading them back (``predict``, ``export``).
+"""The files of a ``scm-calib calibrate`` results folder: its outputs, its stages (kept once,
+in its database) and reading them back (``predict``, ``export``, an update).
 
 Layout::
 
-    DIR/study.db                       the study's database (services.cli.folder_store)
-    DIR/checkpoints/manifest.json      what the checkpoints belong to (case and data hashes)
-    DIR/checkpoints/stage_NNN.json     StageState.to_dict() of each finished stage + wall time
+    DIR/study.db                       the study's database (services.cli.folder_store): its
+                                       stages and samples, the one copy (results_stages)
     DIR/samples/stage_NN.csv           samples of every stage: parameters, log_likelihood,
                                        log_prior, simulated responses F/T/z/Fy per dataset
     DIR/posterior.csv                  the final stage's samples (same columns)
@@ -13,14 +12,20 @@ Layout::
     DIR/figures/prior_posterior.png    Figure 5-like
     DIR/figures/posterior_pairs.png    Figures 6-8-like
     DIR/figures/fit_map.png            measured vs simulated at the MAP sample (Figure 3-like)
+
+A folder written before folders held a database kept its stages as
+``DIR/checkpoints/stage_NNN.json`` with a ``manifest.json``: read (never written) by
+:class:`LegacyCheckpoints` and :func:`results_stages`, so such a folder still resumes,
+predicts and updates; ``scm-calib export DIR --to stages`` writes that JSON form on demand.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,20 +37,31 @@ from scm_core.inference import LOG_SCALE_KINDS, StageState, TMCMCResult
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals import SWTDataset
 from scm_core.signals.responses import keys_for
-from services.stages import FolderStages, StageStoreError
+from services.stages import (
+    DatabaseStages,
+    FolderStages,
+    StageStore,
+    StageStoreError,
+    stage_states,
+)
 from services.stages.folder import write_json
+from services.store import NotFoundError, Store
+from services.studies.kinds.calibration import KIND as CALIBRATION
+from services.studies.kinds.update import KIND as UPDATE
 
 from .common import CLIError
+from .folder_store import DB_FILE, FolderStore, open_folder_store
 
 CHECKPOINT_FORMAT = "scm-calib-checkpoints"
 
 # ---------------------------------------------------------------------- checkpoints
 
 
-class Checkpoints:
-    """The checkpoints of one study under DIR/checkpoints: the stages
-    (:class:`~services.stages.FolderStages`) and the manifest saying what study they belong to
-    (case, datasets, the study updated), which a resume must match."""
+class LegacyCheckpoints:
+    """The checkpoints of a folder written before folders held a database (read only): the
+    stages (:class:`~services.stages.FolderStages`) and the manifest saying what study they
+    belong to (case, datasets, the study updated), which the study run on the folder must be
+    to take them over."""
 
     def __init__(
         self,
@@ -56,24 +72,14 @@ class Checkpoints:
     ):
         self.stages = FolderStages(out)
         self.dir = self.stages.dir
-        self.manifest = {
-            "format": CHECKPOINT_FORMAT,
-            "version": 1,
-            "case": case.name,
-            "case_hash": case.fingerprint(),
-            "data_hashes": [d.content_hash for d in datasets],
-            "parameters": list(case.parameter_names),
-            "n_samples": case.sampler.n_samples,
-            "seed": case.seed,
-        }
-        if update_of is not None:  # the earlier posterior an update starts from
-            self.manifest["update_of"] = update_of
+        self.manifest = checkpoint_manifest(case, datasets, update_of)
 
-    def load(self) -> tuple[list[StageState], list[float]]:
-        """Saved stages (consecutive from 0) and their wall times; refuses a different study."""
+    def load(self) -> list[StageState]:
+        """Saved stages (consecutive from 0); none without a manifest; refuses another
+        study's."""
         path = self.dir / "manifest.json"
         if not path.is_file():
-            return [], []
+            return []
         try:
             saved = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, json.JSONDecodeError) as exc:
@@ -93,20 +99,64 @@ class Checkpoints:
                 "since; use another --out directory or delete the checkpoints to start over"
             )
         try:
-            saved = [self.stages.saved(i) for i in range(self.stages.count())]
+            return stage_states(self.stages)
         except StageStoreError as exc:
             raise CLIError(str(exc)) from None
-        return [s for s, _ in saved], [w for _, w in saved]
 
-    def start(self, fresh: bool) -> None:
-        """Write the manifest; a fresh study first drops stage files left without one."""
-        self.dir.mkdir(parents=True, exist_ok=True)
-        if fresh:
-            self.stages.clear()
-        write_json(self.dir / "manifest.json", self.manifest)
 
-    def save(self, state: StageState, wall_time_s: float) -> None:
-        self.stages.save(state, wall_time_s)
+def checkpoint_manifest(
+    case: CaseDefinition,
+    datasets: Sequence[SWTDataset],
+    update_of: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """What a folder's stages in JSON belong to: case, datasets, the study updated."""
+    manifest: dict[str, Any] = {
+        "format": CHECKPOINT_FORMAT,
+        "version": 1,
+        "case": case.name,
+        "case_hash": case.fingerprint(),
+        "data_hashes": [d.content_hash for d in datasets],
+        "parameters": list(case.parameter_names),
+        "n_samples": case.sampler.n_samples,
+        "seed": case.seed,
+    }
+    if update_of is not None:  # the earlier posterior an update starts from
+        manifest["update_of"] = update_of
+    return manifest
+
+
+@contextlib.contextmanager
+def results_stages(
+    results: Path,
+    summary: dict[str, Any],
+    folder: FolderStore | None = None,
+    option: str = "RESULTS",
+) -> Iterator[StageStore]:
+    """The stages of the ``calibrate`` results folder ``results`` (its ``summary``): the
+    study of its database that the summary names, or, in a folder written before folders
+    held a database, its checkpoints (read only). ``folder``: this command's open store, if
+    it is that folder's; else the folder's store is opened (locked) while the block runs."""
+    study_id = (summary.get("study") or {}).get("id")
+    if study_id is None or not (results / DB_FILE).is_file():
+        yield FolderStages(results)
+    elif folder is not None and folder.out.resolve() == results.resolve():
+        yield _kept(folder.store, int(study_id), results)
+    else:
+        with open_folder_store(results, option=option) as opened:
+            yield _kept(opened.store, int(study_id), results)
+
+
+def _kept(store: Store, study_id: int, results: Path) -> StageStore:
+    """The stages of the summary's study in ``store`` if it holds them (a calibration or an
+    update of that id with stages), else the folder's checkpoints (a folder from before
+    databases, which a command has given a database since)."""
+    try:
+        record = store.studies.get(study_id)
+    except NotFoundError:
+        return FolderStages(results)
+    stages = DatabaseStages(store, study_id)
+    posterior = record.kind in (CALIBRATION.name, UPDATE.name)
+    return stages if posterior and stages.count() else FolderStages(results)
 
 
 # ---------------------------------------------------------------------- outputs

@@ -1,6 +1,7 @@
-"""Stages kept as files: ``DIR/checkpoints/stage_NNN.json`` of a ``scm-calib calibrate``
-results folder, each ``{"state": StageState.to_dict(), "wall_time_s": seconds}``, written
-atomically (a killed run leaves whole files only)."""
+"""Stages kept as files, each ``{"state": StageState.to_dict(), "wall_time_s": seconds}``,
+written atomically (a killed run leaves whole files only): ``DIR/checkpoints/stage_NNN.json``
+of a ``scm-calib calibrate`` results folder written before folders held a database (read), and
+``scm-calib export DIR --to stages`` (written on demand from the folder's database)."""
 
 from __future__ import annotations
 
@@ -30,8 +31,9 @@ def write_json(path: Path, doc: Any, *, indent: int | None = None) -> None:
 class FolderStages:
     """The :class:`~services.stages.StageStore` of the results folder ``results``."""
 
-    def __init__(self, results: Path) -> None:
-        self.dir = Path(results) / "checkpoints"
+    def __init__(self, results: Path, directory: Path | None = None) -> None:
+        """``directory``: where the stage files are (default ``results/checkpoints``)."""
+        self.dir = Path(directory) if directory is not None else Path(results) / "checkpoints"
 
     def path(self, index: int) -> Path:
         return self.dir / f"stage_{index:03d}.json"

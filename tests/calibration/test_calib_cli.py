@@ -91,6 +91,55 @@ def stage_files(out: Path) -> dict[str, bytes]:
     return files
 
 
+def folder_states(out: Path) -> list:
+    """The stages of the results folder ``out`` as the commands read them (its database)."""
+    from services.cli.results import results_stages
+    from services.stages import stage_states
+
+    summary = json.loads((out / "summary.json").read_text())
+    with results_stages(out, summary) as stages:
+        return stage_states(stages)
+
+
+def done_stages(out: Path) -> int:
+    """Stages the folder's database holds as done (0 before it has one), read while a
+    command may be writing it."""
+    import sqlite3
+
+    try:
+        with contextlib.closing(
+            sqlite3.connect(f"file:{out / 'study.db'}?mode=ro", uri=True, timeout=5)
+        ) as db:
+            return db.execute("select count(*) from stages where status = 'done'").fetchone()[0]
+    except sqlite3.OperationalError:  # no database or no table yet
+        return 0
+
+
+def as_older_folder(src: Path, dst: Path, work: Path, stages: int | None = None) -> Path:
+    """``src`` as a folder written before folders held a database: its files without the
+    database, its stages (the first ``stages``) as ``checkpoints/stage_NNN.json`` with the
+    manifest such folders had (of ``tiny.toml`` on ``log.csv``)."""
+    import shutil
+
+    from scm_core.calibration import load_case
+    from scm_core.signals import load_dataset
+    from services.cli.export import write_stages
+    from services.cli.folder_store import DB_FILE
+    from services.cli.results import checkpoint_manifest
+    from services.stages.folder import write_json
+
+    skip = shutil.ignore_patterns(f"{DB_FILE}*", "predictions", "stages", ".scm-calib.lock")
+    shutil.copytree(src, dst, ignore=skip)
+    checkpoints = dst / "checkpoints"
+    write_stages(src, checkpoints)
+    for extra in sorted(checkpoints.glob("stage_*.json"))[stages:] if stages else []:
+        extra.unlink()
+    case = load_case(work / "tiny.toml")
+    data = [load_dataset(work / "log.csv", offset=case.data.offset)]
+    write_json(checkpoints / "manifest.json", checkpoint_manifest(case, data))
+    return dst
+
+
 @pytest.fixture(scope="module")
 def work(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("cli")
@@ -219,8 +268,6 @@ def test_predict_is_the_librarys_predict_bit_for_bit_also_from_an_older_folder(
     service's kind): its bands and draws are ``scm_core``'s ``predict`` on the folder's
     posterior bit for bit; a folder without a database (written before folders held one)
     gets its posterior taken over from its checkpoints and predicts the same numbers."""
-    import shutil
-
     from scm_core.calibration import load_case
     from scm_core.calibration.predict import predict
     from scm_core.signals import load_dataset
@@ -235,8 +282,8 @@ def test_predict_is_the_librarys_predict_bit_for_bit_also_from_an_older_folder(
     data = [load_dataset(work / "log.csv", offset=load_case(work / "tiny.toml").data.offset)]
     (expected,) = predict(case, samples, data, draws=9, seed=4, roles=["calibration"])
     assert doc["datasets"] == [json.loads(json.dumps(expected.to_dict(draws=True)))]
-    older = work / "ref_older"
-    shutil.copytree(reference, older, ignore=shutil.ignore_patterns(DB_FILE, "predictions"))
+    older = as_older_folder(reference, work / "ref_older", work)
+    assert not (older / DB_FILE).exists()
     again = run_cli("predict", older, *args, cwd=work)
     assert again.returncode == 0, again.stderr
     assert json.loads(again.stdout)["datasets"] == doc["datasets"]
@@ -410,7 +457,9 @@ def test_calibrate_writes_samples_summary_and_figures(reference: Path) -> None:
     assert len(list((reference / "samples").glob("stage_*.csv"))) == n_stages + 1
     for fig in ("prior_posterior.png", "posterior_pairs.png", "fit_map.png"):
         assert (reference / "figures" / fig).stat().st_size > 10_000
-    assert (reference / "checkpoints" / "manifest.json").is_file()
+    # the stages are kept once, in the folder's database
+    assert not (reference / "checkpoints").exists()
+    assert len(folder_states(reference)) == n_stages + 1
 
 
 def test_workers_give_identical_results(work: Path, reference: Path) -> None:
@@ -445,20 +494,18 @@ def test_a_folder_from_before_study_databases_is_taken_over_not_rerun(
     work: Path, reference: Path
 ) -> None:
     """A results folder whose stages are only checkpoint files (written before a folder held
-    its study's database): the new database takes the stages over without running them, and
-    the run goes on to the reference's stages bit for bit."""
+    its study's database), stopped after stage 2: the new database takes the stages over
+    without running them, the run goes on to the reference's stages bit for bit, and writes
+    no checkpoint file of its own."""
     from services.cli.folder_store import DB_FILE
     from services.store import Store
 
-    out = work / "legacy"
-    opts = ("--quiet", "--no-plots")
-    first = run_cli("calibrate", "tiny.toml", "--out", out, "--max-stages", "2", *opts, cwd=work)
-    assert first.returncode == 0, first.stderr
-    (out / DB_FILE).unlink()
+    out = as_older_folder(reference, work / "legacy", work, stages=3)
     proc = run_cli("calibrate", "tiny.toml", "--out", out, "--no-plots", cwd=work)
     assert proc.returncode == 0, proc.stderr
     assert "taking over stages 0-2" in proc.stderr
     assert stage_files(out) == stage_files(reference)
+    assert len(list((out / "checkpoints").glob("stage_*.json"))) == 3  # none written
     with Store.open(f"sqlite:///{out / DB_FILE}") as store:
         (study,) = store.studies.list().items
         rows = store.stages.list(study.id)
@@ -466,6 +513,22 @@ def test_a_folder_from_before_study_databases_is_taken_over_not_rerun(
     assert all(r.n_batches > 0 for r in rows[3:])
     summary = json.loads((reference / "summary.json").read_text())
     assert study.model_runs == summary["model_runs"]
+    again = run_cli("predict", out, "--data", "log.csv", "--draws", "3", "--no-plots", cwd=work)
+    assert again.returncode == 0, again.stderr
+
+
+def test_checkpoints_of_another_study_are_refused(work: Path, reference: Path) -> None:
+    """A folder from before study databases whose checkpoints are another study's."""
+    out = as_older_folder(reference, work / "legacy_other", work)
+    proc = run_cli("calibrate", "tiny.toml", "--out", out, "--samples", "70", cwd=work)
+    line = one_line_error(proc)
+    assert "holds checkpoints of another study" in line and "the case" in line
+
+
+def test_a_folder_of_another_study_is_refused(work: Path, reference: Path) -> None:
+    proc = run_cli("calibrate", "tiny.toml", "--out", "ref", "--samples", "70", cwd=work)
+    line = one_line_error(proc)
+    assert "holds a calibration of other inputs" in line and "study.db" in line
 
 
 def test_ctrl_c_then_rerun_resumes_identically(work: Path, reference: Path) -> None:
@@ -483,9 +546,8 @@ def test_ctrl_c_then_rerun_resumes_identically(work: Path, reference: Path) -> N
     proc = subprocess.Popen(
         args, cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
-    marker = work / "intr" / "checkpoints" / "stage_001.json"
     deadline = time.monotonic() + 300
-    while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+    while done_stages(work / "intr") < 2 and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=300)
@@ -520,9 +582,8 @@ def test_a_killed_worker_is_replaced_and_the_run_ends_the_same(work: Path, refer
         stderr=subprocess.PIPE,
         text=True,
     )
-    marker = work / "killed" / "checkpoints" / "stage_001.json"
     deadline = time.monotonic() + 300
-    while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+    while done_stages(work / "killed") < 2 and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
     workers = [k for k in _children(proc.pid) if "spawn_main" in _cmdline(k)]
     assert workers, "no worker process found"
@@ -539,12 +600,6 @@ def _cmdline(pid: int) -> str:
         return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
     except OSError:
         return ""
-
-
-def test_checkpoints_of_another_study_are_refused(work: Path, reference: Path) -> None:
-    proc = run_cli("calibrate", "tiny.toml", "--out", "ref", "--samples", "70", cwd=work)
-    line = one_line_error(proc)
-    assert "holds checkpoints of another study" in line and "the case" in line
 
 
 def test_sensitivity_writes_json_and_figure(work: Path) -> None:
@@ -635,7 +690,6 @@ def test_update_is_the_in_memory_update_bit_for_bit(
         load_case,
         run_tmcmc,
     )
-    from scm_core.inference import StageState
     from scm_core.signals import load_dataset
 
     proc = run_cli("calibrate", "--update-of", "ref", "--data", "log50.csv", "--no-plots", cwd=work)
@@ -657,8 +711,7 @@ def test_update_is_the_in_memory_update_bit_for_bit(
 
     case = load_case(work / "tiny.toml").with_changes(seed=5)
     data = [load_dataset(work / f, offset=case.data.offset) for f in ("log.csv", "log50.csv")]
-    last = sorted((reference / "checkpoints").glob("stage_*.json"))[-1]
-    parent_final = StageState.from_dict(json.loads(last.read_text())["state"])
+    parent_final = folder_states(reference)[-1]
     expected = run_tmcmc(
         UpdateLikelihood(StudyModel(case, data), 1),
         case.prior(),
@@ -669,10 +722,10 @@ def test_update_is_the_in_memory_update_bit_for_bit(
             parent_final.samples, (parent_final.beta, parent_final.acceptance_rate)
         ),
     )
-    stages = sorted((out / "checkpoints").glob("stage_*.json"))
-    final = StageState.from_dict(json.loads(stages[-1].read_text())["state"])
+    stages = folder_states(out)
+    final = stages[-1]
     assert final.samples.tobytes() == expected.samples.tobytes()
-    stage0 = StageState.from_dict(json.loads(stages[0].read_text())["state"])
+    stage0 = stages[0]
     assert np.array_equal(stage0.samples, parent_final.samples)
     # stage 0 ran the new log only (the old one's responses there are ref's own), once per
     # distinct point of ref's population (a rejected move repeats a state)
@@ -717,15 +770,20 @@ def _refuse_nonfinite(token: str) -> float:
 
 
 def test_every_json_file_the_cli_wrote_is_strict_json(work: Path, reference: Path) -> None:
-    """Checkpoints, manifest, summary, predictions and sensitivity are strict JSON (no NaN or
-    Infinity tokens): they go through ``scm_core.jsondoc.dumps``, json.dumps with
-    allow_nan=False and no encoder, so a non-JSON value fails where it is written."""
+    """Exported stages, their manifest, summary, predictions and sensitivity are strict JSON
+    (no NaN or Infinity tokens): they go through ``scm_core.jsondoc.dumps``, json.dumps with
+    allow_nan=False and no encoder, so a non-JSON value fails where it is written. The stages
+    exported are the database's bit for bit."""
+    from scm_core.inference import StageState
+
     assert run_cli("predict", "ref", "--data", "log.csv", "--draws", "4", cwd=work).returncode == 0
     assert (
         run_cli("sensitivity", "tiny.toml", "--r", "2", "--out", "sens2", cwd=work).returncode == 0
     )
+    exported = run_cli("export", "ref", "--to", "stages", "--out", "ref_stages", cwd=work)
+    assert exported.returncode == 0, exported.stderr
     files = [
-        *sorted((reference / "checkpoints").glob("*.json")),
+        *sorted((work / "ref_stages").glob("*.json")),
         reference / "summary.json",
         reference / "predictions" / "predictions.json",
         work / "sens2" / "sensitivity.json",
@@ -734,10 +792,16 @@ def test_every_json_file_the_cli_wrote_is_strict_json(work: Path, reference: Pat
     for path in files:
         doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=_refuse_nonfinite)
         assert isinstance(doc, dict), path
-    stages = sorted((reference / "checkpoints").glob("stage_*.json"))
-    assert stages, "no stage checkpoints"
+    stages = sorted((work / "ref_stages").glob("stage_*.json"))
+    assert len(stages) == len(folder_states(reference))
     state = json.loads(stages[-1].read_text())
     assert isinstance(state["state"]["samples"], dict)  # an encoded array, not a raw list
+    for path, kept in zip(stages, folder_states(reference), strict=True):
+        again = StageState.from_dict(json.loads(path.read_text())["state"])
+        assert again.samples.tobytes() == kept.samples.tobytes()
+        assert again.log_evidence == kept.log_evidence
+    refused = run_cli("export", "ref", "--to", "stages", "--out", "ref_stages", cwd=work)
+    assert "holds stage files already" in one_line_error(refused)
 
 
 @pytest.mark.slow

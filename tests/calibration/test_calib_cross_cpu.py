@@ -23,6 +23,9 @@ from pathlib import Path
 
 import pytest
 
+from services.cli.results import results_stages
+from services.stages import stage_states
+
 ROOT = Path(__file__).resolve().parents[2]
 NO_AVX512 = "X86_V4,AVX512_ICL,AVX512_SPR"
 
@@ -70,11 +73,9 @@ def _study(out: Path, env: dict[str, str], cache: Path) -> dict[str, dict]:
            "--out", str(out)]  # fmt: skip
     proc = subprocess.run(cmd, env=run_env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, (env, proc.stderr[-2000:])
-    stages = {}
-    for f in sorted((out / "checkpoints").glob("stage_*.json")):
-        doc = json.loads(f.read_text())
-        doc.pop("wall_time_s", None)
-        stages[f.name] = doc
+    summary = json.loads((out / "summary.json").read_text())
+    with results_stages(out, summary) as kept:
+        stages = {f"stage {s.stage}": s.to_dict() for s in stage_states(kept)}
     assert len(stages) == 4
     return stages
 

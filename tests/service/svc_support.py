@@ -199,10 +199,11 @@ def _cli(*args: str) -> None:
 
 
 def _final_state(out: Path):
-    from scm_core.inference import StageState
+    from services.cli.results import results_stages
 
-    checkpoints = sorted((out / "checkpoints").glob("stage_*.json"))
-    return StageState.from_dict(json.loads(checkpoints[-1].read_text())["state"])
+    summary = json.loads((out / "summary.json").read_text())
+    with results_stages(out, summary) as stages:
+        return stages.state(-1)
 
 
 @pytest.fixture(scope="session")
