@@ -1,8 +1,9 @@
 """Posterior predictions across test conditions (DESIGN section 4; paper section 5.3).
 
 Draws of a finished study's posterior are simulated under other test conditions (held-out
-datasets, a slip sweep). Per condition and response the result gives the median and the central
-95 % band of the simulated steady means (the parameter uncertainty), the same with the study's
+datasets, a sweep of the slip or the slip angle, a force map over both). Per condition and
+response the result gives the median and the central 95 % band of the simulated steady means
+(the parameter uncertainty), the same with the study's
 prediction-error noise added (sigma_F, sigma_T, sigma_z, sigma_Fy of each draw: where a new
 measurement is expected to fall), and, where the condition has a measurement, the measured value
 and whether it lies inside the bands. The responses predicted are F, T and z, and the lateral
@@ -37,6 +38,7 @@ __all__ = [
     "ConditionPrediction",
     "ResponsePrediction",
     "choose_draws",
+    "map_targets",
     "predict",
     "predicted_keys",
     "prediction_draws",
@@ -179,13 +181,28 @@ def sweep_targets(
     template: DatasetTerms,
     values: Sequence[float],
     loads: tuple[NDArray, NDArray] | None = None,
+    key: str = "slip",
 ) -> list[DatasetTerms]:
-    """Conditions of ``template`` with the slip replaced by each of ``values`` (symmetric lab
-    convention, -1 = locked) at the template's carriage speed (as a lab sweeps the wheel speed);
-    without a known carriage speed, the rig's default speeds for a slip. ``loads`` (from
-    :func:`sweep_loads`): the load W at each sweep slip is interpolated linearly between the
-    datasets' measured loads (held constant beyond the outermost ones), as on a rig whose
-    normal load is not commanded; otherwise the template's load."""
+    """Conditions of ``template`` with ``key`` replaced by each of ``values``, the rest kept.
+
+    ``key`` "slip": the symmetric lab slip (-1 = locked) at the template's carriage speed (as a
+    lab sweeps the wheel speed); without a known carriage speed, the rig's default speeds for a
+    slip. ``loads`` (from :func:`sweep_loads`): the load W at each sweep slip is interpolated
+    linearly between the datasets' measured loads (held constant beyond the outermost ones), as
+    on a rig whose normal load is not commanded; otherwise the template's load.
+    ``key`` "slip_angle": the slip angle [deg] at the template's kinematics and load (``loads``
+    does not apply). Points are named "slip 0.3", "slip_angle 30"."""
+    if key == "slip_angle":
+        return [
+            DatasetTerms(
+                name=f"slip_angle {a:.4g}",
+                conditions={**template.conditions, "slip_angle": float(a)},
+                means=(math.nan,) * N_RESPONSES,
+            )
+            for a in values
+        ]
+    if key != "slip":
+        raise ValueError(f"a sweep varies slip or slip_angle, not {key!r}")
     cond = dict(template.conditions)
     v = cond.get("carriage_speed")
     if v is None and cond.get("omega") is not None and cond.get("R") is not None:
@@ -210,6 +227,23 @@ def sweep_targets(
             cond_s["W"] = float(np.interp(s, loads[0], loads[1]))
         out.append(DatasetTerms(name=f"slip {s:.4g}", conditions=cond_s, means=unmeasured))
     return out
+
+
+def map_targets(
+    template: DatasetTerms, slips: Sequence[float], slip_angles: Sequence[float]
+) -> list[DatasetTerms]:
+    """A force map's grid: ``template``'s conditions at every symmetric slip of ``slips`` (as
+    :func:`sweep_targets` sets them) and slip angle [deg] of ``slip_angles``, slip-major (all
+    angles of the first slip first), at the template's load; named "slip 0.3, slip_angle 30"."""
+    return [
+        DatasetTerms(
+            name=f"{t.name}, slip_angle {a:.4g}",
+            conditions={**t.conditions, "slip_angle": float(a)},
+            means=t.means,
+        )
+        for t in sweep_targets(template, slips)
+        for a in slip_angles
+    ]
 
 
 def predicted_keys(case: CaseDefinition, targets: Sequence[DatasetTerms]) -> tuple[str, ...]:

@@ -1,4 +1,5 @@
-"""Slip sweeps of `scm-calib predict`: the load follows the datasets' measured loads."""
+"""Sweeps and force maps of `scm-calib predict`: a slip sweep's load follows the datasets'
+measured loads; a slip-angle sweep and a map keep the template's."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from scm_core.calibration.model import DatasetTerms
-from scm_core.calibration.predict import sweep_loads, sweep_targets
+from scm_core.calibration.predict import map_targets, sweep_loads, sweep_targets
 from scm_core.signals import load_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,3 +45,34 @@ def test_sweep_keeps_the_template_load_with_one_dataset() -> None:
     assert sweep_loads([skid]) is None
     targets = sweep_targets(skid, [-0.2, 0.5], sweep_loads([skid]))
     assert {t.conditions["W"] for t in targets} == {skid.conditions["W"]}
+
+
+def test_a_slip_angle_sweep_keeps_the_rest_of_the_template() -> None:
+    """``key="slip_angle"``: each point is the template's conditions with the slip angle [deg]
+    set, its slip (convention and wheel speed as given), load and wheel kept; the loads of
+    several datasets apply along the slip only."""
+    skid = _terms("cmu_smooth_sm050")
+    loads = sweep_loads([_terms("cmu_smooth_sm100"), skid, _terms("cmu_smooth_sp090")])
+    targets = sweep_targets(skid, [-30.0, 0.0, 45.0], loads, key="slip_angle")
+    assert [t.name for t in targets] == ["slip_angle -30", "slip_angle 0", "slip_angle 45"]
+    for t, beta in zip(targets, (-30.0, 0.0, 45.0), strict=True):
+        assert t.conditions == {**skid.conditions, "slip_angle": beta}
+        assert all(math.isnan(m) for m in t.means)
+    with pytest.raises(ValueError, match="slip or slip_angle"):
+        sweep_targets(skid, [300.0], key="W")
+
+
+def test_a_map_grid_is_the_slip_sweep_at_every_slip_angle() -> None:
+    """``map_targets``: slip-major, each point the slip sweep's conditions at that slip (the
+    template's carriage speed, symmetric convention, the template's load) with the slip angle
+    set; a steered template's own angle is replaced."""
+    skid = _terms("cmu_smooth_sm050")
+    steered = DatasetTerms(skid.name, {**skid.conditions, "slip_angle": 10.0}, skid.means)
+    grid = map_targets(steered, [-0.5, 0.5], [0.0, 30.0, 60.0])
+    assert [t.name for t in grid[:2]] == ["slip -0.5, slip_angle 0", "slip -0.5, slip_angle 30"]
+    swept = sweep_targets(skid, [-0.5, 0.5])
+    expected = [(s, a) for s in swept for a in (0.0, 30.0, 60.0)]
+    assert len(grid) == len(expected) == 6
+    for t, (s, a) in zip(grid, expected, strict=True):
+        assert t.conditions == {**s.conditions, "slip_angle": a}
+        assert t.conditions["W"] == skid.conditions["W"]
