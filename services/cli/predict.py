@@ -2,11 +2,13 @@
 
 Reads a ``calibrate`` results folder (``summary.json`` holds the case, ``posterior.csv`` the
 final samples), simulates ``--draws`` posterior samples under each dataset's test conditions,
-at conditions nobody measured (``--at KEY=VALUE,...``) and along ``--sweep slip=LO:HI:N``, and
+at conditions nobody measured (``--at KEY=VALUE,...``), along ``--sweep slip=LO:HI:N`` (or
+``slip_angle=LO:HI:N``) and over a force map's grid of slip and slip angle (``--map``), and
 reports per dataset and response the median and 95 %
 band of the simulated means, the same with the prediction-error noise, and the measured value
 with whether it falls inside. Writes ``predictions.json`` and ``predictions.png`` to ``--out``
-(default ``RESULTS_DIR/predictions``).
+(default ``RESULTS_DIR/predictions``), and with ``--map`` ``force_map.csv`` and
+``force_map.png``.
 """
 
 from __future__ import annotations
@@ -20,12 +22,16 @@ from pathlib import Path
 from typing import Any
 
 import click
-import numpy as np
 from rich.console import Console
 from rich.table import Table
 
 from scm_core.calibration import CaseDefinition, DatasetTerms
-from scm_core.calibration.predict import ConditionPrediction, sweep_loads, sweep_targets
+from scm_core.calibration.predict import (
+    ConditionPrediction,
+    map_targets,
+    sweep_loads,
+    sweep_targets,
+)
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import LogFormatError, SWTDataset
 from scm_core.signals.metadata import merge_metadata
@@ -47,6 +53,7 @@ from .common import (
     read_datasets,
 )
 from .folder_store import FolderStore, open_folder_store
+from .force_map import held_conditions, parse_map, parse_range, write_force_map
 from .parent import load_parents, stored_posterior
 from .results import write_json
 
@@ -102,6 +109,14 @@ def prediction_title(
     return f"{case.name}'s posterior on another wheel ({describe_wheel(wheel)}), {drawn}"
 
 
+def map_title(case: CaseDefinition, points: list[ConditionPrediction], draws: int) -> str:
+    """The force map figure's title: the case, the draws, the wheel and the load it holds."""
+    cond = points[0].conditions
+    wheel = describe_wheel(cond)
+    held = ", ".join(x for x in (wheel, f"W {cond['W']:.4g} N" if "W" in cond else "") if x)
+    return f"{case.name}: force map, median and 95 % band of {draws} draws; {held}"
+
+
 def parse_at(specs: tuple[str, ...], geometry: dict[str, float | int]) -> list[DatasetTerms]:
     """``--at W=25,slip=0.3`` -> test conditions with no measurement (metadata keys and units as
     in a lab file's ``# key: value`` lines, docs/data-formats.md); the wheel geometry it leaves
@@ -122,50 +137,56 @@ def parse_at(specs: tuple[str, ...], geometry: dict[str, float | int]) -> list[D
     return out
 
 
-def parse_sweep(spec: str | None) -> list[float]:
-    """``slip=LO:HI:N`` -> N slips from LO to HI (symmetric convention, -1 = locked)."""
-    if spec is None:
-        return []
-    key, sep, rng = spec.partition("=")
-    parts = rng.split(":")
-    if key.strip() != "slip" or not sep or len(parts) != 3:
-        raise CLIError(f"--sweep {spec!r}: expected slip=LO:HI:N, e.g. slip=-1:0.9:24")
-    try:
-        lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
-    except ValueError:
-        raise CLIError(f"--sweep {spec!r}: LO and HI must be numbers, N a whole number") from None
-    if not (-1.0 <= lo < hi < 1.0) or not 2 <= n <= 200:
-        raise CLIError(f"--sweep {spec!r}: need -1 <= LO < HI < 1 and 2 <= N <= 200")
-    return list(np.linspace(lo, hi, n))
+def _sweep_key(spec: str | None) -> str:
+    """What ``--sweep`` varies ("slip" without a sweep): a predictions figure's x axis."""
+    sweep = parse_sweep(spec)
+    return sweep[0] if sweep else "slip"
+
+
+def parse_sweep(spec: str | None) -> tuple[str, list[float]] | None:
+    """``slip=LO:HI:N`` -> ("slip", N symmetric slips from LO to HI, -1 = locked);
+    ``slip_angle=LO:HI:N`` -> ("slip_angle", N slip angles [deg] within [-90, 90]); lab
+    aliases of either key (``beta``, ``steering_angle`` ...) too; None without a sweep."""
+    return None if spec is None else parse_range("--sweep", spec)
 
 
 @dataclass(frozen=True)
 class _Targets:
-    """Where to predict: datasets' conditions, conditions nobody measured, a slip sweep."""
+    """Where to predict: datasets' conditions, conditions nobody measured, a sweep of the slip
+    or the slip angle, a force map over both."""
 
     data: tuple[Path, ...]
     at: tuple[str, ...]
     sweep: str | None
+    force_map: str | None
 
 
-def _conditions(
-    case: CaseDefinition, summary: dict, targets: _Targets
-) -> tuple[list[SWTDataset], list[str], list[DatasetTerms], list[DatasetTerms]]:
-    """(datasets, their roles, the --at conditions, the sweep's) of ``targets``; the sweep
-    runs at the first dataset's conditions (else the first --at's, else the study's first
-    dataset's) with the load interpolated between the datasets' loads."""
-    slips = parse_sweep(targets.sweep)
+@dataclass(frozen=True)
+class _Where:
+    """The conditions of :class:`_Targets`: datasets, --at conditions, the sweep's, the map's."""
+
+    datasets: list[SWTDataset]
+    at: list[DatasetTerms]
+    sweep: list[DatasetTerms]
+    map: list[DatasetTerms]
+
+
+def _conditions(case: CaseDefinition, summary: dict, targets: _Targets) -> _Where:
+    """The conditions of ``targets``; the sweep and the map run at the first dataset's
+    conditions (else the first --at's, else the study's first dataset's); a slip sweep with
+    the load interpolated between the datasets' loads, a slip-angle sweep and the map at the
+    template's load."""
+    sweep = parse_sweep(targets.sweep)
+    grid = parse_map(targets.force_map)
     at_terms = parse_at(targets.at, study_geometry(summary))
-    if not targets.data and not slips and not at_terms:
+    if not targets.data and not sweep and not grid and not at_terms:
         raise CLIError(
-            "nothing to predict: give --data DATASET (repeatable), --at KEY=VALUE,... and/or "
-            "--sweep"
+            "nothing to predict: give --data DATASET (repeatable), --at KEY=VALUE,..., "
+            "--sweep and/or --map"
         )
     datasets = read_datasets(case, list(targets.data)) if targets.data else []
-    used = {d.get("content_hash") for d in summary.get("datasets", [])}
-    roles = ["calibration" if d.content_hash in used else "predicted" for d in datasets]
-    if not slips:
-        return datasets, roles, at_terms, []
+    if not sweep and not grid:
+        return _Where(datasets, at_terms, [], [])
     loads = None
     if datasets:
         terms = [
@@ -181,7 +202,8 @@ def _conditions(
         template = DatasetTerms(
             "study", dict(first.get("conditions") or {}), (math.nan,) * N_RESPONSES
         )
-    return datasets, roles, at_terms, sweep_targets(template, slips, loads)
+    swept = sweep_targets(template, sweep[1], loads, key=sweep[0]) if sweep else []
+    return _Where(datasets, at_terms, swept, map_targets(template, *grid) if grid else [])
 
 
 @click.command()
@@ -206,7 +228,20 @@ def _conditions(
         metavar="slip=LO:HI:N",
         help="Also predict along a slip sweep (symmetric convention, -1 = locked) at the "
         "first dataset's conditions, with the load interpolated between the datasets' loads "
-        "when several are given.",
+        "when several are given; or along slip_angle=LO:HI:N (deg, -90..90; or a lab's name: "
+        "beta, steering_angle) at those conditions and load.",
+    ),
+    click.option(
+        "--map",
+        "force_map",
+        is_flag=False,
+        flag_value="",
+        default=None,
+        metavar="[slip=LO:HI:N,slip_angle=LO:HI:N]",
+        help="Also write the force map a vehicle model reads: F, T, z, Fy (median, 95 % "
+        "band; SI) over a grid of slip and slip angle at the first dataset's conditions and "
+        "load, as force_map.csv and force_map.png. Bare: slip=-0.9:0.9:19,"
+        "slip_angle=0:90:7; at most 200 points.",
     ),
 )
 @click.option(
@@ -251,15 +286,16 @@ def predict_cmd(
     parents = load_parents(results, "predict")
     case, summary = parents[0].case, parents[0].summary
     targets = replace(targets, data=(*targets.data, *more_data))
-    datasets, _, at_terms, sweep_terms = _conditions(case, summary, targets)
+    where = _conditions(case, summary, targets)
     compile_simulator_once(as_json)
     with open_folder_store(results, workers, "predict") as folder:
         posterior = [stored_posterior(folder, p, "predict").id for p in parents]
-        ids = folder.add_datasets(datasets, list(targets.data))
+        ids = folder.add_datasets(where.datasets, list(targets.data))
         run = partial(_predict, folder, posterior, draws, seed, workers)
         preds = run(ids, None, "") if ids else []
-        untested = run(None, at_terms, "untested") if at_terms else []
-        swept = run(None, sweep_terms, "sweep") if sweep_terms else []
+        untested = run(None, where.at, "untested") if where.at else []
+        swept = run(None, where.sweep, "sweep") if where.sweep else []
+        mapped = run(None, where.map, "map") if where.map else []
     doc = {
         "format": "scm-calib-predictions",
         "version": 1,
@@ -275,6 +311,7 @@ def predict_cmd(
         "datasets": [p.to_dict(draws=True) for p in preds],
         "conditions": [p.to_dict() for p in untested],
         "sweep": [p.to_dict() for p in swept],
+        "map": [p.to_dict() for p in mapped],
     }
     out = out or results / "predictions"
     try:
@@ -282,20 +319,32 @@ def predict_cmd(
     except OSError as exc:
         raise CLIError(f"--out {out}: {exc.strerror or exc}") from None
     write_json(out / "predictions.json", doc, indent=2)
+    if mapped:
+        about = {"case": case.name, "results": str(results), "runs": len(parents)}
+        about |= {"draws": draws, "seed": seed, **held_conditions(where.map[0].conditions)}
+        write_force_map(out / "force_map.csv", mapped, about)
     if not no_plots:
-        from services.plots.predict import plot_predictions
+        from services.plots.predict import plot_force_map, plot_predictions
 
-        plot_predictions(
-            preds + untested,
-            swept,
-            out / "predictions.png",
-            title=prediction_title(case, summary, datasets, draws, len(parents)),
-            responses=_shown_responses(case, preds),
-        )
+        if preds or untested or swept:
+            plot_predictions(
+                preds + untested,
+                swept,
+                out / "predictions.png",
+                title=prediction_title(case, summary, where.datasets, draws, len(parents)),
+                responses=_shown_responses(case, preds + untested + swept),
+                along=_sweep_key(targets.sweep),
+            )
+        if mapped:
+            plot_force_map(mapped, out / "force_map.png", title=map_title(case, mapped, draws))
     if as_json:
         click.echo(json.dumps(doc, indent=2))
-    else:
-        _print_table(preds + untested, out)
+        return
+    if preds or untested or not mapped:
+        _print_table(preds + untested)
+    if mapped:
+        click.echo(f"force map of {len(mapped)} points (slip x slip angle): force_map.csv")
+    click.echo(f"written to {out}")
 
 
 #: the prediction kind's request fields, as this command's options
@@ -315,7 +364,7 @@ def _predict(
     """The predictions of the folder's study ``study_ids[0]`` (pooled with the other runs
     ``study_ids[1:]`` of its calibration) under ``dataset_ids`` or ``conditions`` (a
     prediction study of the folder, run here or found done); ``role`` labels those of
-    conditions ("untested", "sweep")."""
+    conditions ("untested", "sweep", "map")."""
     body = PredictionRequest(
         study_id=study_ids[0],
         pooled_with=study_ids[1:],
@@ -330,8 +379,8 @@ def _predict(
     try:
         spec = prediction_spec(folder.store, folder.settings, body)
     except StudyRequestError as exc:
-        where = {**_OPTIONS, "conditions": "--sweep" if role == "sweep" else "--at"}
-        raise CLIError(as_option(str(exc), where)) from None
+        option = {"sweep": "--sweep", "map": "--map"}.get(role, "--at")
+        raise CLIError(as_option(str(exc), {**_OPTIONS, "conditions": option})) from None
     record = folder.find(spec) or folder.store.studies.create(spec)
     try:
         with one_line_logs():
@@ -357,7 +406,7 @@ def _shown_responses(case: CaseDefinition, preds: list[ConditionPrediction]) -> 
     )
 
 
-def _print_table(preds: list[ConditionPrediction], out: Path) -> None:
+def _print_table(preds: list[ConditionPrediction]) -> None:
     console = Console()
     if not console.is_terminal:
         console = Console(width=132)  # a log file: no wrapped cells
@@ -380,4 +429,3 @@ def _print_table(preds: list[ConditionPrediction], out: Path) -> None:
                 "-" if inside is None else ("yes" if inside else "NO"),
             )
     console.print(table)
-    console.print(f"written to {out}")

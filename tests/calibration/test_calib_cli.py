@@ -313,6 +313,96 @@ def test_predict_at_conditions_nobody_measured(work: Path, reference: Path) -> N
     )
 
 
+def test_predict_sweeps_the_slip_angle_at_the_datasets_slip(work: Path, reference: Path) -> None:
+    """``--sweep slip_angle=LO:HI:N``: the dataset's conditions (its slip 0.2, load, wheel) at
+    each slip angle, named "slip_angle 30"; Fy is predicted (exactly 0 straight: the kernel's
+    straight path) and the figure draws the sweep against the angle beside the straight
+    dataset, which has no Fy."""
+    args = ("--data", "log.csv", "--draws", "4", "--json", "--out", "p_beta")
+    proc = run_cli("predict", "ref", *args, "--sweep", "slip_angle=0:60:3", cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    (data,) = doc["datasets"]
+    assert [s["name"] for s in doc["sweep"]] == ["slip_angle 0", "slip_angle 30", "slip_angle 60"]
+    for s, beta in zip(doc["sweep"], (0.0, 30.0, 60.0), strict=True):
+        assert s["conditions"] == {**data["conditions"], "slip_angle": beta}
+        assert s["slip_symmetric"] == pytest.approx(0.2)
+    fy = [s["responses"]["Fy"]["simulated"] for s in doc["sweep"]]
+    assert fy[0] == {"median": 0.0, "lo": 0.0, "hi": 0.0}
+    assert fy[1]["median"] > 0.0 and fy[2]["median"] > 0.0
+    assert "Fy" not in data["responses"]
+    assert (work / "p_beta" / "predictions.png").stat().st_size > 0
+
+
+def test_predict_map_writes_the_force_map_a_vehicle_model_reads(
+    work: Path, reference: Path
+) -> None:
+    """``--map``: force_map.csv, one row per slip x slip angle with F, T, z, Fy (median, 95 %
+    band of the simulated means, SI) at the study's first dataset's load, and force_map.png;
+    the prediction studies' numbers (predictions.json's "map"), which are the library's
+    ``predict`` on ``map_targets``'s grid. Physics, with tolerances the simulator's tests
+    justify (tests/simulator/test_sim_steering.py): a straight wheel's Fy is exactly 0 (the
+    kernel's straight path), and the mirror angles +60 and -60 deg give the same F, T, z and
+    opposite Fy per draw to 2e-3 relative (the two images sum rows in opposite orders), so
+    their quantiles over the same draws agree to that too (a quantile moves no more than the
+    values it is taken of; -Fy's lo is Fy's hi)."""
+    import csv
+
+    from scm_core.calibration import DatasetTerms
+    from scm_core.calibration.predict import map_targets, predict
+    from services.cli.results import load_results
+
+    args = ("--draws", "6", "--seed", "2", "--out", "p_map")
+    spec = "slip=-0.5:0.5:3,beta=-60:60:3"  # a lab's name of the slip angle
+    proc = run_cli("predict", "ref", "--map", spec, *args, cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    assert "force map of 9 points" in proc.stdout
+    out = work / "p_map"
+    assert (out / "force_map.png").stat().st_size > 0
+    assert not (out / "predictions.png").exists()  # nothing but the map to draw
+    lines = (out / "force_map.csv").read_text().splitlines()
+    about = [line for line in lines if line.startswith("#")]
+    columns, *body = csv.reader(line for line in lines if not line.startswith("#"))
+    units = {"F": "N", "T": "N m", "z": "m", "Fy": "N"}
+    assert columns == [
+        "slip",
+        "slip_angle [deg]",
+        *(f"{r}_{q} [{u}]" for r, u in units.items() for q in ("median", "lo", "hi")),
+        "n_failed",
+    ]
+    assert {"# draws: 6", "# seed: 2", "# W: 315 N", "# case: tiny"} <= set(about)
+    data = np.array(body, dtype=float)
+    assert data.shape == (9, 15)
+    assert data[:, :2].tolist() == [[s, a] for s in (-0.5, 0, 0.5) for a in (-60, 0, 60)]
+    col = {c.split(" ")[0]: data[:, k] for k, c in enumerate(columns)}
+    assert not col["n_failed"].any()
+    for r in units:
+        assert np.all(col[f"{r}_lo"] <= col[f"{r}_median"])
+        assert np.all(col[f"{r}_median"] <= col[f"{r}_hi"])
+    straight, plus, minus = (data[:, 1] == a for a in (0, 60, -60))
+    for q in ("median", "lo", "hi"):
+        assert np.all(col[f"Fy_{q}"][straight] == 0.0)
+        for r in ("F", "T", "z"):
+            assert col[f"{r}_{q}"][minus] == pytest.approx(col[f"{r}_{q}"][plus], rel=2e-3)
+    assert np.all(col["Fy_median"][plus] > 0.0)  # against the slide toward -y
+    assert col["Fy_median"][minus] == pytest.approx(-col["Fy_median"][plus], rel=2e-3)
+    assert col["Fy_lo"][minus] == pytest.approx(-col["Fy_hi"][plus], rel=2e-3)
+    assert col["Fy_hi"][minus] == pytest.approx(-col["Fy_lo"][plus], rel=2e-3)
+    # the CSV is predictions.json's map, and that the library's predict on the same grid
+    doc = json.loads((out / "predictions.json").read_text())
+    assert [p["role"] for p in doc["map"]] == ["map"] * 9
+    medians = [p["responses"]["Fy"]["simulated"]["median"] for p in doc["map"]]
+    assert col["Fy_median"] == pytest.approx(medians, rel=1e-6, abs=1e-9)
+    case, samples, summary = load_results(reference)
+    first = summary["datasets"][0]["conditions"]
+    template = DatasetTerms("study", dict(first), (np.nan,) * 4)
+    grid = map_targets(template, [-0.5, 0.0, 0.5], [-60.0, 0.0, 60.0])
+    expected = predict(case, samples, grid, draws=6, seed=2, roles=["map"] * 9)
+    for got, want in zip(doc["map"], expected, strict=True):
+        for r, band in want.to_dict()["responses"].items():
+            assert got["responses"][r]["simulated"] == pytest.approx(band["simulated"], rel=1e-9)
+
+
 def test_sensitivity_stopped_and_resumed_gives_the_same_screening(work: Path, monkeypatch) -> None:
     """The screening is a study of OUT/study.db run by the service's kind: stopped (Ctrl-C)
     after its first batch, it exits 130 keeping that batch; the same command again runs only
@@ -408,6 +498,8 @@ def test_a_refused_screening_leaves_no_folder(work: Path) -> None:
         (("predict", "ref"), "nothing to predict"),
         (("predict", "ref", "--sweep", "slip=1:2"), "expected slip=LO:HI:N"),
         (("predict", "ref", "--sweep", "slip=-2:0.5:4"), "-1 <= LO < HI < 1"),
+        (("predict", "ref", "--sweep", "slip_angle=0:100:4"), "--sweep 'slip_angle=0:100:4'"),
+        (("predict", "ref", "--map", "slip=-0.9:0.9:30"), "210 points, over the limit of 200"),
         (("predict", "ref", "--data", "nope.csv"), "dataset nope.csv: no such file"),
     ],
 )

@@ -81,3 +81,31 @@ def test_two_wheels_are_told_apart() -> None:
     fig = draw(chart)
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert sum("smooth" in t for t in labels) == 2 and sum("grousers" in t for t in labels) == 2
+
+
+def test_a_force_map_draws_a_line_and_band_per_slip_angle() -> None:
+    """``--map``'s figure: a panel per response given, in each a line (the median, in the
+    figure's unit: z in mm) and its band per slip angle against the slip, named in the first
+    panel's legend."""
+    from services.plots.predict import force_map_chart
+
+    def point(slip: float, angle: float) -> ConditionPrediction:
+        z = Band(0.02 + slip / 100, 0.019, 0.03)
+        responses = {
+            "F": ResponsePrediction("F", Band(slip, slip - 1, slip + 1), None),
+            "z": ResponsePrediction("z", z, None),
+        }
+        return ConditionPrediction("p", {"slip_angle": angle}, slip, 4, 0, responses, "map")
+
+    grid = [point(s, a) for s in (0.5, -0.5) for a in (0.0, 45.0)]
+    chart = force_map_chart(grid, "a map")
+    assert [p.y.label for p in chart.panels] == ["drawbar pull F [N]", "sinkage z [mm]"]
+    lines = [la for la in chart.panels[1].layers if la["kind"] == "line"]
+    assert [la["x"] for la in lines] == [[-0.5, 0.5], [-0.5, 0.5]]  # sorted by slip
+    assert lines[0]["y"] == [15.0, 25.0]
+    assert [la["label"] for la in chart.panels[0].layers if la["kind"] == "line"] == [
+        "slip angle 0 deg",
+        "slip angle 45 deg",
+    ]
+    assert sum(la["kind"] == "band" for la in chart.panels[0].layers) == 2
+    draw(chart)
