@@ -225,7 +225,7 @@ def _conditions(case: CaseDefinition, summary: dict, targets: _Targets) -> _Wher
     click.option(
         "--sweep",
         default=None,
-        metavar="slip=LO:HI:N",
+        metavar="slip|slip_angle=LO:HI:N",
         help="Also predict along a slip sweep (symmetric convention, -1 = locked) at the "
         "first dataset's conditions, with the load interpolated between the datasets' loads "
         "when several are given; or along slip_angle=LO:HI:N (deg, -90..90; or a lab's name: "
@@ -238,10 +238,11 @@ def _conditions(case: CaseDefinition, summary: dict, targets: _Targets) -> _Wher
         flag_value="",
         default=None,
         metavar="[slip=LO:HI:N,slip_angle=LO:HI:N]",
-        help="Also write the force map a vehicle model reads: F, T, z, Fy (median, 95 % "
-        "band; SI) over a grid of slip and slip angle at the first dataset's conditions and "
-        "load, as force_map.csv and force_map.png. Bare: slip=-0.9:0.9:19,"
-        "slip_angle=0:90:7; at most 200 points.",
+        help="Also write the force map a vehicle model reads: F, T, z, Fy (median and 95 % "
+        "band of the simulated mean, SI) over a grid of slip x slip angle [deg] at the first "
+        "dataset's conditions and load, as force_map.csv and force_map.png. Bare: "
+        "slip=-0.9:0.9:19,slip_angle=0:90:7; an axis left out takes that default; at most "
+        "200 points.",
     ),
 )
 @click.option(
@@ -277,12 +278,13 @@ def predict_cmd(
     as_json: bool,
     no_plots: bool,
 ) -> None:
-    """Predict F, T, z of the study in RESULTS (a `calibrate` output folder, or a run group's
-    folder: its runs' pooled posterior) under the test conditions of other datasets, with 95 %
-    posterior bands.
+    """Predict F, T, z (and a steered wheel's Fy) of the study in RESULTS (a `calibrate`
+    output folder, or a run group's folder: its runs' pooled posterior) under the test
+    conditions of other datasets, with 95 % posterior bands.
 
     The predictions are studies of RESULTS's database made by the service's prediction kind
-    (one per kind of target: datasets, --at conditions, the sweep) and run by its batches."""
+    (one per kind of target: datasets, --at conditions, the sweep, the map) and run by its
+    batches."""
     parents = load_parents(results, "predict")
     case, summary = parents[0].case, parents[0].summary
     targets = replace(targets, data=(*targets.data, *more_data))
