@@ -17,6 +17,7 @@ from types import ModuleType
 
 _SUBMODULES = frozenset(
     {
+        "angles",
         "chart",
         "choices",
         "figures",
