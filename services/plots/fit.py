@@ -13,7 +13,22 @@ from scm_core.signals import SWTDataset, TestConditions, lowpass
 from scm_core.signals.responses import DEFAULT_KEYS, RESPONSE_KEYS, RESPONSES
 from scm_core.simulator import ResolvedRig, SWTResult
 
-from .chart import Axis, Chart, Panel, hline, hspan, line, segment, text, vspan
+from .angles import angle_grid, angle_of, by_slip_angle
+from .chart import (
+    Axis,
+    Chart,
+    Panel,
+    band,
+    errorbars,
+    hline,
+    hspan,
+    line,
+    points,
+    segment,
+    text,
+    vline,
+    vspan,
+)
 from .figures import save
 
 #: points per drawn curve at most: about two per pixel column of a panel (5.2 in at 100-120 dpi);
@@ -21,6 +36,12 @@ from .figures import save
 MAX_POINTS = 1200
 
 _ROWS = tuple((r.key, r.column, r.label, r.scale, r.offset) for r in RESPONSES)
+#: the x axis of a figure against slip
+SLIP_LABEL = "slip (omega r - v) / max(v, omega r)  [-1 = locked]"
+#: colours of the wheels of a study with several (a joint study of two wheels)
+WHEEL_COLORS = ("blue", "orange", "green", "purple", "brown")
+#: the two-sided 95 % quantile of a normal: a band of +- Z95 sigma holds 95 % of the tests
+Z95 = 1.959964
 
 
 def condition_label(c: TestConditions | ResolvedRig) -> str:
@@ -233,6 +254,120 @@ def _simulated(
         panel.add(segment(w0, w1, mean, "red", label="simulated mean"))
     last = float(ts[-1]) * xscale if ts.size else w1
     return filtered[(ts >= off) & (ts <= rig.duration)], mean, last
+
+
+def dataset_angle(ds: SWTDataset) -> float:
+    """A dataset's slip angle [deg] (0 where none is given)."""
+    return angle_of(ds.conditions)
+
+
+def slip_fit_chart(
+    datasets: Sequence[SWTDataset],
+    sims: Sequence[SWTResult | None],
+    title: str | None = None,
+    responses: Sequence[str] = RESPONSE_KEYS,
+    offsets: dict[str, float] | None = None,
+    sigmas: Mapping[str, float] | None = None,
+) -> Chart:
+    """A steered study's fit at a parameter sample against the symmetric lab slip (-1 =
+    locked): a column per slip angle, a row per response of ``responses`` that some dataset
+    measured (:func:`services.plots.angles.angle_grid`). Each wheel's simulated steady means
+    at its datasets' slips (a line through them) with the band of +- 1.96 sigma about them,
+    where ``sigmas`` (response -> the prediction-error sigma at the sample, SI) gives one: 95 %
+    of single tests fall in it if the model holds; the measured means with their +- sd bars
+    (the trials' or the window's). ``offsets`` as in :func:`fit_chart`. The responses'
+    signals in time are :func:`fit_chart`'s, a column per dataset: too many for a study of
+    many conditions."""
+    measured = {k for ds in datasets for k in ds.responses}
+    rows = [r for r in _ROWS if r[0] in responses and r[0] in measured]
+    pairs = [
+        (ds, sim)
+        for ds, sim in zip(datasets, sims, strict=True)
+        if ds.conditions.slip_symmetric is not None
+    ]
+    wheels = list(dict.fromkeys(wheel_label(ds.conditions.to_sim_config()) for ds, _ in pairs))
+    groups = dict(by_slip_angle(pairs, lambda pair: dataset_angle(pair[0])))
+
+    def panel(row: tuple, angle: float, bottom: bool, first: bool) -> Panel:
+        key, _, label, scale, _ = row
+        return _slip_fit_panel(
+            key, label, scale, groups[angle], wheels, offsets or {}, sigmas or {}, bottom, first
+        )
+
+    return angle_grid(
+        title or "Measured vs simulated steady means across slip",
+        rows,
+        sorted(groups),
+        panel,
+    )
+
+
+def _slip_fit_panel(
+    key: str,
+    label: str,
+    scale: float,
+    pairs: Sequence[tuple[SWTDataset, SWTResult | None]],
+    wheels: Sequence[str],
+    offsets: Mapping[str, float],
+    sigmas: Mapping[str, float],
+    bottom: bool,
+    legend: bool,
+) -> Panel:
+    """One response at one slip angle of :func:`slip_fit_chart` (``pairs``: the angle's
+    datasets with their simulations)."""
+    panel = Panel(
+        Axis(SLIP_LABEL if bottom else "", tick_labels=bottom),
+        Axis(label),
+        legend="best" if legend else None,
+    )
+    panel.add(vline(0.0, "grey", width=0.6))
+    several = len(wheels) > 1
+    sigma = sigmas.get(key)
+    mine = sorted(pairs, key=lambda pair: pair[0].conditions.slip_symmetric)
+    for w, wheel in enumerate(wheels):
+        own = [(ds, sim) for ds, sim in mine if wheel_label(ds.conditions.to_sim_config()) == wheel]
+        if not own:
+            continue
+        color = WHEEL_COLORS[w % len(WHEEL_COLORS)] if several else "blue"
+        who = f"{wheel}: " if several else ""
+        x = np.array([ds.conditions.slip_symmetric for ds, _ in own])
+        sim = np.array(
+            [
+                (getattr(s.means, key) + offsets.get(key, 0.0)) * scale
+                if s is not None and s.means is not None
+                else np.nan
+                for _, s in own
+            ]
+        )
+        if sigma is not None and np.isfinite(sigma):
+            half = Z95 * sigma * scale
+            panel.add(
+                band(x, sim - half, sim + half, color, label=f"{who}simulated +- 1.96 sigma (95 %)")
+            )
+        panel.add(line(x, sim, color, width=1.5, marker="o", label=f"{who}simulated mean"))
+        got = [
+            (xi, ds.responses[key])
+            for xi, (ds, _) in zip(x, own, strict=True)
+            if key in ds.responses
+        ]
+        if got:
+            xs = [xi for xi, _ in got]
+            means = [st.mean * scale for _, st in got]
+            sd = [(st.sd if np.isfinite(st.sd) else 0.0) * scale for _, st in got]
+            panel.add(
+                errorbars(
+                    xs,
+                    means,
+                    [m - d for m, d in zip(means, sd, strict=True)],
+                    [m + d for m, d in zip(means, sd, strict=True)],
+                    "black" if not several else color,
+                    label=f"{who}measured mean +- sd",
+                ),
+                points(xs, means, "black" if not several else color, size=3.5, opacity=1.0),
+            )
+    if not any(key in ds.responses for ds, _ in mine):
+        panel.add(text("not measured"))
+    return panel
 
 
 def plot_fit(

@@ -12,16 +12,13 @@ from scm_core.signals.responses import RESPONSE_KEYS, RESPONSES
 from .angles import angle_grid, angle_of, by_slip_angle, steered
 from .chart import Axis, Chart, Panel, band, errorbars, line, points, text, vline
 from .figures import save
-from .fit import wheel_label
+from .fit import SLIP_LABEL, WHEEL_COLORS, wheel_label
 
 _PANELS = tuple((r.key, r.label, r.scale) for r in RESPONSES)
 _ROLE_STYLE = {
     "calibration": ("o", "black", "measured, used in the calibration"),
     "predicted": ("s", "red", "measured, held out"),
 }
-SLIP_LABEL = "slip (omega r - v) / max(v, omega r)  [-1 = locked]"
-#: colours of the wheels of a study with several (a joint study of two wheels)
-_WHEEL_COLORS = ("blue", "orange", "green", "purple", "brown")
 #: slip offset between the wheels' bars at one slip, so that neither hides the other
 DODGE = 0.02
 
@@ -113,7 +110,7 @@ def _panel(
     several = len(wheels) > 1
     for wheel, mine_w in _by_wheel(shown):
         w = wheels.index(wheel)
-        color = _WHEEL_COLORS[w % len(_WHEEL_COLORS)] if several else "blue"
+        color = WHEEL_COLORS[w % len(WHEEL_COLORS)] if several else "blue"
         dodge = (w - (len(wheels) - 1) / 2) * DODGE if several else 0.0
         who = f"{wheel}: " if several else ""
         bands = [c.responses[key].predictive or c.responses[key].simulated for c in mine_w]

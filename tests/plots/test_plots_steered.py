@@ -14,13 +14,17 @@ from pathlib import Path
 import pytest
 
 from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
+from scm_core.signals import SWTDataset, load_summary
+from scm_core.simulator import RigConfig, simulate_swt
 from services.plots.angles import angle_of, by_slip_angle, share_y, steered
 from services.plots.chart import Axis, Panel, line
+from services.plots.fit import dataset_angle, slip_fit_chart
 from services.plots.mpl import draw
 from services.plots.predict import predictions_chart, slip_angle_of
 
 DATA = Path(__file__).resolve().parents[2] / "examples" / "cmu_steering" / "smooth"
 WHEEL = {"R": 0.058, "b": 0.05, "n_grousers": 0, "grouser_height": 0.0}
+FAST = {"duration": 6.0, "dt": 0.04, "dx": 0.01, "offset_F": 3.0, "offset_T": 3.0, "offset_z": 3.0}
 COLUMNS = {"F": "drawbar_pull_N_mean", "Fy": "lateral_force_N_mean", "z": "sinkage_m_mean"}
 
 
@@ -140,3 +144,76 @@ def test_a_straight_study_keeps_its_single_column() -> None:
     assert chart.columns == 1 and chart.reflow == "rows" and chart.size == (7.0, 5.8)
     assert [p.title for p in chart.panels] == [None, None]
     assert all(p.y.lo is None and p.y.hi is None for p in chart.panels)
+
+
+def _summary(r: dict[str, float]) -> SWTDataset:
+    """A row of by_condition.csv as a lab summary file (the CMU smooth wheel)."""
+    text = (
+        f"# slip_angle: {r['slip_angle_deg']:g} deg\n# normal_load: {r['normal_load_N_mean']} N\n"
+        f"# slip: {r['slip_lab_mean']}\n# slip_convention: symmetric\n# n_trials: 3\n"
+        "# wheel_radius: 58 mm\n# wheel_width: 50 mm\n# grousers: 0\n"
+        "response,mean,sd,unit\n"
+        f"drawbar_pull,{r['drawbar_pull_N_mean']},{r['drawbar_pull_N_sd']},N\n"
+        f"lateral_force,{r['lateral_force_N_mean']},{r['lateral_force_N_sd']},N\n"
+        f"sinkage,{r['sinkage_m_mean']},{r['sinkage_m_sd']},m\n"
+    )
+    return load_summary(text.encode(), name=f"{r['slip_angle_deg']:g}deg_{r['vry_cmd_mmps']:g}")
+
+
+def test_a_steered_fit_has_a_column_per_angle_with_the_sigma_band() -> None:
+    datasets = [_summary(r) for r in _rows((0.0, 30.0)) if r["vry_cmd_mmps"] in (0, 100)]
+    sims = [
+        simulate_swt(rig=RigConfig(slip_angle=ds.conditions.slip_angle, W=20.0, **FAST))
+        for ds in datasets
+    ]
+    sims[1] = None  # a failed simulation leaves a gap
+    sigmas = {"F": 2.0, "Fy": 1.5, "z": 0.004}
+    chart = slip_fit_chart(
+        datasets, sims, responses=("F", "z", "Fy"), offsets={"z": -0.004}, sigmas=sigmas
+    )
+    assert chart.columns == 2 and len(chart.panels) == 6
+    assert [p.title for p in chart.panels[:2]] == ["slip angle 0 deg", "slip angle 30 deg"]
+    assert [p.y.label for p in chart.panels[::2]] == [
+        "drawbar pull F [N]",
+        "sinkage z [mm]",
+        "lateral force Fy [N]",
+    ]
+    for k, (key, scale) in enumerate((("F", 1.0), ("z", 1000.0), ("Fy", 1.0))):
+        for j in range(2):
+            panel = chart.panels[2 * k + j]
+            mine = [(ds, s) for ds, s in zip(datasets, sims, strict=True)][2 * j : 2 * j + 2]
+            (sim,) = _layers(panel, "line")
+            (bnd,) = _layers(panel, "band")
+            assert sim["x"] == pytest.approx([-1.0, 0.8996], abs=1e-3)
+            want = [
+                None if s is None else (getattr(s.means, key) + (-0.004 if key == "z" else 0.0))
+                for _, s in mine
+            ]
+            got = [None if v is None else v / scale for v in sim["y"]]
+            assert got == [None if w is None else pytest.approx(w, rel=1e-4) for w in want]
+            assert _ordered(
+                [v for v in bnd["lo"] if v is not None],
+                [v for v in sim["y"] if v is not None],
+                [v for v in bnd["hi"] if v is not None],
+            )
+            hi = next(h for h in bnd["hi"] if h is not None)
+            y = next(v for v in sim["y"] if v is not None)
+            assert hi - y == pytest.approx(1.959964 * sigmas[key] * scale, rel=1e-3)
+            (bars,) = _layers(panel, "errorbars")
+            (pts,) = _layers(panel, "points")
+            assert (
+                bars["y"]
+                == pts["y"]
+                == pytest.approx([ds.responses[key].mean * scale for ds, _ in mine], rel=1e-4)
+            )
+            assert _ordered(bars["lo"], bars["y"], bars["hi"])
+        assert chart.panels[2 * k].y == chart.panels[2 * k + 1].y
+    fig = draw(chart)
+    assert sum(ax.get_visible() for ax in fig.axes) == 6
+
+
+def test_the_fit_of_a_straight_study_is_its_signals_in_time() -> None:
+    """The dashboard's choice: a steered study's datasets get the fit against slip."""
+    straight = [_summary(r) for r in _rows((0.0,))]
+    assert not steered(straight, dataset_angle)
+    assert steered([*straight, _summary(_rows((30.0,))[0])], dataset_angle)

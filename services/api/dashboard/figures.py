@@ -28,6 +28,7 @@ from scm_core.inference.posterior import map_sample, pool_samples
 from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import SWTDataset
 from scm_core.signals.responses import RESPONSE_KEYS
+from services.plots.angles import steered
 from services.plots.chart import Chart
 from services.plots.choices import default_pairs, mean_b_eff
 from services.store import StageRecord, Store, StudyRecord
@@ -378,15 +379,29 @@ def _fit(
     stages: Sequence[StageRecord],
     **_: Any,
 ) -> Chart:
+    """Measured vs simulated at the stage's MAP sample: each dataset's signals (Figure 3), or
+    for a steered study the steady means against slip, a column per slip angle, with the
+    prediction error's 95 % band at the MAP."""
     case = stored_case(study.case)
     datasets, sims, offsets = map_simulations(store, study, stage, cache)
-    return plots.fit.fit_chart(
+    at = f"at the MAP{_stage_title(study, stages, stage)}"
+    if not steered(datasets, plots.fit.dataset_angle):
+        return plots.fit.fit_chart(
+            datasets,
+            sims,
+            title=f"{study.name}: measured vs simulated {at} (Figure 3)",
+            responses=case.responses,
+            offsets=offsets,
+        )
+    theta = _map(_stage_data(store, study, stage, cache))
+    sigmas = StudyModel(case, datasets).sigmas(theta)[0]
+    return plots.fit.slip_fit_chart(
         datasets,
         sims,
-        title=f"{study.name}: measured vs simulated at the MAP{_stage_title(study, stages, stage)} "
-        "(Figure 3)",
+        title=f"{study.name}: measured vs simulated steady means {at}, per slip angle",
         responses=case.responses,
         offsets=offsets,
+        sigmas=dict(zip(case.responses, (float(x) for x in sigmas), strict=True)),
     )
 
 
