@@ -7,11 +7,10 @@ bands about them."""
 
 from __future__ import annotations
 
-import csv
 from itertools import pairwise
-from pathlib import Path
 
 import pytest
+from steering_fixtures import cmu_name, cmu_rows, cmu_summary
 
 from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
 from scm_core.signals import SWTDataset, load_summary
@@ -22,23 +21,16 @@ from services.plots.fit import dataset_angle, slip_fit_chart
 from services.plots.mpl import draw
 from services.plots.predict import predictions_chart, slip_angle_of
 
-DATA = Path(__file__).resolve().parents[2] / "examples" / "cmu_steering" / "smooth"
 WHEEL = {"R": 0.058, "b": 0.05, "n_grousers": 0, "grouser_height": 0.0}
 FAST = {"duration": 6.0, "dt": 0.04, "dx": 0.01, "offset_F": 3.0, "offset_T": 3.0, "offset_z": 3.0}
 COLUMNS = {"F": "drawbar_pull_N_mean", "Fy": "lateral_force_N_mean", "z": "sinkage_m_mean"}
-
-
-def _rows(angles: tuple[float, ...]) -> list[dict[str, float]]:
-    with open(DATA / "by_condition.csv", newline="") as fh:
-        rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
-    return [r for r in rows if r["slip_angle_deg"] in angles and r["vry_cmd_mmps"] in (0, 10, 100)]
 
 
 def _predictions(angles: tuple[float, ...], straight: bool = False) -> list[ConditionPrediction]:
     """A prediction per row: each response's band about its measured mean (a straight study
     gives no slip angle and predicts no Fy)."""
     out = []
-    for r in _rows(angles):
+    for r in cmu_rows(angles):
         keys = ("F", "z") if straight else ("F", "Fy", "z")
         responses = {}
         for k in keys:
@@ -147,21 +139,11 @@ def test_a_straight_study_keeps_its_single_column() -> None:
 
 
 def _summary(r: dict[str, float]) -> SWTDataset:
-    """A row of by_condition.csv as a lab summary file (the CMU smooth wheel)."""
-    text = (
-        f"# slip_angle: {r['slip_angle_deg']:g} deg\n# normal_load: {r['normal_load_N_mean']} N\n"
-        f"# slip: {r['slip_lab_mean']}\n# slip_convention: symmetric\n# n_trials: 3\n"
-        "# wheel_radius: 58 mm\n# wheel_width: 50 mm\n# grousers: 0\n"
-        "response,mean,sd,unit\n"
-        f"drawbar_pull,{r['drawbar_pull_N_mean']},{r['drawbar_pull_N_sd']},N\n"
-        f"lateral_force,{r['lateral_force_N_mean']},{r['lateral_force_N_sd']},N\n"
-        f"sinkage,{r['sinkage_m_mean']},{r['sinkage_m_sd']},m\n"
-    )
-    return load_summary(text.encode(), name=f"{r['slip_angle_deg']:g}deg_{r['vry_cmd_mmps']:g}")
+    return load_summary(cmu_summary(r).encode(), name=cmu_name(r))
 
 
 def test_a_steered_fit_has_a_column_per_angle_with_the_sigma_band() -> None:
-    datasets = [_summary(r) for r in _rows((0.0, 30.0)) if r["vry_cmd_mmps"] in (0, 100)]
+    datasets = [_summary(r) for r in cmu_rows((0.0, 30.0)) if r["vry_cmd_mmps"] in (0, 100)]
     sims = [
         simulate_swt(rig=RigConfig(slip_angle=ds.conditions.slip_angle, W=20.0, **FAST))
         for ds in datasets
@@ -214,6 +196,6 @@ def test_a_steered_fit_has_a_column_per_angle_with_the_sigma_band() -> None:
 
 def test_the_fit_of_a_straight_study_is_its_signals_in_time() -> None:
     """The dashboard's choice: a steered study's datasets get the fit against slip."""
-    straight = [_summary(r) for r in _rows((0.0,))]
+    straight = [_summary(r) for r in cmu_rows((0.0,))]
     assert not steered(straight, dataset_angle)
-    assert steered([*straight, _summary(_rows((30.0,))[0])], dataset_angle)
+    assert steered([*straight, _summary(cmu_rows((30.0,))[0])], dataset_angle)
