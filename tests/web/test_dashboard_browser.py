@@ -26,7 +26,9 @@ from pathlib import Path
 
 import httpx
 import pytest
+from steering_fixtures import cmu_rows
 from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, summary_doc, tiny_case, wait_ended
+from test_dashboard_steered import ANGLES, make_steered_study
 
 ROOT = Path(__file__).resolve().parents[2]
 #: where the pages' screenshots go, if anywhere: a full-page screenshot costs about a second of
@@ -125,6 +127,17 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
             "prediction": p,
             "a2": a2,
         }
+
+
+@pytest.fixture(scope="module")
+def steered_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
+    """A served database of a completed steered calibration (CMU steering rows at 0 and
+    30 deg) and a completed prediction of its datasets."""
+    tmp = tmp_path_factory.mktemp("dashboard-steered")
+    with serving(tmp, workers=2) as (base, *_), httpx.Client(base_url=base, timeout=60) as client:
+        rows = cmu_rows(ANGLES, rim_speeds=(0.0, 100.0))
+        calibration, prediction = make_steered_study(client, rows)
+        yield {"base": base, "calibration": calibration, "prediction": prediction}
 
 
 @pytest.fixture(scope="module")
@@ -1214,3 +1227,31 @@ def test_study_page_first_load_is_light(server, browser) -> None:
         w.clean()
     finally:
         w.close()
+
+
+def test_a_steered_studys_page_draws_a_column_per_slip_angle(steered_server, browser) -> None:
+    """Issue 70: a steered calibration's fit at the MAP and its posterior predictive panel
+    are drawn against slip, a column of panels per slip angle (titled) with Fy among the
+    rows; on a phone the panels re-flow into one column, an angle's together, and the page
+    does not scroll sideways."""
+    base, cal = steered_server["base"], steered_server["calibration"]
+    for size_name in ("1280x800", "400x800"):
+        w = Watched(browser, SIZES[size_name])
+        try:
+            w.goto(f"{base}/ui/studies/{cal}")
+            # schedule, prior-posterior, trace, fit, predictive (one parameter: no pairs)
+            assert w.figures_loaded() == 5
+            for fig, rows in (("fit", 3), ("predictive", 4)):  # F, z, Fy; F, T, z, Fy
+                chart = w.page.locator(f"#fig-{fig} svg.chart")
+                assert chart.locator("g.chart-panel").count() == rows * len(ANGLES), fig
+                titles = chart.locator(".chart-panel-title").all_text_contents()
+                assert titles == [f"slip angle {a:g} deg" for a in ANGLES], (fig, titles)
+                labels = " ".join(chart.locator("text").all_text_contents())
+                assert "lateral force Fy [N]" in labels, fig
+            width = w.page.evaluate("document.documentElement.scrollWidth")
+            assert width <= SIZES[size_name][0], (size_name, width)
+            w.page.locator("#fig-fit").scroll_into_view_if_needed()
+            w.shoot(f"study_steered_{size_name}")
+            w.clean()
+        finally:
+            w.close()
