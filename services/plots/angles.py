@@ -19,6 +19,7 @@ from .chart import Chart, Panel
 __all__ = ["angle_grid", "angle_of", "angle_title", "by_slip_angle", "share_y", "steered"]
 
 T = TypeVar("T")
+R = TypeVar("R")
 
 #: layer kinds whose y values a shared range covers, and the fields that hold them
 _Y_KINDS = frozenset({"line", "band", "errorbars", "points"})
@@ -77,9 +78,9 @@ def share_y(panels: Sequence[Panel]) -> None:
 
 def angle_grid(
     title: str,
-    rows: Sequence[Any],
+    rows: Sequence[R],
     angles: Sequence[float],
-    panel: Callable[[Any, float, bool, bool], Panel],
+    panel: Callable[[R, float, bool, bool], Panel],
     width: float = 4.2,
     height: float = 2.6,
 ) -> Chart:

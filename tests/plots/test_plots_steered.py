@@ -19,7 +19,7 @@ from services.plots.angles import angle_of, by_slip_angle, share_y, steered
 from services.plots.chart import Axis, Panel, line
 from services.plots.fit import dataset_angle, slip_fit_chart
 from services.plots.mpl import draw
-from services.plots.predict import predictions_chart, slip_angle_of
+from services.plots.predict import plot_predictions, predictions_chart, slip_angle_of
 
 WHEEL = {"R": 0.058, "b": 0.05, "n_grousers": 0, "grouser_height": 0.0}
 FAST = {"duration": 6.0, "dt": 0.04, "dx": 0.01, "offset_F": 3.0, "offset_T": 3.0, "offset_z": 3.0}
@@ -199,3 +199,12 @@ def test_the_fit_of_a_straight_study_is_its_signals_in_time() -> None:
     straight = [_summary(r) for r in cmu_rows((0.0,))]
     assert not steered(straight, dataset_angle)
     assert steered([*straight, _summary(cmu_rows((30.0,))[0])], dataset_angle)
+
+
+def test_the_clis_predictions_png_draws_the_same_grid(tmp_path) -> None:
+    """``scm-calib predict`` writes predictions.png through :func:`plot_predictions`: a
+    steered study's file has a column per slip angle (3 x 4.2 in at 120 dpi)."""
+    from PIL import Image
+
+    path = plot_predictions(_predictions((0.0, 30.0, 60.0)), [], tmp_path / "predictions.png")
+    assert Image.open(path).size[0] == round(3 * 4.2 * 120)
