@@ -80,25 +80,29 @@ def angle_grid(
     title: str,
     rows: Sequence[R],
     angles: Sequence[float],
-    panel: Callable[[R, float, bool, bool], Panel],
+    panel: Callable[[R, float, bool], Panel],
     width: float = 4.2,
     height: float = 2.6,
 ) -> Chart:
     """A chart of a row per ``rows`` entry (a response) and a column per angle of ``angles``
-    [deg]: ``panel(row, angle, bottom, first)`` makes each (``bottom``: the last row, which
-    labels the x axis; ``first``: the top left panel, which holds the legend); the top row's
-    panels are titled with their angle and each row shares its y range. ``width``,
-    ``height``: a panel's size [in]. On a narrow screen an angle's panels stay together."""
+    [deg]: ``panel(row, angle, bottom)`` makes each (``bottom``: the last row, which labels
+    the x axis); the top row's panels are titled with their angle, each row shares its y
+    range and one legend is drawn, in the top row's panel that names the most layers (a sweep
+    at one angle, a wheel tested at some). ``width``, ``height``: a panel's size [in]. On a
+    narrow screen an angle's panels stay together."""
     grid = []
     for k, row in enumerate(rows):
-        cells = []
-        for j, a in enumerate(angles):
-            p = panel(row, a, k == len(rows) - 1, (k, j) == (0, 0))
-            if k == 0:
-                p.title = angle_title(a)
-            cells.append(p)
+        cells = [panel(row, a, k == len(rows) - 1) for a in angles]
         share_y(cells)
         grid.append(cells)
+    if grid:
+        top = grid[0]
+        for p, a in zip(top, angles, strict=True):
+            p.title = angle_title(a)
+        named = [len({la.get("label") for la in p.layers} - {None, ""}) for p in top]
+        for p in (p for cells in grid for p in cells):
+            p.legend = None
+        top[named.index(max(named))].legend = "best"
     return Chart(
         title,
         [p for cells in grid for p in cells],

@@ -288,10 +288,10 @@ def slip_fit_chart(
     wheels = list(dict.fromkeys(wheel_label(ds.conditions.to_sim_config()) for ds, _ in pairs))
     groups = dict(by_slip_angle(pairs, lambda pair: dataset_angle(pair[0])))
 
-    def panel(row: tuple, angle: float, bottom: bool, first: bool) -> Panel:
+    def panel(row: tuple, angle: float, bottom: bool) -> Panel:
         key, _, label, scale, _ = row
         return _slip_fit_panel(
-            key, label, scale, groups[angle], wheels, offsets or {}, sigmas or {}, bottom, first
+            key, label, scale, groups[angle], wheels, offsets or {}, sigmas or {}, bottom
         )
 
     return angle_grid(
@@ -311,15 +311,10 @@ def _slip_fit_panel(
     offsets: Mapping[str, float],
     sigmas: Mapping[str, float],
     bottom: bool,
-    legend: bool,
 ) -> Panel:
     """One response at one slip angle of :func:`slip_fit_chart` (``pairs``: the angle's
-    datasets with their simulations)."""
-    panel = Panel(
-        Axis(SLIP_LABEL if bottom else "", tick_labels=bottom),
-        Axis(label),
-        legend="best" if legend else None,
-    )
+    datasets with their simulations; the grid places the legend)."""
+    panel = Panel(Axis(SLIP_LABEL if bottom else "", tick_labels=bottom), Axis(label))
     panel.add(vline(0.0, "grey", width=0.6))
     several = len(wheels) > 1
     sigma = sigmas.get(key)

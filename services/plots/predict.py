@@ -72,8 +72,8 @@ def predictions_chart(
         title,
         rows,
         sorted({*data, *sweeps}),
-        lambda row, a, bottom, first: _panel(
-            row, data.get(a, []), sweeps.get(a, []), wheels, bottom, legend=first
+        lambda row, a, bottom: _panel(
+            row, data.get(a, []), sweeps.get(a, []), wheels, bottom, legend=False
         ),
     )
 

@@ -380,12 +380,13 @@ def _fit(
     **_: Any,
 ) -> Chart:
     """Measured vs simulated at the stage's MAP sample: each dataset's signals (Figure 3), or
-    for a steered study the steady means against slip, a column per slip angle, with the
-    prediction error's 95 % band at the MAP."""
+    for a steered study (a dataset of known slip at a slip angle) the steady means against
+    slip, a column per slip angle, with the prediction error's 95 % band at the MAP."""
     case = stored_case(study.case)
     datasets, sims, offsets = map_simulations(store, study, stage, cache)
     at = f"at the MAP{_stage_title(study, stages, stage)}"
-    if not steered(datasets, plots.fit.dataset_angle):
+    on_slip = [d for d in datasets if d.conditions.slip_symmetric is not None]
+    if not steered(on_slip, plots.fit.dataset_angle):  # Figure 3 as it was
         return plots.fit.fit_chart(
             datasets,
             sims,
