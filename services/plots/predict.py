@@ -1,4 +1,5 @@
-"""Posterior predictions against slip: F, T, z with their 95 % bands and the measured points."""
+"""Posterior predictions against slip: F, T, z with their 95 % bands and the measured points;
+a force map over slip and slip angle."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from scm_core.calibration.predict import Band, ConditionPrediction
 from scm_core.signals.responses import RESPONSE_KEYS, RESPONSES
 
 from .angles import angle_grid, angle_of, by_slip_angle, steered
-from .chart import Axis, Chart, Panel, band, errorbars, line, points, text, vline
+from .chart import Axis, Chart, Panel, band, errorbars, line, points, text, viridis, vline
 from .figures import save
 from .fit import SLIP_LABEL, WHEEL_COLORS, wheel_label
 
@@ -19,8 +20,14 @@ _ROLE_STYLE = {
     "calibration": ("o", "black", "measured, used in the calibration"),
     "predicted": ("s", "red", "measured, held out"),
 }
+ANGLE_LABEL = "slip angle [deg] between the wheel's heading and its travel"
 #: slip offset between the wheels' bars at one slip, so that neither hides the other
 DODGE = 0.02
+
+
+def _along(c: ConditionPrediction, along: str) -> float | None:
+    """Where ``c`` lies along the chart's x: its symmetric slip, or its slip angle [deg]."""
+    return c.slip_symmetric if along == "slip" else float(c.conditions.get("slip_angle") or 0.0)
 
 
 def _by_wheel(shown: Sequence[ConditionPrediction]) -> list[tuple[str, list[ConditionPrediction]]]:
@@ -41,14 +48,17 @@ def predictions_chart(
     sweep: Sequence[ConditionPrediction],
     title: str | None = None,
     responses: Sequence[str] = RESPONSE_KEYS,
+    along: str = "slip",
 ) -> Chart:
     """One panel per response of ``responses`` that the predictions give (the lateral force
-    only where predicted) against the symmetric lab slip (-1 = locked): the sweep's
+    only where predicted) against the symmetric lab slip (-1 = locked; ``along`` "slip_angle":
+    against the slip angle [deg], a slip-angle sweep's axis, in one column): the sweep's
     median and 95 % bands (simulated means, and with the prediction-error noise), each
     dataset's predicted median (a tick) and 95 % predictive interval (the bar), and its
     measurement where it has one (circles: used in the calibration; squares: held out). A
     study of several wheels draws each wheel's bars and points in a colour of its own, set
-    apart by a small slip offset (``DODGE``), and names the wheel in the legend.
+    apart by a small offset (``DODGE`` of a slip, 90 times that of an angle), and names the
+    wheel in the legend.
 
     A steered study (a slip angle other than 0 among the conditions) gets a column per slip
     angle instead, ascending, a row per response on one y range
@@ -56,13 +66,13 @@ def predictions_chart(
     slip axis."""
     given = {r for c in (*datasets, *sweep) for r in c.responses}
     rows = [p for p in _PANELS if p[0] in responses and p[0] in given]
-    shown = [c for c in datasets if c.slip_symmetric is not None]
-    swept = [c for c in sweep if c.slip_symmetric is not None]
+    shown = [c for c in datasets if _along(c, along) is not None]
+    swept = [c for c in sweep if _along(c, along) is not None]
     wheels = [w for w, _ in _by_wheel(shown)]
     title = title or "Posterior predictions across slip"
-    if not steered([*shown, *swept], slip_angle_of):
+    if along != "slip" or not steered([*shown, *swept], slip_angle_of):
         panels: list[Panel | None] = [
-            _panel(row, shown, swept, wheels, bottom=k == len(rows) - 1, legend=k == 0)
+            _panel(row, shown, swept, wheels, bottom=k == len(rows) - 1, legend=k == 0, along=along)
             for k, row in enumerate(rows)
         ]
         return Chart(title, panels, columns=1, size=(7.0, 2.6 * len(rows) + 0.6))
@@ -85,20 +95,23 @@ def _panel(
     wheels: Sequence[str],
     bottom: bool,
     legend: bool,
+    along: str = "slip",
 ) -> Panel:
     """The panel of one response (``row``: key, axis label, scale to the drawn unit) of the
-    datasets ``shown`` and the ``sweep`` (both with a slip), the wheels coloured by their
-    place in ``wheels``."""
+    datasets ``shown`` and the ``sweep`` (both with a place ``along`` the x axis: the slip or
+    the slip angle), the wheels coloured by their place in ``wheels``."""
     key, label, scale = row
+    x_label = SLIP_LABEL if along == "slip" else ANGLE_LABEL
+    step = DODGE if along == "slip" else 90.0 * DODGE
     panel = Panel(
-        Axis(SLIP_LABEL if bottom else "", tick_labels=bottom),
+        Axis(x_label if bottom else "", tick_labels=bottom),
         Axis(label),
         legend="best" if legend else None,
     )
     panel.add(vline(0.0, "grey", width=0.6))
-    sw = sorted(sweep, key=lambda c: c.slip_symmetric)
+    sw = sorted(sweep, key=lambda c: _along(c, along))
     if sw:
-        s = [c.slip_symmetric for c in sw]
+        s = [_along(c, along) for c in sw]
         sim = [c.responses[key].simulated for c in sw]
         pred = [c.responses[key].predictive for c in sw]
         if all(p is not None for p in pred):
@@ -108,10 +121,10 @@ def _panel(
             line(s, [b.median * scale for b in sim], width=1.5, label="posterior median"),
         )
     several = len(wheels) > 1
-    for wheel, mine_w in _by_wheel(shown):
+    for wheel, mine_w in _by_wheel([c for c in shown if key in c.responses]):  # straight: no Fy
         w = wheels.index(wheel)
         color = WHEEL_COLORS[w % len(WHEEL_COLORS)] if several else "blue"
-        dodge = (w - (len(wheels) - 1) / 2) * DODGE if several else 0.0
+        dodge = (w - (len(wheels) - 1) / 2) * step if several else 0.0
         who = f"{wheel}: " if several else ""
         bands = [c.responses[key].predictive or c.responses[key].simulated for c in mine_w]
         kind = (
@@ -121,7 +134,7 @@ def _panel(
         )
         panel.add(
             errorbars(
-                [c.slip_symmetric + dodge for c in mine_w],
+                [_along(c, along) + dodge for c in mine_w],
                 [b.median * scale for b in bands],
                 [b.lo * scale for b in bands],
                 [b.hi * scale for b in bands],
@@ -138,7 +151,7 @@ def _panel(
             if mine:
                 panel.add(
                     points(
-                        [c.slip_symmetric + dodge for c in mine],
+                        [_along(c, along) + dodge for c in mine],
                         [c.responses[key].measured * scale for c in mine],
                         color if several else role_color,
                         size=3.5,
@@ -147,7 +160,7 @@ def _panel(
                         label=f"{who}{name}",
                     )
                 )
-    if not any(c.responses[key].measured is not None for c in shown):
+    if not any(key in c.responses and c.responses[key].measured is not None for c in shown):
         panel.add(text("no measurement"))
     return panel
 
@@ -171,8 +184,69 @@ def plot_predictions(
     path: str | Path,
     title: str | None = None,
     responses: Sequence[str] = RESPONSE_KEYS,
+    along: str = "slip",
 ) -> Path:
     """:func:`predictions_chart` drawn to ``path``."""
     from .mpl import draw
 
-    return save(draw(predictions_chart(datasets, sweep, title, responses)), path, dpi=120)
+    chart = predictions_chart(datasets, sweep, title, responses, along)
+    return save(draw(chart), path, dpi=120)
+
+
+def force_map_chart(grid: Sequence[ConditionPrediction], title: str | None = None) -> Chart:
+    """A force map (the predictions of a :func:`~scm_core.calibration.predict.map_targets`
+    ``grid``): one panel per response they give (F, T, z, Fy, in the figures' units) against
+    the symmetric slip, one line (the posterior median) with its 95 % band of the simulated
+    mean per slip angle."""
+    given = {r for c in grid for r in c.responses}
+    rows = [p for p in _PANELS if p[0] in given]
+    angles = sorted({float(c.conditions.get("slip_angle", 0.0)) for c in grid})
+    panels: list[Panel | None] = []
+    for k, (key, label, scale) in enumerate(rows):
+        bottom = k >= len(rows) - 2
+        panel = Panel(
+            Axis(SLIP_LABEL if bottom else "", tick_labels=bottom),
+            Axis(label),
+            legend="best" if k == 0 else None,
+        )
+        panel.add(vline(0.0, "grey", width=0.6))
+        for j, a in enumerate(angles):
+            mine = sorted(
+                (c for c in grid if float(c.conditions.get("slip_angle", 0.0)) == a),
+                key=lambda c: c.slip_symmetric,
+            )
+            s = [c.slip_symmetric for c in mine]
+            sim = [c.responses[key].simulated for c in mine]
+            color = viridis(j, len(angles))
+            panel.add(
+                band(
+                    s,
+                    [b.lo * scale for b in sim],
+                    [b.hi * scale for b in sim],
+                    color=color,
+                    opacity=0.2,
+                ),
+                line(
+                    s,
+                    [b.median * scale for b in sim],
+                    color,
+                    width=1.5,
+                    label=f"slip angle {a:g} deg",
+                ),
+            )
+        panels.append(panel)
+    return Chart(
+        title or "Force map: posterior median and 95 % band",
+        panels,
+        columns=2,
+        size=(11.0, 3.2 * ((len(rows) + 1) // 2) + 0.7),
+    )
+
+
+def plot_force_map(
+    grid: Sequence[ConditionPrediction], path: str | Path, title: str | None = None
+) -> Path:
+    """:func:`force_map_chart` drawn to ``path``."""
+    from .mpl import draw
+
+    return save(draw(force_map_chart(grid, title)), path, dpi=120)
