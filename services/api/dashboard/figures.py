@@ -24,7 +24,7 @@ import numpy as np
 import services.plots as plots  # submodules (matplotlib) load when a figure is drawn
 from scm_core.calibration import CaseDefinition, StudyModel
 from scm_core.calibration.predict import Band, ConditionPrediction, ResponsePrediction
-from scm_core.inference.posterior import map_sample, pool_samples
+from scm_core.inference.posterior import map_sample
 from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import SWTDataset
 from scm_core.signals.responses import RESPONSE_KEYS
@@ -32,7 +32,6 @@ from services.plots.angles import steered
 from services.plots.chart import Chart
 from services.plots.choices import default_pairs, mean_b_eff
 from services.store import StageRecord, Store, StudyRecord
-from services.studies.comparable import why_not_runs
 from services.studies.datasets import load_datasets, stored_log
 from services.studies.kinds import KINDS, KindPanel, kind_of, study_terms
 from services.studies.kinds.base import stored_case
@@ -45,7 +44,6 @@ __all__ = [
     "STUDY_FIGURES",
     "FigureCache",
     "FigureError",
-    "compare",
     "dataset_signals",
     "page_figures",
     "study_figure",
@@ -112,7 +110,7 @@ class StageData:
     log_likelihood: np.ndarray
 
 
-def _stage_data(store: Store, study: StudyRecord, stage: int, cache: FigureCache) -> StageData:
+def stage_data(store: Store, study: StudyRecord, stage: int, cache: FigureCache) -> StageData:
     """A finished stage's population, read once per ``cache`` (a figure process's): a page's
     charts read it five times (the fit's MAP, the pairs, the matrix, the trace, the prior and
     posterior), each read of 16,000 samples 30-50 ms (its rows fetched and decoded), 250 ms when
@@ -132,7 +130,7 @@ def _stage_data(store: Store, study: StudyRecord, stage: int, cache: FigureCache
     return cache.get_or_make(("stage-data", study.id, stage), read)
 
 
-def _log_params(case: CaseDefinition) -> set[str]:
+def log_params(case: CaseDefinition) -> set[str]:
     return {n for n, d in case.prior().dists.items() if d.kind in LOG_SCALE_KINDS}
 
 
@@ -166,7 +164,7 @@ def map_simulations(
 
     def make() -> tuple[list[SWTDataset], list[Any], dict[str, float]]:
         case = stored_case(study.case)
-        data = _stage_data(store, study, stage, cache)
+        data = stage_data(store, study, stage, cache)
         theta = _map(data)
         datasets = _plot_datasets(store, case, study.dataset_ids)
         model = StudyModel(case, datasets)
@@ -205,13 +203,13 @@ def _trace(
 ) -> Chart:
     case = stored_case(study.case)
     done = [s.stage_index for s in stages if s.status == "done" and s.stage_index <= stage]
-    data = [_stage_data(store, study, j, cache) for j in done]
+    data = [stage_data(store, study, j, cache) for j in done]
     return plots.stages.stage_trace_chart(
         data[-1].names,
         done,
         [d.samples for d in data],
         units=dict(case.prior().units or {}),
-        log_params=_log_params(case),
+        log_params=log_params(case),
         title=f"{study.name}: population per stage, 0 to {stage} (median, 50 % and 95 %)",
     )
 
@@ -241,8 +239,8 @@ def _prior_posterior(
 ) -> Chart:
     case = stored_case(study.case)
     prior = case.prior()
-    data = _stage_data(store, study, stage, cache)
-    first = _stage_data(store, study, 0, cache)
+    data = stage_data(store, study, stage, cache)
+    first = stage_data(store, study, 0, cache)
     panel = _panel(study)
     return plots.posterior.prior_posterior_chart(
         data.names,
@@ -254,7 +252,7 @@ def _prior_posterior(
         reference=case.reference,
         title=f"{study.name}: {panel.start} and {panel.end}{_stage_title(study, stages, stage)}"
         " (Figure 5)",
-        log_params=_log_params(case),
+        log_params=log_params(case),
         labels=(panel.start, panel.end),
     )
 
@@ -269,7 +267,7 @@ def _pairs(
     **_: Any,
 ) -> Chart:
     case = stored_case(study.case)
-    data = _stage_data(store, study, stage, cache)
+    data = stage_data(store, study, stage, cache)
     if pair is not None and not set(pair) <= set(data.names):
         raise FigureError(f"pair {pair[0]}, {pair[1]}: parameters are {', '.join(data.names)}")
     k_star_line = None
@@ -290,7 +288,7 @@ def _pairs(
         reference=case.reference,
         k_star_line=k_star_line,
         title=f"{study.name}: bivariate density{_stage_title(study, stages, stage)} (Figures 6-8)",
-        log_params=_log_params(case),
+        log_params=log_params(case),
     )
     if chart is None:
         raise FigureError(f"study {study.id} has no parameter pair to draw")
@@ -353,7 +351,7 @@ def _matrix(
     **_: Any,
 ) -> Chart:
     case = stored_case(study.case)
-    data = _stage_data(store, study, stage, cache)
+    data = stage_data(store, study, stage, cache)
     chosen = list(params) if params else default_matrix(data.names)
     unknown = [n for n in chosen if n not in data.names]
     if unknown:
@@ -366,7 +364,7 @@ def _matrix(
         chosen,
         units=dict(case.prior().units or {}),
         reference=case.reference,
-        log_params=_log_params(case),
+        log_params=log_params(case),
         title=f"{study.name}: pair matrix{_stage_title(study, stages, stage)}",
     )
 
@@ -394,7 +392,7 @@ def _fit(
             responses=case.responses,
             offsets=offsets,
         )
-    theta = _map(_stage_data(store, study, stage, cache))
+    theta = _map(stage_data(store, study, stage, cache))
     sigmas = StudyModel(case, datasets).sigmas(theta)[0]
     return plots.fit.slip_fit_chart(
         datasets,
@@ -536,87 +534,3 @@ def dataset_signals(store: Store, dataset_id: int, fmt: str, cache: FigureCache)
         return _made(plots.swt.measured_chart(stored_log(store, dataset_id)), fmt)
 
     return cache.get_or_make(("signals", dataset_id, fmt), make)
-
-
-def compare(
-    store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureCache, seed: int = 0
-) -> bytes:
-    """Posterior densities of the parameters the studies share, each study's final stage and
-    their pool (equal numbers of samples from each; Figure 9)."""
-    finals = []
-    for st in studies:
-        stages = [s.stage_index for s in store.stages.list(st.id) if s.status == "done"]
-        if not stages:
-            raise FigureError(f"study {st.id} has no finished stage")
-        finals.append(_stage_data(store, st, stages[-1], cache))
-    shared = [n for n in finals[0].names if all(n in f.names for f in finals[1:])]
-    if not shared:
-        raise FigureError("the studies share no parameter")
-
-    def make() -> bytes:
-        cols = [np.array([f.names.index(n) for n in shared]) for f in finals]
-        per = {
-            f"{st.id}: {st.name}": f.samples[:, c]
-            for st, f, c in zip(studies, finals, cols, strict=True)
-        }
-        n = min(len(x) for x in per.values())
-        pooled = pool_samples(list(per.values()), n, seed)
-        case = stored_case(studies[0].case)
-        return plots.figures.render(
-            plots.posterior.compare_figure(
-                shared,
-                per,
-                pooled,
-                units=dict(case.prior().units or {}),
-                log_params=_log_params(case),
-                title="Posteriors of the compared studies and their pool (Figure 9)",
-            ),
-            fmt,
-        )
-
-    return cache.get_or_make(("compare", tuple(s.id for s in studies), seed, fmt), make)
-
-
-def final_populations(store: Store, studies: Sequence[StudyRecord]) -> list[np.ndarray] | None:
-    """Each study's samples at its last finished stage (n_i, d_i); None if one has none."""
-    finals = []
-    for st in studies:
-        done = [s.stage_index for s in store.stages.list(st.id) if s.status == "done"]
-        if not done:
-            return None
-        finals.append(store.samples.arrays(st.id, done[-1]).samples)
-    return finals
-
-
-def runs_as_chains(
-    studies: Sequence[StudyRecord], finals: Sequence[np.ndarray] | None
-) -> tuple[list[str], np.ndarray] | None:
-    """The studies' final populations (``finals``, see :func:`final_populations`) as runs of
-    one posterior: (names, chains (K, n, d)), n samples of each (the smallest population;
-    subsampled as ``/pooled`` takes them, seed 0). None unless they share their parameters
-    in order and hold at least 4 samples each."""
-    names = study_terms(studies[0]).parameter_names
-    if finals is None or any(study_terms(s).parameter_names != names for s in studies[1:]):
-        return None
-    n = min(len(x) for x in finals)
-    if n < 4:
-        return None
-    return names, pool_samples(finals, n, 0).reshape(len(finals), n, -1)
-
-
-def ranks(store: Store, studies: Sequence[StudyRecord], fmt: str, cache: FigureCache) -> bytes:
-    """Rank plots of the studies' final populations, one run each (ArviZ's plot_rank)."""
-    why = why_not_runs(studies)
-    if why is not None:
-        raise FigureError(f"rank plots are of runs of one calibration: {why}")
-    chains = runs_as_chains(studies, final_populations(store, studies))
-    if chains is None:
-        raise FigureError("rank plots need studies of the same parameters (runs of one case)")
-
-    def make() -> bytes:
-        names, x = chains
-        labels = [f"{s.id}: {s.name}"[:24] for s in studies]
-        title = f"Rank plots of studies {', '.join(str(s.id) for s in studies)}"
-        return plots.figures.render(plots.ranks.rank_figure(names, x, labels, title=title), fmt)
-
-    return cache.get_or_make(("ranks", tuple(s.id for s in studies), fmt), make)

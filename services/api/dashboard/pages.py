@@ -49,17 +49,14 @@ from ..views import (
     study_brief,
     study_progress,
 )
+from .compare_figures import compare, final_populations, ranks, runs_as_chains
 from .figures import (
     CHART_FORMAT,
     DRAW_SECONDS,
     MATRIX_MAX,
     FigureError,
-    compare,
     dataset_signals,
     default_matrix,
-    final_populations,
-    ranks,
-    runs_as_chains,
     study_figure,
 )
 from .text_filters import register as register_text_filters
