@@ -254,7 +254,7 @@ class Toy:
             dataset_ids=list(dataset_ids),
             seed=self.seed if seed is None else seed,
             n_samples=self.n_samples,
-            kind="tmcmc",
+            kind="calibration",
             batch_size=self.batch_size,
         )
 

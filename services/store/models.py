@@ -41,9 +41,9 @@ __all__ = [
 STUDY_KIND_PATTERN = r"^[a-z][a-z0-9_]{0,15}$"
 STUDY_STATUSES = ("queued", "running", "completed", "failed", "cancelled", "stalled")
 STUDY_ACTIVE = ("queued", "running")
-#: the kind of the rows from before studies had kinds: migration 0002's server default, a
+#: the kind of the rows from before studies had kinds: the server default (0002, named by 0011), a
 #: fact of the schema (the store knows no kind otherwise)
-PRE_KIND_ROWS = "tmcmc"
+PRE_KIND_ROWS = "calibration"
 STUDY_FINAL = ("completed", "failed", "cancelled", "stalled")
 STAGE_STATUSES = ("planned", "running", "reducing", "done")
 BATCH_STATUSES = ("pending", "leased", "done", "failed")

@@ -12,7 +12,7 @@ from .errors import StudyRequestError
 from .intake import base_case, case_from_toml, run_specs, with_overrides
 from .kinds.calibration import calibration_spec
 from .kinds.checks import check_runs
-from .kinds.screening import sensitivity_spec
+from .kinds.sensitivity import sensitivity_spec
 from .lifecycle import (
     Dispatcher,
     create_and_start,

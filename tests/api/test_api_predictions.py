@@ -158,7 +158,7 @@ def test_collection_shows_only_its_kind(calibrated) -> None:
     assert r.status_code == 201, r.text
     assert _wait(client, r.json()["id"])["status"] == "completed"
     r = client.get(f"/predictions/{study_id}")
-    assert r.status_code == 404 and "is a tmcmc study" in detail(r)
+    assert r.status_code == 404 and "is a calibration study" in detail(r)
     page = client.get("/predictions").json()
     assert page["total"] >= 1 and all(p["kind"] == "prediction" for p in page["items"])
     assert client.get("/predictions?status=bogus").status_code == 422

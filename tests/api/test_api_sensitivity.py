@@ -120,10 +120,10 @@ def test_listing_and_calibration_endpoints(finished) -> None:
     client, _, study_id, _, _ = finished
     listing = client.get("/sensitivity").json()
     assert [s["id"] for s in listing["items"]] == [study_id] and listing["total"] == 1
-    assert client.get("/studies", params={"kind": "morris"}).json()["total"] == 1
-    assert client.get("/studies", params={"kind": "tmcmc"}).json()["total"] == 0
+    assert client.get("/studies", params={"kind": "sensitivity"}).json()["total"] == 1
+    assert client.get("/studies", params={"kind": "calibration"}).json()["total"] == 0
     brief = client.get("/studies").json()["items"][0]
-    assert brief["kind"] == "morris" and brief["id"] == study_id
+    assert brief["kind"] == "sensitivity" and brief["id"] == study_id
 
     r = client.get(f"/studies/{study_id}/summary")
     assert r.status_code == 409 and f"/sensitivity/{study_id}" in r.json()["detail"]
@@ -142,7 +142,7 @@ def test_python_client(finished) -> None:
     api = SCMCalibClient("http://testserver", token=TOKEN, http_client=client)
     body = api.sensitivity(study_id)
     assert body["result"]["method"] == "morris"
-    assert api.studies(kind="morris")["total"] == 1
+    assert api.studies(kind="sensitivity")["total"] == 1
     new = api.create_sensitivity(
         dataset_id, case=CASE, r=2, separate_k=True, bounds={"k_c": (-1e5, 1e5)}, seed=3
     )

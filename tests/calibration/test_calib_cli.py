@@ -465,12 +465,12 @@ def test_a_batch_that_always_fails_ends_the_study_after_the_attempt_cap(
     folder stored stays."""
     from services.cli.folder_store import DB_FILE
     from services.store import Store
-    from services.studies.kinds.screening import MorrisRun
+    from services.studies.kinds.sensitivity import SensitivityRun
 
     def broken(self, store, lease, model_function):
         raise RuntimeError("the simulator is broken")
 
-    monkeypatch.setattr(MorrisRun, "compute", broken)
+    monkeypatch.setattr(SensitivityRun, "compute", broken)
     proc = run_cli_here("sensitivity", "tiny.toml", "--r", "2", "--out", "sens_bad", cwd=work)
     line = one_line_error(proc, code=1)
     assert line.startswith("error: the screening ended failed: batch 0 of stage 0")

@@ -16,7 +16,15 @@ SUFFIXES = (".py", ".html", ".js", ".css")
 KIND_MODULES = ROOT / "services" / "studies" / "kinds"
 #: (file, name): why the name stands there
 ALLOWED = {
-    ("services/store/models.py", "tmcmc"): "migration 0002's server default of studies.kind",
+    ("services/store/models.py", "calibration"): "the server default of studies.kind (0011)",
+    ("services/api/dashboard/templates/_new_study.html", "calibration"): "the form's kinds",
+    ("services/api/dashboard/templates/_new_study.html", "sensitivity"): "the form's kinds",
+    ("services/api/dashboard/static/dashboard.js", "sensitivity"): "the form's kinds",
+    ("services/api/dashboard/static/dashboard.css", "sensitivity"): "the form's kinds",
+    # the same words, not a kind: a prediction's role, a sentence, a submodule's name
+    ("services/plots/predict.py", "calibration"): "a measurement's role in a prediction",
+    ("services/api/routes/comparison.py", "calibration"): "an error message's noun",
+    ("services/plots/__init__.py", "sensitivity"): "the submodule services.plots.sensitivity",
     ("services/cli/calibrate.py", "update"): "the section of a results folder's summary.json",
     ("services/cli/results.py", "update"): "the section of a results folder's summary.json",
     ("services/cli/parent.py", "update"): "the section of a results folder's summary.json",

@@ -48,7 +48,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0010"
+    assert head_revision() == "0011"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -88,9 +88,9 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0010") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0011") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0010"
+    assert info.value.current == "ffff" and info.value.head == "0011"
 
     engine = make_engine(empty_url)
     try:
@@ -133,14 +133,14 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0010"
+        assert current_revision(url) == "0011"
     finally:
         get_settings.cache_clear()
 
 
 def test_upgrade_0001_to_0002_keeps_studies_as_calibrations(empty_url: str) -> None:
-    """Studies stored before sensitivity studies existed become kind "tmcmc"; the downgrade
-    keeps them too."""
+    """Studies stored before sensitivity studies existed become kind "tmcmc" (0011 names it
+    "calibration"); the downgrade keeps them too."""
     upgrade(empty_url, "0001")
     engine = make_engine(empty_url)
     insert = sa.text(
@@ -151,10 +151,13 @@ def test_upgrade_0001_to_0002_keeps_studies_as_calibrations(empty_url: str) -> N
     try:
         with engine.begin() as conn:
             conn.execute(insert, {"t": "2025-01-01 00:00:00"})
-        upgrade(empty_url)
+        upgrade(empty_url, "0010")
         with engine.connect() as conn:
             row = conn.execute(sa.text("SELECT name, kind, result FROM studies")).one()
         assert tuple(row) == ("old", "tmcmc", None)
+        upgrade(empty_url)
+        with engine.connect() as conn:
+            assert conn.execute(sa.text("SELECT kind FROM studies")).scalar() == "calibration"
         downgrade(empty_url, "0001")
         with engine.connect() as conn:
             assert conn.execute(sa.text("SELECT name FROM studies")).scalars().all() == ["old"]
@@ -296,11 +299,12 @@ def test_0006_derives_the_study_documents_from_the_case_and_back(empty_url: str)
         upgrade(empty_url)
         with Store.open(empty_url) as store:
             for study in store.studies.list().items:
-                priors, sampler, _ = stored[study.kind]
+                priors, sampler, _ = stored[study.name]  # the name is the kind as stored
                 terms = study_terms(study)
                 assert (terms.priors, terms.sampler) == (priors, sampler)
                 assert terms.simulator == dict(case.simulator)
-                assert study.payload == ({"design": settings} if study.kind == "morris" else None)
+                assert study.kind == {"tmcmc": "calibration", "morris": "sensitivity"}[study.name]
+                assert study.payload == ({"design": settings} if study.name == "morris" else None)
         downgrade(empty_url, "0005")
         with engine.connect() as conn:
             rows = conn.execute(sa.text("SELECT kind, priors, sampler, payload FROM studies"))
@@ -437,3 +441,42 @@ def test_0010_adds_run_groups_and_takes_them_back(empty_url: str) -> None:
     assert "run_group" in columns and "ix_studies_run_group" in indexes
     downgrade(empty_url, "0009")
     assert "run_group" not in _study_columns_and_indexes(empty_url)[0]
+
+
+def test_0011_names_the_kinds_as_the_user_meets_them_and_back(empty_url: str) -> None:
+    """Studies stored as "tmcmc" and "morris" load as "calibration" and "sensitivity" (the
+    store lists them by the new names), a row written without a kind is a calibration, and
+    the downgrade gives the old names back."""
+    upgrade(empty_url, "0010")
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO studies (name, kind, status, case_spec, seed, n_samples, model_runs, "
+        "failed_runs, created_at, updated_at) VALUES (:n, :k, 'queued', '{}', 9, 21, 0, 0, :t, :t)"
+    )
+    t = "2025-01-01 00:00:00"
+    try:
+        with engine.begin() as conn:
+            for kind in ("tmcmc", "morris", "update", "tmcmc"):
+                conn.execute(insert, {"n": kind, "k": kind, "t": t})
+        upgrade(empty_url)
+        with Store.open(empty_url) as store:
+            kinds = sorted(s.kind for s in store.studies.list().items)
+            assert kinds == ["calibration", "calibration", "sensitivity", "update"]
+            assert store.studies.list(kind="calibration").total == 2
+            assert store.studies.list(kind="tmcmc").total == 0
+        no_kind = sa.text(
+            "INSERT INTO studies (name, status, case_spec, seed, n_samples, model_runs, "
+            "failed_runs, created_at, updated_at) VALUES ('x', 'queued', '{}', 1, 1, 0, 0, :t, :t)"
+        )
+        with engine.begin() as conn:
+            conn.execute(no_kind, {"t": t})
+            assert conn.execute(sa.text("SELECT kind FROM studies WHERE name = 'x'")).scalar() == (
+                "calibration"
+            )
+            conn.execute(sa.text("DELETE FROM studies WHERE name = 'x'"))
+        downgrade(empty_url, "0010")
+        with engine.connect() as conn:
+            rows = conn.execute(sa.text("SELECT name, kind FROM studies")).all()
+        assert all(name == kind for name, kind in rows) and len(rows) == 4
+    finally:
+        engine.dispose()

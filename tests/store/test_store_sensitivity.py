@@ -17,7 +17,7 @@ from services.config import Settings
 from services.store import Store
 from services.studies import StudyRequestError, start_study, work_batches
 from services.studies.datasets import load_datasets
-from services.studies.kinds.screening import sensitivity_spec
+from services.studies.kinds.sensitivity import sensitivity_spec
 from worker.orchestrator import ContextCache, execute_batch
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,7 +52,7 @@ def dataset_id(store: Store) -> int:
 def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> None:
     morris = MorrisSettings(r=3, levels=4, seed=9)
     spec = sensitivity_spec(store, Settings(), CASE, dataset_id, morris, batch_size=4)
-    assert spec.kind == "morris" and spec.n_samples == 3 * 7
+    assert spec.kind == "sensitivity" and spec.n_samples == 3 * 7
     # phi is calibrated in the case: its prior bounds are the factor's; the rest are defaults
     assert spec.payload["design"]["bounds"]["phi"] == [20.0, 35.0]
     assert spec.payload["design"]["bounds"]["k_star"] == [1e6, 1e8]
@@ -65,7 +65,7 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     assert outcomes == ["stored"] * 7
 
     done = store.studies.get(study.id)
-    assert done.status == "completed" and done.kind == "morris"
+    assert done.status == "completed" and done.kind == "sensitivity"
     assert done.model_runs == 21
 
     datasets = load_datasets(store, CASE, [dataset_id])
@@ -93,8 +93,8 @@ def test_morris_study_matches_run_sensitivity(store: Store, dataset_id: int) -> 
     assert lease is None  # done: not leased again
     assert store.studies.get(study.id) == before
 
-    assert [s.id for s in store.studies.list(kind="morris").items] == [study.id]
-    assert store.studies.list(kind="tmcmc").total == 0
+    assert [s.id for s in store.studies.list(kind="sensitivity").items] == [study.id]
+    assert store.studies.list(kind="calibration").total == 0
 
 
 @pytest.mark.parametrize(

@@ -35,7 +35,7 @@ from services.config import Settings
 from services.store import Store
 from services.store.engine import is_transient, is_write_fault
 from services.studies import start_study
-from services.studies.kinds.screening import sensitivity_spec
+from services.studies.kinds.sensitivity import sensitivity_spec
 from worker.orchestrator import (
     RETRY_LONGEST_S,
     ContextCache,

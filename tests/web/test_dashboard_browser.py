@@ -1040,14 +1040,14 @@ def test_a_case_file_starts_a_calibration_and_a_bad_one_shows_the_servers_error(
         w.close()
 
 
-def test_a_screening_starts_from_the_page(server, browser) -> None:
+def test_a_sensitivity_study_starts_from_the_page(server, browser) -> None:
     """Morris from the page: its own fields appear, one dataset is required, it completes."""
     base, (d1, d2) = server["base"], server["datasets"]
     w = Watched(browser)
     try:
         _open_new_study_form(w, base)
         assert not w.page.is_visible("#new-study-form input[name=r]")
-        w.page.check("#new-study-form input[name=kind][value=screening]")
+        w.page.check("#new-study-form input[name=kind][value=sensitivity]")
         assert w.page.is_visible("#new-study-form input[name=r]")
         assert not w.page.is_visible("#new-study-form input[name=n_samples]")
         w.page.fill("#new-study-form textarea", TINY_TOML)

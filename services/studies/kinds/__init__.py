@@ -1,4 +1,4 @@
-"""Study kinds as plug-ins: one module per kind (:mod:`.calibration`, :mod:`.screening`,
+"""Study kinds as plug-ins: one module per kind (:mod:`.calibration`, :mod:`.sensitivity`,
 :mod:`.update`, :mod:`.prediction`), the protocol they follow (:mod:`.base`) and the registry
 (:mod:`.registry`)."""
 

@@ -1,4 +1,4 @@
-"""Kind "tmcmc": a Bayesian calibration by Transitional MCMC (paper section 3).
+"""Kind "calibration": a Bayesian calibration by Transitional MCMC (paper section 3).
 
 Stage 0 evaluates the likelihood at ``n_samples`` prior draws (rows of
 ``initial_samples(prior, n_samples, seed)``, one work batch per row range); every later stage
@@ -271,9 +271,9 @@ POSTERIOR_FIGURES = ("schedule", "prior_posterior", "trace", "pairs", "matrix", 
 
 
 class CalibrationKind:
-    """The plug-in of kind "tmcmc" (see :mod:`.base`)."""
+    """The plug-in of kind "calibration" (see :mod:`.base`)."""
 
-    name = "tmcmc"
+    name = "calibration"
     title = "calibration"
     http = None  # POST /studies
     cli = KindCli("calibrate", "services.cli.calibrate:calibrate")

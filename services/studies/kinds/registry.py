@@ -8,12 +8,12 @@ from services.store import StudyRecord
 from .base import StudyKind, StudyTerms
 from .calibration import KIND as CALIBRATION
 from .prediction import KIND as PREDICTION
-from .screening import KIND as SCREENING
+from .sensitivity import KIND as SENSITIVITY
 from .update import KIND as UPDATE
 
 __all__ = ["KINDS", "kind_of", "posterior_kinds", "study_terms"]
 
-KINDS: dict[str, StudyKind] = {k.name: k for k in (CALIBRATION, SCREENING, UPDATE, PREDICTION)}
+KINDS: dict[str, StudyKind] = {k.name: k for k in (CALIBRATION, SENSITIVITY, UPDATE, PREDICTION)}
 
 
 def kind_of(name: str) -> StudyKind:

@@ -48,8 +48,8 @@ __all__ = [
     "update_spec",
 ]
 
-#: kinds whose final population an update can start from
-UPDATABLE = ("tmcmc", "update")
+#: kinds whose final population an update can start from (a calibration's, an update's)
+UPDATABLE = (CalibrationKind.name, "update")
 
 
 def old_dataset_ids(store: Store, parent: StudyRecord) -> list[int]:

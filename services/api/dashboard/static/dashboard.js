@@ -399,8 +399,8 @@
       }
       if (f.name.value) body.name = f.name.value;
       let path = "/studies";
-      if (f.kind.value === "screening") {
-        if (ids.length !== 1) return say(out, "dataset_id: a screening runs on exactly one dataset: check one", true);
+      if (f.kind.value === "sensitivity") {
+        if (ids.length !== 1) return say(out, "dataset_id: a sensitivity study runs on exactly one dataset: check one", true);
         Object.assign(body, { dataset_id: ids[0], r: Number(f.r.value), levels: Number(f.levels.value) });
         path = "/sensitivity";
       } else {

@@ -1,4 +1,4 @@
-"""Kind "morris": a Morris sensitivity screening of the soil parameters (paper section 4.4).
+"""Kind "sensitivity": a Morris screening of the soil parameters (paper section 4.4).
 
 The design points are the work batches' "chains"; the Morris analysis is the reducer of the
 study's only stage. A screening runs on one dataset (whose test conditions are simulated; its
@@ -6,7 +6,7 @@ measurements are not used). Stored: the case, ``payload["design"]`` = the design
 with every factor's bounds resolved (so the design can be rebuilt exactly, whatever later
 defaults become), ``n_samples`` = the number of design points r (d + 1), ``seed`` = the design
 seed; the factor box (names, bounds, scale, units: the columns of the stage's samples) is
-derived from them when read (:meth:`ScreeningKind.terms`). The stage's
+derived from them when read (:meth:`SensitivityKind.terms`). The stage's
 samples are the design points with their steady F, T, z, Fy; the study's ``result`` is
 :meth:`scm_core.calibration.SensitivityResult.to_dict`. Outputs depend only on the point, so
 the result is bit-identical to ``run_sensitivity`` however the points were batched.
@@ -81,9 +81,9 @@ from .checks import check_runs, prior_medians
 __all__ = [
     "DEFAULT_POINTS_PER_BATCH",
     "KIND",
-    "MorrisRun",
-    "ScreeningDesign",
+    "DesignView",
     "SensitivityRequest",
+    "SensitivityRun",
     "design_of",
     "sensitivity_spec",
 ]
@@ -215,7 +215,7 @@ def _design(case: CaseDefinition, cfg: Mapping[str, Any], seed: int) -> Sensitiv
 
 
 @dataclass
-class MorrisRun:
+class SensitivityRun:
     """A sensitivity study's computation (see the module doc); cached per process."""
 
     design: SensitivityDesign
@@ -323,7 +323,7 @@ class Factor(BaseModel):
     unit: str | None
 
 
-class ScreeningDesign(BaseModel):
+class DesignView(BaseModel):
     """A screening's design, as its study shows it."""
 
     dataset_id: int = Field(description="The dataset whose test conditions are simulated.")
@@ -334,11 +334,11 @@ class ScreeningDesign(BaseModel):
     n_points: int = Field(description="Design points (model runs): r (factors + 1).")
 
 
-def design_view(study: StudyRecord) -> ScreeningDesign:
+def design_view(study: StudyRecord) -> DesignView:
     """The design of a stored screening (from its terms: the factor box and settings)."""
     terms = KIND.terms(study)
     cfg = terms.sampler
-    return ScreeningDesign(
+    return DesignView(
         dataset_id=study.dataset_ids[0],
         r=int(cfg["r"]),
         levels=int(cfg["levels"]),
@@ -370,10 +370,10 @@ _DESCRIPTION = (
 )
 
 
-class ScreeningKind:
-    """The plug-in of kind "morris" (see :mod:`.base`)."""
+class SensitivityKind:
+    """The plug-in of kind "sensitivity" (see :mod:`.base`)."""
 
-    name = "morris"
+    name = "sensitivity"
     title = "sensitivity"
     http = KindHttp(
         path="/sensitivity",
@@ -381,21 +381,21 @@ class ScreeningKind:
         spec=request_spec,
         result=None,
         description=_DESCRIPTION,
-        fields=ScreeningDesign,
+        fields=DesignView,
         fields_of=design_view,
     )
     cli = KindCli("sensitivity", "services.cli.sensitivity:sensitivity")
     collection = http.path
     posterior = False
     panel = KindPanel(
-        template="kinds/screening.html", figures=("indices",), counts="design points (model runs)"
+        template="kinds/sensitivity.html", figures=("indices",), counts="design points (model runs)"
     )
 
-    def build(self, store: Store, study: StudyRecord) -> MorrisRun:
+    def build(self, store: Store, study: StudyRecord) -> SensitivityRun:
         case = stored_case(study.case)
         (dataset,) = load_datasets(store, case, study.dataset_ids)
         design = design_of(study, case)
-        return MorrisRun(design, MorrisModel(design.names, case, dataset), study.seed)
+        return SensitivityRun(design, MorrisModel(design.names, case, dataset), study.seed)
 
     def planned_runs(self, plan: bytes | None, batches: Sequence[range]) -> list[int]:
         return one_run_per_item(batches)
@@ -413,4 +413,4 @@ def _screening_terms(text: str) -> StudyTerms:
     return StudyTerms(_design(case, cfg, seed).factor_box(), cfg, dict(case.simulator))
 
 
-KIND = ScreeningKind()
+KIND = SensitivityKind()
