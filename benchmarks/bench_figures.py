@@ -3,7 +3,7 @@
 Run: ``python benchmarks/bench_figures.py [--repeats 5] [--fmt json svg]``. Serves a fresh
 embedded instance (SQLite, two local workers) once, runs bench_progress's small calibration to
 its end, stops the server, then makes the last finished stage's page figures
-(:func:`services.api.dashboard.figures.page_figures`) in this process with an empty cache,
+(:func:`services.api.dashboard.study_figures.page_figures`) in this process with an empty cache,
 ``--repeats`` times per format, and prints the median and spread of each figure's wall time
 [ms] and size [kB], their sum, and the makespan of the two figure processes' longest-first
 schedule (what the page waits for after a stage ends, on top of its poll). ``json`` is the
@@ -70,7 +70,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from services.api.dashboard.drawing import prepare_drawing
-    from services.api.dashboard.figures import page_figures
+    from services.api.dashboard.study_figures import page_figures
     from services.api.views import parameter_names
     from services.store import Store
 
@@ -92,7 +92,7 @@ def measure(
 ) -> tuple[dict[str, list[float]], dict[str, float]]:
     """Each figure's wall times [s] over ``repeats`` cold makes (after one not counted) and
     its size [kB]."""
-    from services.api.dashboard.figures import FigureCache, study_figure
+    from services.api.dashboard.study_figures import FigureCache, study_figure
 
     times: dict[str, list[float]] = {}
     sizes: dict[str, float] = {}

@@ -5,7 +5,7 @@ calibration of ``tests/web/test_dashboard_scale.py`` (two stages of ``--samples`
 written through the store) into a temporary SQLite database, then ``--repeats`` times starts the
 dashboard's figure processes afresh (:class:`~services.api.dashboard.drawing.FigureProcess`, as
 the API does when a study page first polls) and asks for the page's charts two at a time in the
-page's order (:func:`~services.api.dashboard.figures.page_figures`): the wall time from the
+page's order (:func:`~services.api.dashboard.study_figures.page_figures`): the wall time from the
 start to the first chart and to the last (what the test's first load waits for after its
 fragments, the processes' start included). Then each chart made in this process, prepared as
 a figure process (:func:`~services.api.dashboard.drawing.prepare_drawing`), in that order with
@@ -44,7 +44,7 @@ def write_study(url: str, n: int) -> int:
 
 def _page_specs(store: object, study: object) -> list[dict]:
     """The page's charts of the study's last finished stage, in the page's order."""
-    from services.api.dashboard.figures import page_figures
+    from services.api.dashboard.study_figures import page_figures
     from services.api.views import parameter_names
 
     done = [s.stage_index for s in store.stages.list(study.id) if s.status == "done"]
@@ -54,7 +54,7 @@ def _page_specs(store: object, study: object) -> list[dict]:
 def cold(url: str, study_id: int, repeats: int) -> dict[str, list[float]]:
     """Seconds from fresh figure processes to the page's first chart and to its last."""
     from services.api.dashboard.drawing import DRAWING_PROCESSES, FigureProcess
-    from services.api.dashboard.figures import FigureCache, study_figure
+    from services.api.dashboard.study_figures import FigureCache, study_figure
     from services.store import Store
 
     out: dict[str, list[float]] = {}
@@ -81,7 +81,7 @@ def cold(url: str, study_id: int, repeats: int) -> dict[str, list[float]]:
 def warm(url: str, study_id: int, repeats: int) -> dict[str, list[float]]:
     """Each chart's seconds in this process (a prepared figure process), empty caches."""
     from services.api.dashboard.drawing import prepare_drawing
-    from services.api.dashboard.figures import FigureCache, study_figure
+    from services.api.dashboard.study_figures import FigureCache, study_figure
     from services.store import Store
 
     prepare_drawing()

@@ -4,7 +4,7 @@ Run: ``python benchmarks/bench_startup.py [--repeats 5] [--baseline REF]``.
 
 Every process of the service imports its entry module first: the API (``services.api.main``),
 an embedded pool process or a Celery worker (``worker.runtime``), the CLI's calibration
-(``services.cli.calibrate``), a figure process (``services.api.dashboard.figures`` plus its
+(``services.cli.calibrate``), a figure process (``services.api.dashboard.study_figures`` plus its
 plots). Each is imported in a fresh interpreter ``--repeats`` times, after a warm-up that fills
 the bytecode caches and compiles the simulator into a fresh worktree's numba cache; the table
 gives the median wall time [s] and which heavy libraries the import loaded. Then ``scm-calib
@@ -37,7 +37,7 @@ ENTRIES = {
     "API (services.api.main)": "services.api.main",
     "worker (worker.runtime)": "worker.runtime",
     "CLI calibrate": "services.cli.calibrate",
-    "figure process": "services.api.dashboard.figures; services.plots.posterior",
+    "figure process": "services.api.dashboard.study_figures; services.plots.posterior",
 }
 HEAVY = ("matplotlib", "scipy.stats", "scipy.signal", "scipy.spatial", "scipy.special", "numba")
 

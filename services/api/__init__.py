@@ -6,7 +6,7 @@ after the full-stack-fastapi-template: :mod:`.main` (app factory, lifespan, erro
 :mod:`.routes` (one module per resource). See ``docs/api.md``.
 
 ``create_app`` loads :mod:`.main` on first use (PEP 562): a dashboard figure process imports
-:mod:`.dashboard.figures` (a subpackage of this one) without FastAPI and the application's
+:mod:`.dashboard.study_figures` (a subpackage of this one) without FastAPI and the application's
 routes (0.3-0.6 s of its start on a busy core).
 """
 

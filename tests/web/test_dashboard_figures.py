@@ -11,7 +11,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from services.api.dashboard.figures import FigureCache
+from services.api.dashboard.study_figures import FigureCache
 from services.plots.figures import render
 from services.plots.mpl import draw
 from services.plots.posterior import pair_matrix_chart, pairs_chart

@@ -1,6 +1,6 @@
 """The web dashboard served by the API at ``/`` (see :mod:`.pages`).
 
-Its names load on first use (PEP 562): a figure process imports :mod:`.figures` without the
+Its names load on first use (PEP 562): a figure process imports :mod:`.study_figures` without the
 pages (FastAPI, the templates).
 """
 
@@ -11,14 +11,14 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .drawing import FigureProcess
-    from .figures import FigureCache
     from .pages import dashboard_router, mount_static
+    from .study_figures import FigureCache
     from .warmer import FigureWarmer
 
 __all__ = ["FigureCache", "FigureProcess", "FigureWarmer", "dashboard_router", "mount_static"]
 
 _WHERE = {
-    "FigureCache": "figures",
+    "FigureCache": "study_figures",
     "FigureProcess": "drawing",
     "FigureWarmer": "warmer",
     "dashboard_router": "pages",

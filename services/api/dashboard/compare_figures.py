@@ -1,6 +1,6 @@
 """The compare page's figures: several studies' posteriors side by side and pooled (Figure 9)
 and rank plots of runs of one calibration, made from what the store holds (cached like the
-study figures, :class:`~services.api.dashboard.figures.FigureCache`)."""
+study figures, :class:`~services.api.dashboard.study_figures.FigureCache`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from services.studies.comparable import why_not_runs
 from services.studies.kinds import study_terms
 from services.studies.kinds.base import stored_case
 
-from .figures import FigureCache, FigureError, log_params, stage_data
+from .study_figures import FigureCache, FigureError, log_params, stage_data
 
 __all__ = ["compare", "final_populations", "ranks", "runs_as_chains"]
 

@@ -4,8 +4,8 @@ Drawing a figure is seconds of matplotlib (and, for the fit, of the simulator) i
 interpreter; in the API's process it competed with every other request. :class:`FigureProcess`
 keeps :data:`DRAWING_PROCESSES` spawned worker processes, each with its own store connection and
 cache of simulations at the MAP, drawing one figure each at a time; the API keeps the drawn bytes
-(:class:`~services.api.dashboard.figures.FigureCache`) and only asks the worker for what it does
-not hold. The worker starts when a study page first polls (:meth:`FigureProcess.warm`: it
+(:class:`~services.api.dashboard.study_figures.FigureCache`) and only asks the worker for what
+it does not hold. The worker starts when a study page first polls (:meth:`FigureProcess.warm`: it
 loads the figures' modules and the simulator's compiled code then, instead of with the first
 stage's figures; not matplotlib, which the page's charts do not use: an image loads it when
 first drawn) and ends with the server, even a killed one
@@ -45,7 +45,7 @@ def _start_worker(database_url: str) -> None:
     exit_with_parent()
     from services.store import Store
 
-    from .figures import FigureCache
+    from .study_figures import FigureCache
 
     _worker["store"] = Store.open(database_url)
     _worker["cache"] = FigureCache(max_entries=64)
@@ -66,7 +66,7 @@ def prepare_drawing() -> None:
     from scm_core.simulator import warm_up
     from services.plots import fit, posterior, stages  # noqa: F401
 
-    from . import figures  # noqa: F401
+    from . import study_figures  # noqa: F401
 
     numba.set_num_threads(1)
     warm_up()
@@ -78,7 +78,7 @@ def prepare_drawing() -> None:
 
 
 def _draw_study_figure(study_id: int, name: str, fmt: str, options: dict[str, Any]) -> bytes:
-    from .figures import study_figure
+    from .study_figures import study_figure
 
     store = _worker["store"]
     study = store.studies.get(study_id)

@@ -50,7 +50,7 @@ from ..views import (
     study_progress,
 )
 from .compare_figures import compare, final_populations, ranks, runs_as_chains
-from .figures import (
+from .study_figures import (
     CHART_FORMAT,
     DRAW_SECONDS,
     MATRIX_MAX,

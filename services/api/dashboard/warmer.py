@@ -6,8 +6,8 @@ than the fragment (kernel densities, contour paths, the fit's simulations at the
 :class:`FigureWarmer` looks at the studies whose pages were open in the last ``forget_after``
 seconds every ``interval`` seconds (one indexed read each) and, when one's finished stages or
 state changed, makes that stage's page charts
-(:func:`~services.api.dashboard.figures.page_figures`) into the dashboard's
-:class:`~services.api.dashboard.figures.FigureCache` on its own thread; a page's request for a
+(:func:`~services.api.dashboard.study_figures.page_figures`) into the dashboard's
+:class:`~services.api.dashboard.study_figures.FigureCache` on its own thread; a page's request for a
 chart being made waits for it instead of making it again.
 """
 
@@ -26,7 +26,7 @@ from services.store.errors import NotFoundError
 from services.store.models import STUDY_ACTIVE
 
 from .drawing import DRAWING_PROCESSES, FigureProcess
-from .figures import CHART_FORMAT, FigureCache, FigureError, page_figures, study_figure
+from .study_figures import CHART_FORMAT, FigureCache, FigureError, page_figures, study_figure
 
 __all__ = ["FigureWarmer"]
 

@@ -111,7 +111,7 @@ class KindPanel:
     ``template``: the kind's part of a study page's results, a Jinja template by its name in
     the dashboard's templates or in ``templates`` (a directory of the kind's own); it sees
     ``study``, ``kind``, ``stage``, ``result`` and the page's other context. ``figures``: the
-    study figures drawn for it (names of ``services.api.dashboard.figures.STUDY_FIGURES``).
+    study figures drawn for it (names of ``services.api.dashboard.study_figures.STUDY_FIGURES``).
     ``counts``: what the study's ``n_samples`` counts. For a kind with a posterior, ``start``
     and ``end`` name stage 0's sample and the last stage's in labels ("prior", "posterior"),
     ``stage_zero`` says what stage 0 is where a figure shows it, ``stage_zero_heading`` heads
