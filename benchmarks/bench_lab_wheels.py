@@ -11,7 +11,11 @@ single-run kernel), after a warm-up. Prints two tables:
   (wheel envelope and contact patches, vertical solve, node update, flow fields and deposits,
   erosion; from the CPU's cycle counter) and the run's status;
 * over ``--draws`` draws of the CMU case's prior at the five calibration rim speeds: mean, median
-  and largest wall time per run and the share of runs that did not finish.
+  and largest wall time per run and the share of runs that did not finish;
+* with ``--angles 30,60,90`` (issue 70's cost of a steered wheel), the CMU smooth and rim-bearing
+  grousered wheels at the five calibration rim speeds and each slip angle: median wall time and
+  its ratio to the same wheel's straight run at the same rim speed, the step's phase shares and
+  the status; per wheel and angle the median ratio and the largest wall time.
 
 Every run averages its whole window: the CMU case's early stop of settled runs
 (``steady_tolerance``) is left out, so the tables measure the simulator itself
@@ -166,12 +170,66 @@ def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
     return [fixed, by_draws]
 
 
+def angle_table(repeats: int, angles: list[float]) -> Table:
+    """The steered wheels' cost against their straight runs (module doc, third table)."""
+    case = load_case(CASE)
+    terms = sorted((dataset_terms(load_dataset(p)) for p in DATA), key=_slip_key)
+    terms = [t for t in terms if t.name.endswith(CALIBRATION_STEMS)]
+    model = StudyModel(case, terms)
+    simulator = {**model.simulator, "steady_tolerance": None}
+    prior = case.prior()
+    medians = prior.ppf(np.full((1, prior.dim), 0.5))[0]
+    values = {**dict(zip(case.parameter_names, medians, strict=True)), **SOIL}
+    wheels = {
+        "CMU smooth": {},
+        "CMU 12x5 mm rim bearing": {**GROUSERS, "grouser_contact": "rim_bearing"},
+    }
+    simulate_swt()  # warm-up (JIT)
+    table = Table(title="Steered against straight (one core): ms/run and the ratio to 0 deg")
+    for col in ("wheel", "lab slip", "angle", "ms/run", "x straight"):
+        table.add_column(col, justify="right")
+    table.add_column("% geom solve commit flow erosion", justify="right")
+    table.add_column("status")
+    for name, extra in wheels.items():
+        ratios: dict[float, list[float]] = {a: [] for a in angles}
+        walls: dict[float, list[float]] = {a: [] for a in angles}
+        for t in terms:
+            straight = None
+            for a in [0.0, *angles]:
+                cond = {**t.conditions, **extra, "slip_angle": a}
+                r = _median_run(build_configs(model.nominal, simulator, cond, values), repeats)
+                wall = float(r["wall"])
+                straight = wall if a == 0.0 else straight
+                if a:
+                    ratios[a].append(wall / straight)
+                    walls[a].append(wall)
+                table.add_row(
+                    name, f"{_slip_key(t):+.2f}", f"{a:g}", f"{1000 * wall:.0f}",
+                    f"{wall / straight:.2f}",
+                    " ".join(f"{100 * float(r[f'share_{p}']):2.0f}" for p in PHASES),
+                    str(r["status"]),
+                )  # fmt: skip
+        for a in angles:
+            table.add_row(
+                name, "median", f"{a:g}", f"max {1000 * max(walls[a]):.0f}",
+                f"{statistics.median(ratios[a]):.2f}", "", "",
+            )  # fmt: skip
+    return table
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=3, help="runs per cell (median)")
     ap.add_argument("--draws", type=int, default=12, help="prior draws per rim speed")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--angles", default=None, help="slip angles [deg], e.g. 30,60,90: only the steered table"
+    )
     args = ap.parse_args()
+    if args.angles:
+        angles = [float(a) for a in args.angles.split(",")]
+        Console(width=160).print(angle_table(args.repeats, angles))
+        return
     for table in lab_tables(args.repeats, args.draws, args.seed):
         Console(width=160).print(table)
 
