@@ -60,8 +60,9 @@ class _SamplerFields(StrictModel):
     (:mod:`scm_core.inference.population_jump`). ``proposal_scale``:
     "log" walks the log of every strictly positive parameter (exact; SCM's multiplicative
     trade-offs become straight ridges, :mod:`scm_core.inference.walk_space`). ``resampling``:
-    "systematic" (less resampling noise; the evidence's standard error is a lower bound,
-    1.3-1.4 times too small) or "multinomial" (a right standard error).
+    "systematic" (less resampling noise) or "multinomial" (independent draws); either way the
+    evidence's standard error is the genealogy estimate (docs/calibration.md, "How sure is
+    log Z").
 
     The sampler's finer tuning (``min_steps``, ``beta0``, ``surrogate_neighbors`` ...: the
     other fields of TMCMCSettings, :data:`TUNING`) is a field here too, generated from

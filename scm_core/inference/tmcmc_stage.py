@@ -174,12 +174,15 @@ def plan_stage(
 
     Evidence increment log S = log mean_i w_i (Ching & Chen 2007); its variance by the delta
     method, Var(log S) ~ Var(w) / (n mean(w)^2) = sum_i wn_i^2 - 1/n for normalised weights wn
-    (waste-free chains are the independent units, see :func:`_log_mean_weight_var`); the
-    variance of the accumulated log Z is the sum of these terms, a lower bound that leaves out
-    the correlation resampling carries between stages. With multinomial resampling it is the
-    genealogy estimate :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`
-    instead, which counts it (never less than the sum). Resampling (``settings.resampling``)
-    draws with SeedSequence(seed, spawn_key=(stage,)).
+    (waste-free chains are the independent units, see :func:`_log_mean_weight_var`). The sum
+    of these terms (``log_evidence_var_stagewise``) is a lower bound: it leaves out the
+    correlation that resampling and slowly mixing chains carry from one stage to the next
+    (2-3 times too small in sd where chains make few moves, docs/calibration.md). The variance
+    of log Z-hat reported is the genealogy estimate
+    :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`, which counts it,
+    guarded from below by that sum: max(genealogy, stage-wise sum). A state stored before Eves
+    were kept gets its stored variance plus the increment's. Resampling
+    (``settings.resampling``) draws with SeedSequence(seed, spawn_key=(stage,)).
     """
     settings = settings or TMCMCSettings()
     if state.dim != prior.dim:
@@ -197,10 +200,16 @@ def plan_stage(
     draws = move.resample_size(n, settings)
     resample = RESAMPLERS[settings.resampling]
     parent = resample(weights, draws, stage_rng(state.seed, stage))
+    prev_stagewise = float(state.log_evidence_var_stagewise)
+    if math.isnan(prev_stagewise):  # a state stored before the stage-wise sum was kept
+        prev_stagewise = float(state.log_evidence_var)
+    stagewise = prev_stagewise + log_s_var
     log_z_var = float(state.log_evidence_var) + log_s_var
-    if settings.resampling == "multinomial" and state.eve is not None:
-        genealogy = genealogy_log_evidence_var(weights, state.eve, stage, n, max(draws, 2))
-        log_z_var = max(log_z_var, genealogy)
+    if state.eve is not None:
+        genealogy = genealogy_log_evidence_var(
+            weights, state.eve, stage, n, max(draws, 2), settings.resampling
+        )
+        log_z_var = max(stagewise, genealogy)
     logs = log_columns(prior, settings.proposal_scale)
     walk = to_walk(state.samples, logs)
     pop_cov = weighted_covariance(walk, weights)
@@ -244,6 +253,7 @@ def plan_stage(
         start_responses=None if resp is None else resp[chain_start].copy(),
         start_eve=None if state.eve is None else state.eve[chain_start].copy(),
         log_evidence_var=log_z_var,
+        log_evidence_var_stagewise=stagewise,
         proposal_cov=cov,
         proposal_chol=chol,
         prev_beta=float(state.beta),
@@ -326,6 +336,7 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
             if math.isnan(plan.log_evidence_var)
             else plan.log_evidence_var
         ),
+        log_evidence_var_stagewise=float(plan.log_evidence_var_stagewise),
         proposals=proposed,
         accepted=accepted,
         n_chains=plan.n_chains,

@@ -187,6 +187,7 @@ def initial_state(
         acceptance_rate=math.nan if tuning is None else float(tuning[1]),
         log_evidence=0.0,
         log_evidence_var=0.0,
+        log_evidence_var_stagewise=0.0,
         model_runs=int(sum(e.runs for e in evaluations)),
         failed_runs=int(sum(e.failed_runs for e in evaluations)),
         failed_by=sum((e.failed_by for e in evaluations), Failures()),

@@ -109,11 +109,10 @@ class TMCMCSettings(_Fields):
     proposal_scale: "linear" (the random walk moves the parameters) or "log" (it moves the log
         of every parameter with a strictly positive prior support: SCM's multiplicative
         trade-offs become straight ridges; exact, see :mod:`scm_core.inference.walk_space`).
-    resampling: "systematic" (default; less resampling noise, but the reported evidence
-        standard error, a sum of per-stage terms, is 1.3-1.4 times too small) or "multinomial"
-        (independent draws, as Ching & Chen; the standard error is then Lee & Whiteley's
-        genealogy estimate and right); see
-        :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`.
+    resampling: "systematic" (default; less resampling noise) or "multinomial" (independent
+        draws, as Ching & Chen). Either way the reported evidence standard error is the
+        genealogy estimate, whose correction for the resampling's own noise follows the
+        scheme; see :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`.
     """
 
     moves: str = "resample-move"
@@ -316,7 +315,10 @@ class StageState(StageCounts):
     responses (n, k) simulated responses returned with the likelihood, or None.
     beta: proposal scale for the *next* stage (already adapted). acceptance_rate: of the moves
     that produced this stage (NaN at stage 0). log_evidence, log_evidence_var: running sum of the
-    log-evidence increments and the estimated variance of that sum (see :func:`plan_stage`).
+    log-evidence increments and the estimated variance of that sum, the genealogy estimate (see
+    :func:`plan_stage`); log_evidence_var_stagewise: the sum of the per-stage delta-method
+    terms alone (each stage's mean weight as an iid average; a lower bound), NaN in states
+    stored before it was kept (their log_evidence_var is what they reported then).
     The counters of :class:`StageCounts` (model runs, failures by reason, early rejections,
     surrogate steps...) and proposals, accepted: for this stage only.
     n_chains, n_steps: chains run and Metropolis steps per chain (longest chain for "leader").
@@ -351,6 +353,7 @@ class StageState(StageCounts):
     train_samples: NDArray[np.float64] | None = None
     train_responses: NDArray[np.float64] | None = None
     eve: NDArray[np.int64] | None = None
+    log_evidence_var_stagewise: float = math.nan
 
     @property
     def n_samples(self) -> int:
@@ -380,7 +383,9 @@ class StagePlan(_Fields):
     responses, the delayed-acceptance surrogate's training set with the starting states (None
     without delayed acceptance). start_eve (c,): the chain starts' Eves (see
     :class:`StageState`). log_evidence_var: the variance of log Z-hat through this stage (NaN in
-    plans stored before it was kept: then the previous variance plus the increment's).
+    plans stored before it was kept: then the previous variance plus the increment's);
+    log_evidence_var_stagewise: the sum of the per-stage terms through this stage (NaN in plans
+    stored before it was kept).
     """
 
     stage: int
@@ -411,6 +416,7 @@ class StagePlan(_Fields):
     train_responses: NDArray[np.float64] | None = None
     start_eve: NDArray[np.int64] | None = None
     log_evidence_var: float = math.nan
+    log_evidence_var_stagewise: float = math.nan
     jump_mean: NDArray[np.float64] | None = None
     jump_chol: NDArray[np.float64] | None = None
     jump_inv: NDArray[np.float64] | None = None

@@ -106,9 +106,9 @@ def systematic_resample(weights: ArrayLike, n: int, rng: np.random.Generator) ->
 def multinomial_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
     """Multinomial resampling: n independent draws of an index with probabilities ``weights``,
     sorted (Ching & Chen's TMCMC draws the next stage's seeds this way). Independent draws are
-    what :func:`genealogy_log_evidence_var` assumes: after systematic resampling, which has less
-    variance of its own, that estimate comes out 1.5 times too small for resample-move and
-    negative for waste-free (``bench_evidence_error.py``, docs/sampler.md)."""
+    what Lee & Whiteley's correction in :func:`genealogy_log_evidence_var` assumes; after
+    systematic resampling, which has less variance of its own, that function leaves it out
+    (``bench_evidence_error.py``, docs/calibration.md)."""
     return _pick(weights, np.sort(rng.random(n)))
 
 
@@ -118,6 +118,7 @@ def genealogy_log_evidence_var(
     n_weightings: int,
     first_draws: int,
     draws: int,
+    resampling: str = "multinomial",
 ) -> float:
     """Var(log Z-hat) after ``n_weightings`` weightings, from the population's genealogy.
 
@@ -127,17 +128,30 @@ def genealogy_log_evidence_var(
     particle e (their Eve), f = prod_t N_t / (N_t - 1) over the weightings, N_t the independent
     draws behind the population weighted at t. Du & Guyader (2021, Ann. Appl. Probab. 31(3))
     show it consistent when the tempering exponents are chosen from the particles, as here.
-    Unlike a sum of per-stage terms it counts the correlation that resampling carries from one
-    stage to the next. The first weighting acts on ``first_draws`` stage-0 draws, every later
-    one on a population resampled with ``draws`` draws (n for resample-move and leader; the M
-    chain starts of waste-free, whose chains are its particles: Dau & Chopin 2022, section 3).
-    Var(log Z-hat) ~ Var(Z-hat) / Z^2 (delta method). Can be negative when small against its
-    own noise.
+    Unlike a sum of per-stage terms it counts the correlation that resampling and slowly mixing
+    chains carry from one stage to the next: a stage-0 draw and all its descendants are one
+    cluster. The first weighting acts on ``first_draws`` stage-0 draws, every later one on a
+    population resampled with ``draws`` draws (n for resample-move and leader; the M chain
+    starts of waste-free, whose chains are its particles: Dau & Chopin 2022, section 3).
+
+    The factors N_t / (N_t - 1) of the later weightings remove the spread that multinomial
+    resampling's own noise adds to the W_e. Systematic resampling (``resampling =
+    "systematic"``) gives each particle its expected number of offspring to within one, so it
+    adds almost none and f is the first factor alone: the estimate is then the iid formula over
+    the stage-0 clusters, (N_0 sum_e W_e^2 - 1) / (N_0 - 1) ~ sum_e (W_e - 1 / N_0)^2. (With
+    the multinomial f it comes out 1.5 times too small there, and negative for waste-free;
+    without it, right to 10 % on the exact-evidence targets of ``bench_evidence_error.py``.)
+    Var(log Z-hat) ~ Var(Z-hat) / Z^2 (delta method). When the lineages have coalesced to a few
+    Eves it rests on those few clusters: at one Eve it is 1, a relative error of order one.
+    Can be negative when small against its own noise.
     """
     w_eve = np.bincount(np.asarray(eve, dtype=np.int64), weights=np.asarray(weights, float))
     s = float(np.sum((w_eve / w_eve.sum()) ** 2))
     log_f = math.log(first_draws / (first_draws - 1.0))
-    log_f += (n_weightings - 1) * math.log(draws / (draws - 1.0))
+    if resampling == "multinomial":
+        log_f += (n_weightings - 1) * math.log(draws / (draws - 1.0))
+    elif resampling != "systematic":
+        raise ValueError(f"unknown resampling {resampling!r}")
     return 1.0 - math.exp(log_f) * (1.0 - s)
 
 

@@ -104,11 +104,11 @@ def test_genealogy_variance_closed_forms() -> None:
     assert genealogy_log_evidence_var(w, eve, 3, 60, 12) == pytest.approx(want, rel=1e-12)
 
 
-def test_evidence_variance_sums_stage_terms_unless_resampling_is_multinomial() -> None:
-    """Systematic resampling (and a state stored before Eves were kept) accumulate the
-    previous variance plus the increment's; multinomial resampling uses the genealogy estimate,
-    never below that sum. Eves follow the resampling: every sample descends from the Eve of
-    its chain's start."""
+def test_evidence_variance_is_the_genealogy_estimate_above_the_stagewise_sum() -> None:
+    """Either resampling scheme reports the genealogy estimate, never below the sum of the
+    per-stage terms, which is kept beside it (log_evidence_var_stagewise); a state stored
+    before Eves and that sum were kept accumulates the previous variance plus the increment's.
+    Eves follow the resampling: every sample descends from the Eve of its chain's start."""
     import dataclasses
 
     from scm_core.inference import plan_stage
@@ -118,24 +118,26 @@ def test_evidence_variance_sums_stage_terms_unless_resampling_is_multinomial() -
     def f(X: np.ndarray) -> np.ndarray:
         return -0.5 * (X[:, 0] / 0.1) ** 2
 
-    multi = TMCMCSettings(resampling="multinomial")
-    for settings in (TMCMCSettings(), multi):
+    for settings in (TMCMCSettings(), TMCMCSettings(resampling="multinomial")):
         res = run_tmcmc(f, prior, n_samples=200, seed=0, settings=settings)
         assert np.array_equal(res.stages[0].eve, np.arange(200))
-        for prev, state in zip(res.stages[:-1], res.stages[1:], strict=True):
+        assert res.stages[0].log_evidence_var_stagewise == 0.0
+        for k, (prev, state) in enumerate(zip(res.stages[:-1], res.stages[1:], strict=True)):
             plan = plan_stage(prev, prior, settings)
             assert np.array_equal(np.unique(state.eve), np.unique(prev.eve[plan.parent]))
-            summed = prev.log_evidence_var + plan.log_evidence_increment_var
-            if settings is multi:
-                assert state.log_evidence_var >= summed
-            else:
-                assert state.log_evidence_var == pytest.approx(summed, rel=1e-12)
-        stored = dataclasses.replace(res.stages[1], eve=None)
+            summed = prev.log_evidence_var_stagewise + plan.log_evidence_increment_var
+            assert state.log_evidence_var_stagewise == summed
+            genealogy = genealogy_log_evidence_var(
+                plan.weights, prev.eve, k + 1, 200, 200, settings.resampling
+            )
+            assert state.log_evidence_var == max(summed, genealogy)
+        assert res.log_evidence_se == math.sqrt(res.final.log_evidence_var)
+        stored = dataclasses.replace(res.stages[1], eve=None, log_evidence_var_stagewise=math.nan)
         plan = plan_stage(stored, prior, settings)
         assert plan.start_eve is None
-        assert plan.log_evidence_var == pytest.approx(
-            stored.log_evidence_var + plan.log_evidence_increment_var, rel=1e-12
-        )
+        want = stored.log_evidence_var + plan.log_evidence_increment_var
+        assert plan.log_evidence_var == pytest.approx(want, rel=1e-12)
+        assert plan.log_evidence_var_stagewise == pytest.approx(want, rel=1e-12)
     with pytest.raises(ValueError, match="resampling"):
         TMCMCSettings(resampling="stratified")
 
