@@ -123,6 +123,7 @@ def study_summary(
         },
         "log_evidence": finite_or_none(result.log_evidence),
         "log_evidence_se": finite_or_none(result.log_evidence_se),
+        "log_evidence_se_stagewise": finite_or_none(result.log_evidence_se_stagewise),
         "final_exponent": finite_or_none(result.final.exponent),
         "is_posterior": result.status == "completed",
         "stages": stage_table(result, wall_times),

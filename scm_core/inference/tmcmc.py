@@ -79,8 +79,10 @@ class TMCMCResult:
 
     samples (n, d): final-stage samples (the posterior if status == "completed"), columns in
     ``names`` order. log_evidence, log_evidence_se: log p(D) (natural log) and its delta-method
-    standard error. stages: every :class:`StageState` from stage 0. status: "completed",
-    "stalled" or "max_stages".
+    standard error, the genealogy estimate (:func:`~scm_core.inference.tmcmc_stage.plan_stage`;
+    :attr:`log_evidence_se_stagewise` is the lower bound from the per-stage terms alone).
+    stages: every :class:`StageState` from stage 0. status: "completed", "stalled" or
+    "max_stages".
     """
 
     samples: NDArray[np.float64]
@@ -93,6 +95,12 @@ class TMCMCResult:
     @property
     def final(self) -> StageState:
         return self.stages[-1]
+
+    @property
+    def log_evidence_se_stagewise(self) -> float:
+        """sqrt of the sum of the per-stage variance terms (each stage's mean weight as an iid
+        average): a lower bound of the error; NaN for stages stored before it was kept."""
+        return math.sqrt(self.final.log_evidence_var_stagewise)
 
     @property
     def log_likelihood(self) -> NDArray[np.float64]:
