@@ -14,8 +14,8 @@ Per form and problem the table gives the mean error of log Z, its empirical sd o
 replicates, the root mean square of the reported standard errors, their ratio (1 if the errors
 are right; its own relative error is about 1 / sqrt(2 (R - 1))), and the coverage: the share of
 runs whose reported +-1 se holds the exact log Z (about 68 % if the errors are right; its sd is
-sqrt(0.68 * 0.32 / R)), for the reported error (the genealogy estimate, never below the
-stage-wise sum) and for the stage-wise sum alone (each stage's mean weight as an iid average).
+sqrt(0.68 * 0.32 / R)), for the reported error (the genealogy estimate; the stage-wise sum
+where it is not positive) and for the stage-wise sum alone (each stage's mean weight as an iid average).
 
 ``--quick SEED ...`` also runs ``scm-calib calibrate examples/quick.toml --seed SEED --out
 QUICK_DIR/seed_SEED`` (``--quick-dir``; a finished folder is read, not run again; each run

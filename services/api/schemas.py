@@ -286,9 +286,9 @@ class StudyOut(StudyBrief):
         "agreement: GET /pooled?study_ids=... once they are completed.",
     )
     log_evidence_var: float | None = Field(
-        description="Variance of log_evidence: Lee & Whiteley's genealogy estimate, never below "
-        "the sum of the per-stage terms (docs/calibration.md, 'How sure is log Z'); a study "
-        "stored before that estimate keeps the error it reported then."
+        description="Variance of log_evidence: Lee & Whiteley's genealogy estimate, which counts "
+        "the error stages carry into each other (docs/calibration.md, 'How sure is log Z'); a "
+        "study stored before that estimate keeps the error it reported then."
     )
     case: dict[str, Any]
     priors: dict[str, Any]
