@@ -15,18 +15,21 @@ replicates, the root mean square of the reported standard errors, their ratio (1
 are right; its own relative error is about 1 / sqrt(2 (R - 1))), and the coverage: the share of
 runs whose reported +-1 se holds the exact log Z (about 68 % if the errors are right; its sd is
 sqrt(0.68 * 0.32 / R)), for the reported error (the genealogy estimate; the stage-wise sum
-where it is not positive) and for the stage-wise sum alone (each stage's mean weight as an iid average).
+where it is not positive) and for the stage-wise sum alone (each stage's mean weight as an iid
+average).
 
 ``--quick SEED ...`` also runs ``scm-calib calibrate examples/quick.toml --seed SEED --out
 QUICK_DIR/seed_SEED`` (``--quick-dir``; a finished folder is read, not run again; each run
 about 1-2 minutes on two idle cores) and gives the same coverage with the replicates' mean
-log Z as the reference. A folder written before the stage-wise sum was stored is rescored:
-its stages are planned again with today's code (the samples do not change, only the error).
+log Z as the reference; ``--quick-form cmu`` runs it with the CMU cases' sampler instead
+(resample-move, two surrogate transitions a stage: slowly mixing chains; 300 samples). A
+folder written before the stage-wise sum was stored is rescored: its stages are planned again
+with today's code (the samples do not change, only the error).
 
 Usage (from the repository root):
     PYTHONPATH=. python benchmarks/bench_evidence_error.py [--replicates 100] [--samples 500]
         [--problems linear-gaussian bimodal] [--forms slow resample-move waste-free-da ...]
-        [--quick 1 2 3 4 5 6 7 8 --quick-dir quick_runs]
+        [--quick 1 2 3 4 5 6 7 8 --quick-dir quick_runs] [--quick-form case|cmu]
 """
 
 from __future__ import annotations
@@ -64,6 +67,14 @@ FORMS = {
 }
 DEFAULT_FORMS = ["slow", "resample-move", "waste-free-da-multinomial", "waste-free-da"]
 QUICK_CASE = Path(__file__).resolve().parents[1] / "examples" / "quick.toml"
+#: the CMU cases' sampler (examples/cmu_*.toml: resample-move, two surrogate transitions of 50
+#: steps a stage, systematic resampling) on the quick case, at 300 samples
+CMU_SAMPLER = """n_samples = 300
+moves = "resample-move"
+delayed_acceptance = true
+surrogate_steps = 50
+n_steps = 2
+"""
 
 Problem = tuple[JointPrior, Callable[[np.ndarray], object], float]
 
@@ -144,12 +155,24 @@ def rescored(stages: Sequence[StageState], prior: JointPrior, settings: TMCMCSet
     return state.log_evidence_var, state.log_evidence_var_stagewise
 
 
-def quick_run(seed: int, out: Path) -> tuple[float, float, float]:
-    """(log Z, reported se, stage-wise se) of the quick case with ``seed``, run if not done."""
+def cmu_form_case(where: Path) -> Path:
+    """examples/quick.toml with :data:`CMU_SAMPLER` as its [sampler], written to ``where``."""
+    text = QUICK_CASE.read_text(encoding="utf-8")
+    head, rest = text.split("[sampler]\n", 1)
+    rest = "[data]\n" + rest.split("[data]\n", 1)[1]
+    for name in ("wf34_s020.csv", "wf34_s050.csv"):
+        rest = rest.replace(f'"{name}"', json.dumps(str(QUICK_CASE.parent / name)))
+    where.parent.mkdir(parents=True, exist_ok=True)
+    where.write_text(f"{head}[sampler]\n{CMU_SAMPLER}\n{rest}", encoding="utf-8")
+    return where
+
+
+def quick_run(seed: int, out: Path, case_file: Path = QUICK_CASE) -> tuple[float, float, float]:
+    """(log Z, reported se, stage-wise se) of the case with ``seed``, run if not done."""
     from services.stages.folder import FolderStages
 
     if not (out / "summary.json").is_file():
-        cmd = [sys.executable, "-m", "services.cli", "calibrate", str(QUICK_CASE)]
+        cmd = [sys.executable, "-m", "services.cli", "calibrate", str(case_file)]
         cmd += ["--seed", str(seed), "--out", str(out), "--no-plots", "--quiet"]
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
@@ -159,7 +182,7 @@ def quick_run(seed: int, out: Path) -> tuple[float, float, float]:
             summary["log_evidence_se"],
             summary["log_evidence_se_stagewise"],
         )
-    case = load_case(QUICK_CASE)
+    case = load_case(case_file)
     store = FolderStages(out)
     stages = [store.state(i) for i in range(store.count())]
     var, stagewise = rescored(stages, case.prior(), case.tmcmc_settings())
@@ -174,6 +197,12 @@ def main() -> None:
     ap.add_argument("--forms", nargs="*", choices=list(FORMS), default=DEFAULT_FORMS)
     ap.add_argument("--quick", nargs="*", type=int, default=[], metavar="SEED")
     ap.add_argument("--quick-dir", type=Path, default=Path("quick_runs"))
+    ap.add_argument(
+        "--quick-form",
+        choices=("case", "cmu"),
+        default="case",
+        help="the quick case's own sampler, or the CMU cases' (CMU_SAMPLER)",
+    )
     args = ap.parse_args()
     table = Table(title=f"log Z +- 1 se: coverage of the exact value, {args.samples} samples")
     for col in (
@@ -204,9 +233,14 @@ def main() -> None:
             table.add_row(*coverage_row((name, form), err, se, stagewise, elapsed))
     if args.quick:
         t0 = time.perf_counter()
-        rows = np.array([quick_run(s, args.quick_dir / f"seed_{s}") for s in args.quick])
+        case_file = QUICK_CASE
+        if args.quick_form == "cmu":
+            case_file = cmu_form_case(args.quick_dir / "quick_cmu.toml")
+        runs = [quick_run(s, args.quick_dir / f"seed_{s}", case_file) for s in args.quick]
+        rows = np.array(runs)
         err = rows[:, 0] - rows[:, 0].mean()
-        label = ("examples/quick.toml", "its own, vs mean")
+        form = "its own" if args.quick_form == "case" else "the CMU cases'"
+        label = ("examples/quick.toml", f"{form}, vs mean")
         table.add_row(*coverage_row(label, err, rows[:, 1], rows[:, 2], time.perf_counter() - t0))
         for s, (z, se, sw) in zip(args.quick, rows, strict=True):
             print(f"quick seed {s}: log Z {z:.3f} +- {se:.3f} (stage-wise {sw:.3f})")
