@@ -538,6 +538,9 @@ def test_calibrate_writes_samples_summary_and_figures(reference: Path) -> None:
     assert post["correlation"]["names"] == ["phi", "n"]
     assert isinstance(summary["log_evidence"], float)
     assert isinstance(summary["log_evidence_se"], float)
+    # beside the reported error (the genealogy estimate), the stage-wise sum
+    assert isinstance(summary["log_evidence_se_stagewise"], float)
+    assert summary["log_evidence_se_stagewise"] > 0.0
     assert summary["datasets"][0]["content_hash"] and summary["wall_time_s"] > 0
     assert summary["settings"]["n_samples"] == 60 and summary["settings"]["tmcmc"]["moves"] == (
         "leader"
