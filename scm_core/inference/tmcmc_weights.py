@@ -138,12 +138,14 @@ def genealogy_log_evidence_var(
     resampling's own noise adds to the W_e. Systematic resampling (``resampling =
     "systematic"``) gives each particle its expected number of offspring to within one, so it
     adds almost none and f is the first factor alone: the estimate is then the iid formula over
-    the stage-0 clusters, (N_0 sum_e W_e^2 - 1) / (N_0 - 1) ~ sum_e (W_e - 1 / N_0)^2. (With
-    the multinomial f it comes out 1.5 times too small there, and negative for waste-free;
-    without it, right to 10 % on the exact-evidence targets of ``bench_evidence_error.py``.)
-    Var(log Z-hat) ~ Var(Z-hat) / Z^2 (delta method). When the lineages have coalesced to a few
-    Eves it rests on those few clusters: at one Eve it is 1, a relative error of order one.
-    Can be negative when small against its own noise.
+    the stage-0 clusters, (N_0 sum_e W_e^2 - 1) / (N_0 - 1) ~ sum_e (W_e - 1 / N_0)^2 (the sum
+    over all N_0 Eves). With the multinomial f it comes out 1.5 times too small there in sd,
+    and negative for waste-free; without it, within 0.8-1.1 times the replicates' spread on the
+    exact targets of ``bench_evidence_error.py``. Var(log Z-hat) ~ Var(Z-hat) / Z^2 (delta
+    method). When the lineages have coalesced to a few Eves it rests on those few clusters and
+    comes out too small (1.6 times in sd at a median of ten Eves, the slow 5-D runs there); at
+    one Eve it is 1, a relative error of order one, and cannot say more. Can be negative when
+    small against its own noise.
     """
     w_eve = np.bincount(np.asarray(eve, dtype=np.int64), weights=np.asarray(weights, float))
     s = float(np.sum((w_eve / w_eve.sum()) ** 2))
