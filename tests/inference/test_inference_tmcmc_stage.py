@@ -305,3 +305,24 @@ def test_evidence_variance_counts_chains_as_the_independent_units() -> None:
     want = float(np.sum((w[:10] / w[:10].sum()) ** 2)) - 0.1
     assert _log_mean_weight_var(wc, np.full(10, 6, dtype=np.int64)) == pytest.approx(want)
     assert _log_mean_weight_var(wc, None) == pytest.approx(want / 6.0)  # iid understates it
+
+
+def test_stages_stored_before_the_stagewise_sum_load_and_keep_their_error() -> None:
+    """A run's dict without log_evidence_var_stagewise (stored before it was kept) loads: the
+    stage-wise error is unknown (NaN; summary.json's null), the reported one is as stored."""
+    from scm_core.inference import TMCMCResult
+
+    prior = JointPrior({"x": Uniform(-1.0, 1.0)})
+
+    def f(X: np.ndarray) -> np.ndarray:
+        return -0.5 * (X[:, 0] / 0.1) ** 2
+
+    res = run_tmcmc(f, prior, n_samples=100, seed=1)
+    doc = res.to_dict()
+    for stage in doc["stages"]:
+        del stage["log_evidence_var_stagewise"]
+    old = TMCMCResult.from_dict(doc)
+    assert math.isnan(old.log_evidence_se_stagewise)
+    assert old.log_evidence_se == res.log_evidence_se
+    assert old.log_evidence == res.log_evidence
+    assert np.array_equal(old.samples, res.samples)
