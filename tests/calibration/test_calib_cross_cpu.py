@@ -96,6 +96,6 @@ def test_the_same_study_is_bit_identical_as_other_cpus_compute_it(tmp_path: Path
     print(f"profiles run: {sorted(runs)}; left out (this CPU lacks what they need): "
           f"{sorted(OTHERS.keys() - others.keys())}")  # fmt: skip
     reference = runs["numba host"]
-    log_z = reference["stage_003.json"]["state"]["log_evidence"]
+    log_z = reference["stage 3"]["log_evidence"]
     differ = [name for name, stages in runs.items() if stages != reference]
     assert not differ, f"{differ} differ from this CPU's run (log Z {log_z!r})"
