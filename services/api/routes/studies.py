@@ -151,7 +151,8 @@ def list_studies(
         str | None,
         Query(
             max_length=16,
-            description="Filter by kind: calibrations (tmcmc), sensitivity studies (morris) ...",
+            description="Filter by kind: calibration, sensitivity, update, prediction (the names "
+            "before migration 0011, tmcmc and morris, are refused naming these)",
             json_schema_extra={"enum": sorted(KINDS)},
         ),
     ] = None,
