@@ -78,3 +78,25 @@ def test_a_case_names_its_class_and_builds_the_same_rig_as_spelled_out() -> None
     rig_n = build_configs(named.nominal, named.simulator, cond, {"phi": 30.0})[2]
     rig_s = build_configs(spelled.nominal, spelled.simulator, cond, {"phi": 30.0})[2]
     assert _physics(rig_n) == _physics(rig_s)
+
+
+def test_each_name_expands_to_the_options_docs_simulator_md_documents() -> None:
+    """docs/simulator.md's "Model classes" table (option rows, a column per class) is what the
+    classes set: each documented value, and no option of a class left out of the table."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "simulator.md").read_text()
+    section = text.split("## Model classes", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    header = next(line for line in section.splitlines() if line.startswith("| option"))
+    names = [c.strip().strip("`") for c in header.strip("|").split("|")[1:]]
+    assert names == list(MODEL_NAMES)
+    documented: dict[str, dict[str, object]] = {n: {} for n in names}
+    for line in rows:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        # "`shear` (eq. 8)" or "`bulldozing`, `border_taper`": the options the row is of
+        options = [o.strip("`") for o in cells[0].split("(")[0].replace(",", " ").split()]
+        for name, cell in zip(names, cells[1:], strict=True):
+            value: object = {"on": True, "off": False}.get(cell, cell.strip("`"))
+            for option in options:
+                documented[name][option] = value
+    for name in names:
+        assert documented[name] == dict(MODEL_CLASSES[name]), name
