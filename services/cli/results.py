@@ -237,7 +237,7 @@ def write_outputs(
 
     if plots:
         from services.plots.choices import mean_b_eff
-        from services.plots.fit import plot_fit
+        from services.plots.fit import fits_against_slip, plot_fit, plot_slip_fit
         from services.plots.posterior import plot_pairs, plot_prior_posterior
 
         fig_dir = out / "figures"
@@ -275,15 +275,36 @@ def write_outputs(
             title=f"{case.name}: bivariate posterior densities{stopped}",
             log_params=log_params,
         )
-        plot_fit(
-            datasets,
-            sims,
-            fig_dir / "fit_map.png",
-            title=f"{case.name}: measured vs simulated at the MAP sample{stopped}",
-            responses=case.responses,
-            offsets=model.measurement_offsets(theta),
-        )
+        fit = {"responses": case.responses, "offsets": model.measurement_offsets(theta)}
+        at = f"at the MAP sample{stopped}"
+        if fits_against_slip(datasets):  # a steered study: a column per slip angle
+            plot_slip_fit(
+                datasets,
+                sims,
+                fig_dir / "fit_map.png",
+                title=f"{case.name}: measured vs simulated steady means {at}, per slip angle",
+                sigmas=_sigmas_at(case, model, theta),
+                **fit,
+            )
+        else:
+            plot_fit(
+                datasets,
+                sims,
+                fig_dir / "fit_map.png",
+                title=f"{case.name}: measured vs simulated {at}",
+                **fit,
+            )
     return summary
+
+
+def _sigmas_at(case: CaseDefinition, model: StudyModel, theta: np.ndarray) -> dict | None:
+    """The prediction-error sigma of each response at ``theta`` (SI), or None where the
+    likelihood has none (the paper's eq. (12)-(15))."""
+    try:
+        sigmas = [float(s) for s in model.sigmas(theta)[0]]
+    except (TypeError, ValueError):
+        return None
+    return dict(zip(case.responses, sigmas, strict=True)) if sigmas else None
 
 
 # ---------------------------------------------------------------------- reading back

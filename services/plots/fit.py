@@ -13,7 +13,7 @@ from scm_core.signals import SWTDataset, TestConditions, lowpass
 from scm_core.signals.responses import DEFAULT_KEYS, RESPONSE_KEYS, RESPONSES
 from scm_core.simulator import ResolvedRig, SWTResult
 
-from .angles import angle_grid, angle_of, by_slip_angle
+from .angles import angle_grid, angle_of, by_slip_angle, steered
 from .chart import (
     Axis,
     Chart,
@@ -365,6 +365,14 @@ def _slip_fit_panel(
     return panel
 
 
+def fits_against_slip(datasets: Sequence[SWTDataset]) -> bool:
+    """Whether a study's fit is its steady means against slip, a column per slip angle
+    (:func:`slip_fit_chart`: a dataset of known slip is steered), rather than each dataset's
+    signals in time (:func:`fit_chart`, Figure 3)."""
+    on_slip = [d for d in datasets if d.conditions.slip_symmetric is not None]
+    return steered(on_slip, dataset_angle)
+
+
 def plot_fit(
     datasets: Sequence[SWTDataset],
     sims: Sequence[SWTResult | None],
@@ -375,3 +383,15 @@ def plot_fit(
     from .mpl import draw
 
     return save(draw(fit_chart(datasets, sims, **options)), path)
+
+
+def plot_slip_fit(
+    datasets: Sequence[SWTDataset],
+    sims: Sequence[SWTResult | None],
+    path: str | Path,
+    **options: Any,
+) -> Path:
+    """:func:`slip_fit_chart` drawn to ``path``."""
+    from .mpl import draw
+
+    return save(draw(slip_fit_chart(datasets, sims, **options)), path)

@@ -17,7 +17,7 @@ from scm_core.signals import SWTDataset, load_summary
 from scm_core.simulator import RigConfig, simulate_swt
 from services.plots.angles import angle_of, by_slip_angle, share_y, steered
 from services.plots.chart import Axis, Panel, line
-from services.plots.fit import dataset_angle, slip_fit_chart
+from services.plots.fit import dataset_angle, fits_against_slip, plot_slip_fit, slip_fit_chart
 from services.plots.mpl import draw
 from services.plots.predict import plot_predictions, predictions_chart, slip_angle_of
 
@@ -200,6 +200,27 @@ def test_the_fit_of_a_straight_study_is_its_signals_in_time() -> None:
     straight = [_summary(r) for r in cmu_rows((0.0,))]
     assert not steered(straight, dataset_angle)
     assert steered([*straight, _summary(cmu_rows((30.0,))[0])], dataset_angle)
+    # the choice said once, for the dashboard and calibrate's fit_map.png
+    assert not fits_against_slip(straight)
+    assert fits_against_slip([*straight, _summary(cmu_rows((30.0,))[0])])
+
+
+def test_calibrates_fit_map_png_of_a_steered_study_has_a_column_per_angle(tmp_path) -> None:
+    """``scm-calib calibrate`` writes fit_map.png through :func:`plot_slip_fit` for a steered
+    study: two slip angles, two columns (one for a study at one angle)."""
+    from PIL import Image
+
+    datasets = [_summary(r) for r in cmu_rows((0.0, 30.0)) if r["vry_cmd_mmps"] in (0, 100)]
+    sims = [
+        simulate_swt(rig=RigConfig(slip_angle=ds.conditions.slip_angle, W=20.0, **FAST))
+        for ds in datasets
+    ]
+    path = plot_slip_fit(datasets, sims, tmp_path / "fit_map.png", responses=("F", "z", "Fy"))
+    straight = plot_slip_fit(
+        datasets[:2], sims[:2], tmp_path / "straight.png", responses=("F", "z", "Fy")
+    )
+    assert Image.open(path).size[0] > Image.open(straight).size[0]  # two columns, one
+    assert slip_fit_chart(datasets, sims, responses=("F", "z", "Fy")).columns == 2
 
 
 def test_the_clis_predictions_png_draws_the_same_grid(tmp_path) -> None:

@@ -28,7 +28,6 @@ from scm_core.inference.posterior import map_sample
 from scm_core.inference.priors import LOG_SCALE_KINDS
 from scm_core.signals import SWTDataset
 from scm_core.signals.responses import RESPONSE_KEYS
-from services.plots.angles import steered
 from services.plots.chart import Chart
 from services.plots.choices import default_pairs, mean_b_eff
 from services.store import StageRecord, Store, StudyRecord
@@ -383,8 +382,7 @@ def _fit(
     case = stored_case(study.case)
     datasets, sims, offsets = map_simulations(store, study, stage, cache)
     at = f"at the MAP{_stage_title(study, stages, stage)}"
-    on_slip = [d for d in datasets if d.conditions.slip_symmetric is not None]
-    if not steered(on_slip, plots.fit.dataset_angle):  # Figure 3 as it was
+    if not plots.fit.fits_against_slip(datasets):  # Figure 3 as it was
         return plots.fit.fit_chart(
             datasets,
             sims,
