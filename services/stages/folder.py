@@ -74,8 +74,3 @@ class FolderStages:
             raise StageStoreError(f"{self.dir}: stage {state.stage} saved after {n} stages")
         self.dir.mkdir(parents=True, exist_ok=True)
         write_json(self.path(state.stage), {"state": state.to_dict(), "wall_time_s": wall_time_s})
-
-    def clear(self) -> None:
-        """Delete every stage file (a fresh run in a folder that held another)."""
-        for old in self.dir.glob("stage_*.json"):
-            old.unlink()

@@ -170,5 +170,3 @@ def test_a_folder_saves_its_stages_in_order(toy, expected, tmp_path) -> None:
     stages.path(1).write_text("{", encoding="utf-8")  # a damaged file is named
     with pytest.raises(StageStoreError, match=r"stage_001\.json: unreadable checkpoint"):
         stages.state(1)
-    stages.clear()
-    assert stages.count() == 0
