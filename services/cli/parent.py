@@ -67,7 +67,8 @@ class ParentStudy:
 
     @property
     def identity(self) -> dict[str, Any]:
-        """What the update's checkpoints belong to (refused if the parent changes)."""
+        """The earlier study an update is of (its folder, case, data and final population): the
+        update's study records it, and an old folder's checkpoint manifest must match it."""
         return {
             "results": str(self.results.resolve()),
             "case_hash": self.case.fingerprint(),

@@ -6,7 +6,8 @@ bit (``state``; ``-1`` the last) and every done stage's scalars (``rows``). Its 
 implementations, in the manner of Optuna's storages:
 
 * :class:`FolderStages` (:mod:`.folder`): a ``scm-calib calibrate`` results folder's
-  ``checkpoints/stage_NNN.json``, written by the CLI's driver stage by stage (``save``);
+  ``checkpoints/stage_NNN.json`` from before folders held a database (read), and the JSON that
+  ``scm-calib export DIR --to stages`` writes from a folder's database (``save``);
 * :class:`DatabaseStages` (:mod:`.database`): a stored study's stage rows and sample rows,
   written by the service's exactly-once stage advance (``services.store``), with the stored
   forms of a plan and a population (:func:`planned_stage`, :func:`reduced_stage`,
