@@ -67,8 +67,9 @@ class ParentStudy:
 
     @property
     def identity(self) -> dict[str, Any]:
-        """The earlier study an update is of (its folder, case, data and final population): the
-        update's study records it, and an old folder's checkpoint manifest must match it."""
+        """The earlier study an update is of (its folder, case, data and final population), as
+        an update's folder from before folders held a database names it in its checkpoint
+        manifest, which must match to be taken over."""
         return {
             "results": str(self.results.resolve()),
             "case_hash": self.case.fingerprint(),
