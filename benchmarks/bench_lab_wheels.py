@@ -107,15 +107,22 @@ def _row(table: Table, wheel: str, slip: str, r: dict[str, float | str]) -> None
     )
 
 
-def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
-    """The two tables of the module docstring (the JIT warmed up first)."""
+def _cmu_setup():
+    """(case, its datasets' terms by slip, model, simulator settings averaging the whole
+    window, the prior's medians by name) of the CMU smooth case."""
     case = load_case(CASE)
     terms = sorted((dataset_terms(load_dataset(p)) for p in DATA), key=_slip_key)
     model = StudyModel(case, terms)
     simulator = {**model.simulator, "steady_tolerance": None}  # the whole window (see above)
     prior = case.prior()
     medians = prior.ppf(np.full((1, prior.dim), 0.5))[0]
-    base = dict(zip(case.parameter_names, medians, strict=True))
+    return case, terms, model, simulator, dict(zip(case.parameter_names, medians, strict=True))
+
+
+def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
+    """The two tables of the module docstring (the JIT warmed up first)."""
+    case, terms, model, simulator, base = _cmu_setup()
+    prior = case.prior()
     wheels = {
         "CMU smooth": {},
         "CMU 12x5 mm faces": {**GROUSERS, "grouser_contact": "faces"},
@@ -172,14 +179,9 @@ def lab_tables(repeats: int, draws: int, seed: int) -> list[Table]:
 
 def angle_table(repeats: int, angles: list[float]) -> Table:
     """The steered wheels' cost against their straight runs (module doc, third table)."""
-    case = load_case(CASE)
-    terms = sorted((dataset_terms(load_dataset(p)) for p in DATA), key=_slip_key)
+    _, terms, model, simulator, base = _cmu_setup()
     terms = [t for t in terms if t.name.endswith(CALIBRATION_STEMS)]
-    model = StudyModel(case, terms)
-    simulator = {**model.simulator, "steady_tolerance": None}
-    prior = case.prior()
-    medians = prior.ppf(np.full((1, prior.dim), 0.5))[0]
-    values = {**dict(zip(case.parameter_names, medians, strict=True)), **SOIL}
+    values = {**base, **SOIL}
     wheels = {
         "CMU smooth": {},
         "CMU 12x5 mm rim bearing": {**GROUSERS, "grouser_contact": "rim_bearing"},

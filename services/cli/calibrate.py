@@ -59,7 +59,7 @@ from .common import (
 )
 from .folder_store import DB_FILE, FolderStore, open_folder_store
 from .parent import ParentStudy, load_parent, stored_posterior
-from .progress import StageDisplay, StageWatch, stored_wall
+from .progress import StageDisplay, StageWatch, stored_walls
 from .results import LegacyCheckpoints, write_outputs
 from .runs import (
     POOLED_FILE,
@@ -282,9 +282,8 @@ def _run_study(study: _Study, out: Path, options: _RunOptions) -> str:
         states = [run.stored(s) for s in stage_states(DatabaseStages(folder.store, record.id))]
         status = run.tempering.next(states[-1]).status or ""
     result = result_of(states, case.parameter_names, status)
-    walls = [
-        timed[i] if i in timed else stored_wall(folder.store, record, i) for i in range(len(states))
-    ]
+    stored = stored_walls(folder.store, record)
+    walls = [timed.get(i, stored[i]) for i in range(len(states))]
     extra = {
         "batch_size": bs,
         "workers": options.workers,

@@ -134,7 +134,7 @@ class StageWatch:
     each look while a pool runs them): the display's stage starts, batches and finished
     stages, from the stage ``done`` (those the store held when the session began are not
     shown again), and each finished stage's wall time [s] in :attr:`walls` (timed here if it
-    ran in this session, else from the store's times: :func:`stored_wall`)."""
+    ran in this session, else from the store's times: :func:`stored_walls`)."""
 
     def __init__(self, display: StageDisplay, done: int):
         self.display = display
@@ -178,13 +178,16 @@ class StageWatch:
         the store's times."""
         if index == self.stage:
             return time.perf_counter() - self.t_stage
-        return stored_wall(store, study, index)
+        return stored_walls(store, study)[index]
 
 
-def stored_wall(store: Any, study: Any, index: int) -> float:
-    """Seconds stage ``index`` of ``study`` took by the store's times: its end less the
-    previous stage's (or the study's start); 0 if a time is missing."""
-    rows = store.stages.list(study.id)
-    end = rows[index].finished_at
-    begin = rows[index - 1].finished_at if index else study.started_at
-    return max(0.0, (end - begin).total_seconds()) if end and begin else 0.0
+def stored_walls(store: Any, study: Any) -> list[float]:
+    """Seconds each stage of ``study`` took by the store's times (one read): its end less the
+    previous stage's (or the study's start); 0 where a time is missing."""
+    begin = study.started_at
+    walls = []
+    for row in store.stages.list(study.id):
+        end = row.finished_at
+        walls.append(max(0.0, (end - begin).total_seconds()) if end and begin else 0.0)
+        begin = end
+    return walls

@@ -46,8 +46,7 @@ from services.stages import (
 )
 from services.stages.folder import write_json
 from services.store import NotFoundError, Store
-from services.studies.kinds.calibration import KIND as CALIBRATION
-from services.studies.kinds.update import KIND as UPDATE
+from services.studies.kinds.update import UPDATABLE
 
 from .common import CLIError
 from .folder_store import DB_FILE, FolderStore, open_folder_store
@@ -155,8 +154,7 @@ def _kept(store: Store, study_id: int, results: Path) -> StageStore:
     except NotFoundError:
         return FolderStages(results)
     stages = DatabaseStages(store, study_id)
-    posterior = record.kind in (CALIBRATION.name, UPDATE.name)
-    return stages if posterior and stages.count() else FolderStages(results)
+    return stages if record.kind in UPDATABLE and stages.count() else FolderStages(results)
 
 
 # ---------------------------------------------------------------------- outputs
