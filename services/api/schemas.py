@@ -19,6 +19,7 @@ from scm_core.calibration import SamplerSettings
 from scm_core.inference import count_fields
 from scm_core.seeds import SEED_MAX
 from services.limits import INT32_MAX, INT64_MAX
+from services.store import StageRecord, stage_columns
 from services.studies.request_model import PRESET_OR_CASE, RequestModel
 
 #: ids: what a BIGINT column holds; counts and sizes: what an INTEGER column holds
@@ -348,19 +349,9 @@ class CaseFileOut(BaseModel):
 # ---------------------------------------------------------------------------- stages
 
 
-class _StageColumns(BaseModel):
+class _StageBase(BaseModel):
     stage: int
     status: str
-    exponent: float | None
-    prev_exponent: float | None
-    beta: float | None
-    acceptance: float | None
-    ess: float | None
-    log_evidence_increment: float | None
-    log_evidence: float | None
-    n_chains: int
-    n_steps: int | None
-    n_batches: int
     batches: dict[str, int] = Field(description="Work batches by status.")
     created_at: datetime
     finished_at: datetime | None
@@ -375,14 +366,23 @@ class _StageColumns(BaseModel):
     )
 
 
-#: a stage as the API gives it: its columns and every counter of the sampler, declared once in
-#: :class:`scm_core.inference.StageCounts` (null until the stage is done, except model and
-#: failed runs)
-StageOut = create_model(
-    "StageOut",
-    __base__=_StageColumns,
-    **{name: (int | None, Field(None, description=doc)) for name, doc in count_fields()},
-)
+def _stage_out() -> type[BaseModel]:
+    """A stage as the API gives it: its own columns, as :class:`services.store.StageRecord`
+    declares them (:func:`services.store.stage_columns`), and every counter of the sampler,
+    declared once in :class:`scm_core.inference.StageCounts` (null until the stage is done,
+    except model and failed runs, which are both)."""
+    counters = dict(count_fields())
+    hints = typing.get_type_hints(StageRecord)
+    columns = {
+        f.name: (hints[f.name], Field(description=f.metadata["doc"]))
+        for f in stage_columns()
+        if f.name not in counters
+    }
+    counts = {name: (int | None, Field(None, description=doc)) for name, doc in counters.items()}
+    return create_model("StageOut", __base__=_StageBase, **columns, **counts)
+
+
+StageOut = _stage_out()
 
 
 Num = float | Literal["nan", "inf", "-inf"]

@@ -20,7 +20,7 @@ from scm_core.inference import Failures, StageCounts, count_fields
 from scm_core.inference.posterior import credible_interval, summarize
 from scm_core.jsondoc import finite_or_none
 from scm_core.signals.responses import N_RESPONSES, widened
-from services.store import NotFoundError, StageRecord, Store, StudyRecord
+from services.store import NotFoundError, StageRecord, Store, StudyRecord, stage_columns
 from services.store.records import Page
 from services.studies.kinds import kind_of, study_terms
 from services.studies.kinds.prediction import KIND as PREDICTION
@@ -257,21 +257,19 @@ def stage_counts(stage: StageRecord) -> dict[str, Any]:
 
 
 def stage_out(store: Store, stage: StageRecord) -> StageOut:
+    """A stage for the API: its own columns (non-finite floats as null), its batches by
+    status, its counters."""
+    columns = {
+        f.name: finite_or_none(getattr(stage, f.name))
+        if f.metadata["column"] == "real"
+        else getattr(stage, f.name)
+        for f in stage_columns()
+    }
     return StageOut(
         stage=stage.stage_index,
         status=stage.status,
-        exponent=finite_or_none(stage.exponent),
-        prev_exponent=finite_or_none(stage.prev_exponent),
-        beta=finite_or_none(stage.beta),
-        acceptance=finite_or_none(stage.acceptance),
-        ess=finite_or_none(stage.ess),
-        log_evidence_increment=finite_or_none(stage.log_evidence_increment),
-        log_evidence=finite_or_none(stage.log_evidence),
-        n_chains=stage.n_chains,
-        n_steps=stage.n_steps,
-        n_batches=stage.n_batches,
         batches=store.batches.counts(stage.study_id, stage.stage_index),
-        **stage_counts(stage),
+        **(columns | stage_counts(stage)),
         unique_samples=stage.meta.get("unique_samples"),
         created_at=stage.created_at,
         finished_at=stage.finished_at,

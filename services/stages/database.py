@@ -31,12 +31,14 @@ def planned_stage(plan: StagePlan) -> PlannedStage:
         stage=plan.stage,
         n_chains=plan.n_chains,
         blob=encode(plan),
-        exponent=float(plan.exponent),
-        prev_exponent=float(plan.prev_exponent),
-        beta=float(plan.prev_beta),
-        ess=float(plan.ess),
-        log_evidence_increment=float(plan.log_evidence_increment),
-        n_steps=int(plan.chain_length.max()) if plan.n_chains else 0,
+        diagnostics={
+            "exponent": plan.exponent,
+            "prev_exponent": plan.prev_exponent,
+            "beta": plan.prev_beta,
+            "ess": plan.ess,
+            "log_evidence_increment": plan.log_evidence_increment,
+            "n_steps": int(plan.chain_length.max()) if plan.n_chains else 0,
+        },
     )
 
 
@@ -52,12 +54,14 @@ def reduced_stage(state: StageState) -> ReducedStage:
         ),
         model_runs=int(state.model_runs),
         failed_runs=int(state.failed_runs),
-        exponent=float(state.exponent),
-        acceptance=float(state.acceptance_rate),
-        ess=float(state.ess),
-        log_evidence=float(state.log_evidence),
+        diagnostics={
+            "exponent": state.exponent,
+            "acceptance": state.acceptance_rate,
+            "ess": state.ess,
+            "log_evidence": state.log_evidence,
+            "n_steps": int(state.n_steps) if state.stage else None,
+        },
         log_evidence_var=float(state.log_evidence_var),
-        n_steps=int(state.n_steps) if state.stage else None,
         meta={
             **{k: v for k, v in meta.items() if k not in _ARRAYS},
             _UNIQUE: int(state.n_unique) if len(state.samples) else 0,

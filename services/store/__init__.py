@@ -28,6 +28,8 @@ from .records import (
     StageRecord,
     StudyRecord,
     StudySpec,
+    filled_by,
+    stage_columns,
 )
 from .store import Store
 
@@ -60,5 +62,7 @@ __all__ = [
     "check_revision",
     "current_revision",
     "downgrade",
+    "filled_by",
+    "stage_columns",
     "upgrade",
 ]

@@ -10,11 +10,12 @@ NaN survive exactly. Timestamps are aware UTC datetimes.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
+from typing import Any, get_args, get_type_hints
 
 import sqlalchemy as sa
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
+from .records import StageRecord, stage_columns
 from .types import BigIntId, JSONType, Real, UTCDateTime, utcnow
 
 __all__ = [
@@ -172,8 +173,24 @@ class StudyDataset(Base):
     )
 
 
-class Stage(Base):
-    """One TMCMC stage of a study: its plan, diagnostics and, once done, its population."""
+def _stage_columns() -> type:
+    """A declarative mixin with a stage's own columns, as :class:`.records.StageRecord`
+    declares them (:func:`.records.stage_columns`: name, SQL type, nullable from the field's
+    type)."""
+    sql = {"real": Real, "int": sa.Integer, "bigint": sa.BigInteger}
+    hints = get_type_hints(StageRecord)
+    columns = {
+        f.name: mapped_column(
+            sql[f.metadata["column"]], nullable=type(None) in get_args(hints[f.name])
+        )
+        for f in stage_columns()
+    }
+    return type("StageColumns", (), columns)
+
+
+class Stage(_stage_columns(), Base):
+    """One TMCMC stage of a study: its plan, diagnostics (the columns
+    :class:`.records.StageRecord` declares) and, once done, its population."""
 
     __tablename__ = "stages"
     __table_args__ = (
@@ -185,18 +202,6 @@ class Stage(Base):
     study_id: Mapped[int] = mapped_column(sa.ForeignKey("studies.id", ondelete="CASCADE"))
     stage_index: Mapped[int] = mapped_column(sa.Integer)
     status: Mapped[str] = mapped_column(sa.String(16))
-    exponent: Mapped[float | None] = mapped_column(Real)
-    prev_exponent: Mapped[float | None] = mapped_column(Real)
-    beta: Mapped[float | None] = mapped_column(Real)
-    acceptance: Mapped[float | None] = mapped_column(Real)
-    ess: Mapped[float | None] = mapped_column(Real)
-    log_evidence_increment: Mapped[float | None] = mapped_column(Real)
-    log_evidence: Mapped[float | None] = mapped_column(Real)
-    n_chains: Mapped[int] = mapped_column(sa.Integer)
-    n_steps: Mapped[int | None] = mapped_column(sa.Integer)
-    n_batches: Mapped[int] = mapped_column(sa.Integer)
-    model_runs: Mapped[int | None] = mapped_column(sa.BigInteger)
-    failed_runs: Mapped[int | None] = mapped_column(sa.BigInteger)
     plan: Mapped[bytes | None] = mapped_column(sa.LargeBinary, deferred=True)
     state_meta: Mapped[dict[str, Any] | None] = mapped_column(JSONType)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import Field, dataclass, field, fields
 from datetime import datetime
 from typing import Any, Generic, Literal, TypeVar
 
@@ -31,6 +31,8 @@ __all__ = [
     "StageRecord",
     "StudyRecord",
     "StudySpec",
+    "filled_by",
+    "stage_columns",
 ]
 
 T = TypeVar("T")
@@ -128,38 +130,83 @@ class StudyRecord:
     run_group: int | None = None
 
 
+def _column(sql: str, doc: str, *, by: tuple[str, ...] = ()) -> Any:
+    """A stage field with a column of its own in the stages table: ``sql`` its SQL type
+    ("real", "int", "bigint"; :mod:`.models` maps it), ``doc`` what the API says of it, ``by``
+    the messages that fill it by name ("plan": :class:`PlannedStage`, "done":
+    :class:`ReducedStage`'s diagnostics; the others are the store's own)."""
+    return field(metadata={"column": sql, "doc": doc, "by": by})
+
+
 @dataclass(frozen=True)
 class StageRecord:
     """Stage ``stage_index`` of a study. Float diagnostics are None where undefined (NaN).
 
-    exponent, prev_exponent, beta (proposal scale used), ess, log_evidence_increment and
-    n_steps come from the plan; acceptance, log_evidence (running sum), model_runs,
-    failed_runs and counts are filled when the stage is done.
+    The declaration of a stage's own columns (the fields with a ``column`` in their metadata,
+    :func:`stage_columns`): the stages table (:class:`.models.Stage`), the API's ``StageOut``
+    and the readers take their lists from it. The plan fills exponent, prev_exponent, beta,
+    ess, log_evidence_increment and n_steps (:class:`PlannedStage`); the reduction fills
+    acceptance, log_evidence, the run counts and again exponent, ess and n_steps
+    (:class:`ReducedStage`).
     """
 
     id: int
     study_id: int
     stage_index: int
     status: str
-    exponent: float | None
-    prev_exponent: float | None
-    beta: float | None
-    acceptance: float | None
-    ess: float | None
-    log_evidence_increment: float | None
-    log_evidence: float | None
-    n_chains: int
-    n_steps: int | None
-    n_batches: int
-    model_runs: int | None
-    failed_runs: int | None
-    created_at: datetime
-    updated_at: datetime
-    finished_at: datetime | None
+    exponent: float | None = _column(
+        "real", "Tempering exponent p_j (1: the posterior).", by=("plan", "done")
+    )
+    prev_exponent: float | None = _column(
+        "real", "The previous stage's exponent p_(j-1).", by=("plan",)
+    )
+    beta: float | None = _column("real", "Proposal scale the stage's moves used.", by=("plan",))
+    acceptance: float | None = _column(
+        "real", "Acceptance rate of the stage's moves.", by=("done",)
+    )
+    ess: float | None = _column(
+        "real", "Effective sample size of the plausibility weights.", by=("plan", "done")
+    )
+    log_evidence_increment: float | None = _column(
+        "real", "log of the mean plausibility weight: the stage's term of log Z.", by=("plan",)
+    )
+    log_evidence: float | None = _column(
+        "real", "log Z so far: the running sum of the terms.", by=("done",)
+    )
+    n_chains: int = _column("int", "Chains (or points) the stage runs.")
+    n_steps: int | None = _column(
+        "int", "Metropolis steps per chain (the longest chain's).", by=("plan", "done")
+    )
+    n_batches: int = _column("int", "Work batches the chains are split into.")
+    model_runs: int | None = _column("bigint", "Model runs of the stage.")
+    failed_runs: int | None = _column("bigint", "Of those, the failed ones.")
+    created_at: datetime = field()
+    updated_at: datetime = field()
+    finished_at: datetime | None = field()
     #: a done stage's stored scalars (its kind's: a calibration's ``StageState`` without its
     #: arrays, whose counters :class:`~scm_core.inference.StageCounts` reads; the distinct
     #: samples; failed runs by reason), {} otherwise
     meta: dict[str, Any] = field(default_factory=dict)
+
+
+def stage_columns() -> tuple[Field[Any], ...]:
+    """The fields of :class:`StageRecord` that are columns of their own, in order."""
+    return tuple(f for f in fields(StageRecord) if "column" in f.metadata)
+
+
+def filled_by(message: str) -> tuple[str, ...]:
+    """The columns of :class:`StageRecord` that ``message`` ("plan", "done") fills by name."""
+    return tuple(f.name for f in stage_columns() if message in f.metadata["by"])
+
+
+Diagnostics = Mapping[str, float | int | None]
+
+
+def _check_diagnostics(given: Diagnostics, message: str) -> None:
+    allowed = filled_by(message)
+    unknown = sorted(set(given) - set(allowed))
+    if unknown:
+        raise ValueError(f"not a stage diagnostic of a {message}: {unknown}; one of {allowed}")
 
 
 @dataclass(frozen=True, order=True)
@@ -282,36 +329,36 @@ class SamplePage:
 class PlannedStage:
     """What the store keeps of a stage's plan: the study kind's ``blob`` (opaque here, see
     :mod:`.codec`), the number of chains (or points) its batches cover and the diagnostics
-    shown with the stage (None where the kind has none)."""
+    shown with the stage, by their columns' names (those of :func:`filled_by` "plan"; a kind
+    gives the ones it has)."""
 
     stage: int
     n_chains: int
     blob: bytes
-    exponent: float | None = None
-    prev_exponent: float | None = None
-    beta: float | None = None
-    ess: float | None = None
-    log_evidence_increment: float | None = None
-    n_steps: int | None = None
+    diagnostics: Diagnostics = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        _check_diagnostics(self.diagnostics, "plan")
 
 
 @dataclass(frozen=True, eq=False)
 class ReducedStage:
     """A reduced stage: its population (stored row by row, bit-exact), the counters added to
-    the study, the diagnostics shown with the stage and ``meta``, the kind's own JSON about
-    the stage (read back with the population, e.g. to rebuild its state)."""
+    the study, the diagnostics shown with the stage by their columns' names (those of
+    :func:`filled_by` "done"), the study's log-evidence variance so far, and ``meta``, the
+    kind's own JSON about the stage (read back with the population, e.g. to rebuild its
+    state)."""
 
     stage: int
     population: SampleArrays
     model_runs: int
     failed_runs: int
-    exponent: float | None = None
-    acceptance: float | None = None
-    ess: float | None = None
-    log_evidence: float | None = None
+    diagnostics: Diagnostics = field(default_factory=dict)
     log_evidence_var: float | None = None
-    n_steps: int | None = None
     meta: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        _check_diagnostics(self.diagnostics, "done")
 
 
 @dataclass(frozen=True, eq=False)

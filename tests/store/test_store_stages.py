@@ -236,7 +236,7 @@ def test_a_new_study_adopts_stages_run_elsewhere_and_goes_on_bit_for_bit(store: 
     )
     rows = store.stages.list(sid)
     assert [r.status for r in rows] == ["done"] * 3 + ["planned"]
-    assert rows[1].beta == pairs[1][0].beta and rows[2].n_batches == 0
+    assert rows[1].beta == pairs[1][0].diagnostics["beta"] and rows[2].n_batches == 0
     kinds = [e.kind for e in store.events.list(sid)]
     assert kinds.count("stage_done") == 3 and "study_started" in kinds
     while work_one(store, toy, "w"):

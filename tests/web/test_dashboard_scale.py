@@ -73,12 +73,14 @@ def _big_study(url: str, dataset_ids: list[int], seed: int = 3) -> int:
                 population=population,
                 model_runs=N_BIG,
                 failed_runs=0,
-                exponent=1.0,
-                acceptance=0.3,
-                ess=N_BIG / 2,
-                log_evidence=-3.0,
+                diagnostics={
+                    "exponent": 1.0,
+                    "acceptance": 0.3,
+                    "ess": N_BIG / 2,
+                    "log_evidence": -3.0,
+                    "n_steps": 5,
+                },
                 log_evidence_var=0.01,
-                n_steps=5,
             )
             return StageAdvance(reduced, final_status="completed")
 

@@ -11,10 +11,16 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from ..models import Stage, WorkBatch
-from ..records import PlannedStage, StageRecord
+from ..records import Diagnostics, PlannedStage, StageRecord, filled_by, stage_columns
 from .events import append_event
 
-__all__ = ["create_done_stage", "create_stage", "optional_float", "stage_record"]
+__all__ = [
+    "column_values",
+    "create_done_stage",
+    "create_stage",
+    "optional_float",
+    "stage_record",
+]
 
 
 def optional_float(x: float | None) -> float | None:
@@ -23,28 +29,30 @@ def optional_float(x: float | None) -> float | None:
 
 
 def stage_record(st: Stage) -> StageRecord:
+    """A stage row as a record: its keys, status, own columns and times, and ``meta``."""
+    columns = {f.name: getattr(st, f.name) for f in stage_columns()}
     return StageRecord(
         id=st.id,
         study_id=st.study_id,
         stage_index=st.stage_index,
         status=st.status,
-        exponent=st.exponent,
-        prev_exponent=st.prev_exponent,
-        beta=st.beta,
-        acceptance=st.acceptance,
-        ess=st.ess,
-        log_evidence_increment=st.log_evidence_increment,
-        log_evidence=st.log_evidence,
-        n_chains=st.n_chains,
-        n_steps=st.n_steps,
-        n_batches=st.n_batches,
-        model_runs=st.model_runs,
-        failed_runs=st.failed_runs,
+        **columns,
         created_at=st.created_at,
         updated_at=st.updated_at,
         finished_at=st.finished_at,
         meta=dict(st.state_meta or {}),
     )
+
+
+def column_values(diagnostics: Diagnostics, message: str) -> dict[str, float | int | None]:
+    """The columns ``message`` ("plan", "done") fills, from its diagnostics: floats for the
+    "real" columns, ints for the others, None for those it does not give."""
+    kinds = {f.name: f.metadata["column"] for f in stage_columns()}
+    out: dict[str, float | int | None] = {}
+    for name in filled_by(message):
+        x = diagnostics.get(name)
+        out[name] = None if x is None else (float(x) if kinds[name] == "real" else int(x))
+    return out
 
 
 def _check_batches(batches: Sequence[range], n_chains: int | None) -> int:
@@ -63,12 +71,8 @@ def _check_batches(batches: Sequence[range], n_chains: int | None) -> int:
 
 def _with_plan(stage: Stage, plan: PlannedStage) -> None:
     stage.plan = plan.blob
-    stage.exponent = optional_float(plan.exponent)
-    stage.prev_exponent = optional_float(plan.prev_exponent)
-    stage.beta = optional_float(plan.beta)
-    stage.ess = optional_float(plan.ess)
-    stage.log_evidence_increment = optional_float(plan.log_evidence_increment)
-    stage.n_steps = plan.n_steps
+    for name, value in column_values(plan.diagnostics, "plan").items():
+        setattr(stage, name, value)
 
 
 def create_done_stage(

@@ -45,7 +45,13 @@ from ..records import (
 from .base import Database
 from .events import append_event
 from .samples import fetch_arrays, insert_samples
-from .stage_rows import create_done_stage, create_stage, optional_float, stage_record
+from .stage_rows import (
+    column_values,
+    create_done_stage,
+    create_stage,
+    optional_float,
+    stage_record,
+)
 from .studies import load_study, set_study_status
 
 __all__ = ["StageRepository", "ready_stages"]
@@ -269,10 +275,7 @@ class StageRepository:
 def _scalars(red: ReducedStage) -> dict[str, Any]:
     """A done stage's diagnostics and run counts (its columns, and its "stage_done" event)."""
     return {
-        "exponent": optional_float(red.exponent),
-        "acceptance": optional_float(red.acceptance),
-        "ess": optional_float(red.ess),
-        "log_evidence": optional_float(red.log_evidence),
+        **column_values(red.diagnostics, "done"),
         "model_runs": int(red.model_runs),
         "failed_runs": int(red.failed_runs),
     }
@@ -282,7 +285,6 @@ def _done_values(red: ReducedStage, now: datetime) -> dict[str, Any]:
     """A done stage's columns from its reduced population."""
     return {
         **_scalars(red),
-        "n_steps": red.n_steps,
         "state_meta": dict(red.meta),
         "updated_at": now,
         "finished_at": now,
@@ -314,7 +316,7 @@ def _follow(
     to add to the study's): open the next stage of ``adv`` or end the study."""
     model_runs, failed_runs = runs
     counters = {
-        "log_evidence": optional_float(red.log_evidence),
+        "log_evidence": optional_float(red.diagnostics.get("log_evidence")),
         "log_evidence_var": optional_float(red.log_evidence_var),
         "model_runs": Study.model_runs + int(model_runs),
         "failed_runs": Study.failed_runs + int(failed_runs),
@@ -341,7 +343,11 @@ def _follow(
         s,
         study_id,
         f"study_{final}",
-        {"stage": stage_index, "log_evidence": red.log_evidence, "error": adv.error},
+        {
+            "stage": stage_index,
+            "log_evidence": red.diagnostics.get("log_evidence"),
+            "error": adv.error,
+        },
         now,
     )
     return AdvanceOutcome("advanced", final, None)
