@@ -8,25 +8,21 @@ Every error response is ``{"detail": "<one line naming the field>"}``.
 
 from __future__ import annotations
 
-import types
 import typing
 from datetime import datetime
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, create_model
+from pydantic import BaseModel, Field, create_model
 
-from scm_core.calibration import SamplerSettings
 from scm_core.inference import count_fields
 from scm_core.seeds import SEED_MAX
 from services.limits import INT32_MAX, INT64_MAX
 from services.store import StageRecord, stage_columns
-from services.studies.request_model import PRESET_OR_CASE, RequestModel
+from services.studies.request_model import RequestModel
 
 #: ids: what a BIGINT column holds; counts and sizes: what an INTEGER column holds
 ID_MAX = INT64_MAX
 COUNT_MAX = INT32_MAX
-#: most studies of one run group (POST /studies with runs)
-RUNS_MAX = 64
 
 
 class _In(RequestModel):
@@ -138,81 +134,6 @@ class PresetOut(BaseModel):
 
 
 # ---------------------------------------------------------------------------- studies
-
-
-class _StudyFields(_In):
-    """A new study: a preset name or a full case document, the stored datasets to fit, and
-    optional overrides of the case's settings; or ``update_of`` a completed calibration with
-    new datasets (a posterior update, paper section 5.3: the case is the earlier study's)."""
-
-    model_config = ConfigDict(json_schema_extra=PRESET_OR_CASE)
-
-    preset: str | None = Field(
-        None, description="A preset: 'quick', or the paper's '1', '2a', '2b'."
-    )
-    case: dict[str, Any] | None = Field(
-        None, description="A case document (the TOML case file as JSON); data.files is ignored."
-    )
-    update_of: int | None = Field(
-        None,
-        ge=0,
-        le=ID_MAX,
-        description="Update the posterior of this completed calibration with the new "
-        "dataset_ids: stage 0 is its final population and only the new datasets' likelihood "
-        "is tempered. Its log_evidence is then log Z(new | old); the total is in its result.",
-    )
-    dataset_ids: list[Annotated[int, Field(ge=1, le=ID_MAX)]] = Field(
-        default_factory=list, description="Stored datasets (POST /datasets), likelihood order."
-    )
-    name: str | None = Field(None, min_length=1, max_length=200)
-    seed: int | None = Field(None, ge=0, le=SEED_MAX)
-    likelihood: Literal["normalized", "gaussian"] | None = None
-    batch_size: int | None = Field(
-        None,
-        ge=1,
-        le=COUNT_MAX,
-        description="Chains per work batch (at most; shorter at a stage's end).",
-    )
-    runs: int = Field(
-        1,
-        ge=1,
-        le=RUNS_MAX,
-        description="Repeated runs: this many studies with the seeds seed, seed + 1, ... (a "
-        "run group; the answer is the first, with the group's ids in 'runs'); GET /pooled "
-        "on them gives R-hat across the runs and a convergence verdict.",
-    )
-
-
-#: the case's [sampler] settings a request may override (null: the case's); their types,
-#: bounds and descriptions are SamplerSettings', counts capped at the service's limit
-SAMPLER_OVERRIDES = (
-    "n_samples",
-    "moves",
-    "n_steps",
-    "max_stages",
-    "early_rejection",
-    "delayed_acceptance",
-)
-
-
-def _override(name: str) -> tuple[Any, Any]:
-    """An optional request field overriding the case's sampler setting ``name``."""
-    field = SamplerSettings.model_fields[name]
-    kind = field.annotation
-    if typing.get_origin(kind) in (typing.Union, types.UnionType):  # X | None: X
-        kind = next(a for a in typing.get_args(kind) if a is not type(None))
-    bounds = [*field.metadata, *([Field(le=COUNT_MAX)] if kind is int else [])]
-    typed = Annotated[(kind, *bounds)] if bounds else kind
-    return typed | None, Field(None, description=field.description)
-
-
-StudyCreate = create_model(
-    "StudyCreate",
-    __base__=_StudyFields,
-    __module__=__name__,
-    __doc__=_StudyFields.__doc__,
-    **{name: _override(name) for name in SAMPLER_OVERRIDES},
-)
 
 
 class CancelRequest(_In):

@@ -1,7 +1,9 @@
-"""The collections of the study kinds that bring their own (``KindHttp``, see
-:mod:`services.studies.kinds.base`): ``POST PATH`` submits one, ``GET PATH`` lists them and
-``GET PATH/{id}`` reads one with its result. A study of any kind is also a study: cancel it, read
-its stages, samples and events under ``/studies/{id}``.
+"""Every study kind's part of the API, mounted the same way from its declaration (``KindHttp``,
+see :mod:`services.studies.kinds.base`): ``POST PATH`` submits one (or, for a kind's repeated
+runs, several), ``GET PATH`` lists them and ``GET PATH/{id}`` reads one with its result; a kind
+that brings only its create route (``reads`` False) answers with the common study. A study of
+any kind is also a study: cancel it, read its stages, samples and events under
+``/studies/{id}``. This module knows no kind by name.
 """
 
 # no ``from __future__ import annotations``: the routes' annotations are the kind's request
@@ -13,15 +15,15 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 from pydantic import BaseModel, create_model
 
 from services.limits import INT64_MAX
-from services.store import Store, StudyRecord
-from services.studies import create_and_start
-from services.studies.kinds.base import StudyKind
+from services.store import Store, StudyRecord, StudySpec
+from services.studies import create_runs_and_start
+from services.studies.kinds.base import KindHttp, StudyKind
 
 from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write
 from ..etags import etag_of, not_modified, set_etag
 from ..params import StudyId, parse_statuses, status_query
-from ..schemas import KindStudyOut, KindStudyPage, PageInfo
-from ..views import page_out, study_brief, study_progress
+from ..schemas import KindStudyOut, KindStudyPage, PageInfo, StudyOut
+from ..views import page_out, study_brief, study_out, study_progress
 from . import errors
 
 
@@ -37,17 +39,13 @@ def _models(title: str, result: Any, fields: type[BaseModel] | None) -> tuple[An
 
 
 def kind_router(kind: StudyKind) -> APIRouter:
-    """The router of ``kind``'s collection (``kind.http`` must be set)."""
+    """The router of ``kind``'s part of the API (``kind.http`` must be set): its create route
+    and, unless it brings only that, its collection's reads."""
     http = kind.http
     if http is None:
-        raise ValueError(f"study kind {kind.name!r} has no collection of its own")
+        raise ValueError(f"study kind {kind.name!r} has no part of the API of its own")
     result_model = http.result if http.result is not None else dict[str, Any]
     out_model, page_model = _models(kind.title, result_model, http.fields)
-    request_model = http.request
-    plural = f"{kind.title}s"
-    router = APIRouter(
-        prefix=http.path, tags=[http.path.strip("/")], dependencies=[Depends(require_read)]
-    )
 
     def out(store: Store, study: StudyRecord) -> Any:
         own = http.fields_of(study).model_dump() if http.fields_of is not None else {}
@@ -59,22 +57,36 @@ def kind_router(kind: StudyKind) -> APIRouter:
             result=study.result,
         )
 
-    def get(store: Store, study_id: int) -> StudyRecord:
-        study = store.studies.get(study_id)
-        if study.kind != kind.name:
-            raise HTTPException(
-                404, f"{kind.title} {study_id} not found (study {study_id} is a {study.kind} study)"
-            )
-        return study
+    router = APIRouter(
+        prefix=http.path, tags=[http.path.strip("/")], dependencies=[Depends(require_read)]
+    )
+    if http.reads:
+        _create_route(router, kind, out_model, out)
+        _read_routes(router, kind, out_model, page_model, out)
+    else:
+        _create_route(router, kind, StudyOut, study_out)
+    return router
+
+
+def _specs(made: StudySpec | Any) -> list[StudySpec]:
+    """A kind's validated study, or its several, as a list."""
+    return [made] if isinstance(made, StudySpec) else list(made)
+
+
+def _create_route(router: APIRouter, kind: StudyKind, out_model: Any, out: Any) -> None:
+    """``POST PATH``: the kind's request, validated into its studies, stored and started;
+    answered with ``out(store, first study)``."""
+    http: KindHttp = kind.http  # type: ignore[assignment]
+    request_model = http.request
 
     @router.post(
         "",
         response_model=out_model,
         status_code=201,
-        summary=f"Submit a {kind.title}",
+        summary=http.summary or f"Submit a {kind.title}",
         description=http.description,
         dependencies=[Depends(require_write)],
-        responses=errors(401, 404, 413, 422),
+        responses=errors(*http.statuses),
     )
     def create(
         body: request_model,
@@ -83,10 +95,26 @@ def kind_router(kind: StudyKind) -> APIRouter:
         dispatcher: DispatcherDep,
         settings: SettingsDep,
     ) -> Any:
-        spec = http.spec(store, settings, body)
-        study_id = create_and_start(store, spec, dispatcher)
+        specs = _specs(http.spec(store, settings, body))
+        study_id = create_runs_and_start(store, specs, dispatcher)[0]
         response.headers["Location"] = f"{http.path}/{study_id}"
         return out(store, store.studies.get(study_id))
+
+
+def _read_routes(
+    router: APIRouter, kind: StudyKind, out_model: Any, page_model: Any, out: Any
+) -> None:
+    """``GET PATH`` (a page of the kind's studies) and ``GET PATH/{id}`` (one, with its
+    result)."""
+    plural = f"{kind.title}s"
+
+    def get(store: Store, study_id: int) -> StudyRecord:
+        study = store.studies.get(study_id)
+        if study.kind != kind.name:
+            raise HTTPException(
+                404, f"{kind.title} {study_id} not found (study {study_id} is a {study.kind} study)"
+            )
+        return study
 
     @router.get(
         "",
@@ -121,5 +149,3 @@ def kind_router(kind: StudyKind) -> APIRouter:
         study = get(store, study_id)
         set_etag(response, tag)
         return out(store, study)
-
-    return router

@@ -1,8 +1,7 @@
-"""Calibration studies: submit, list, progress, cancel, stages, samples, summary, events.
+"""Studies of every kind: list, progress, cancel, stages, samples, summary, events.
 
-A study is checked completely before anything is stored: the case (preset or document, with
-the overrides applied), the datasets, and the simulator configuration at the prior medians on
-every dataset's test conditions. A refused study leaves no row behind.
+Submitting one is its kind's route (``POST /studies`` is the calibration kind's, mounted with
+every kind's by :mod:`.kinds`).
 """
 
 from __future__ import annotations
@@ -17,34 +16,24 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Depends, HTTPException, Query, Request, Response
 from fastapi.responses import StreamingResponse
 
-from scm_core.calibration import CaseDefinition
 from scm_core.jsondoc import finite_or_none
-from services.config import Settings
 from services.limits import (
     INT64_MAX,
 )
-from services.store import Store, StudySpec
+from services.store import Store
 from services.studies import (
     StudyRequestError,
-    base_case,
-    calibration_spec,
-    create_runs_and_start,
-    run_specs,
-    with_overrides,
 )
 from services.studies.kinds import KINDS, kind_of
-from services.studies.kinds.update import update_spec
 
-from ..deps import DispatcherDep, SettingsDep, StoreDep, require_read, require_write, token_ok
+from ..deps import SettingsDep, StoreDep, require_read, require_write, token_ok
 from ..etags import etag_of, not_modified, set_etag
 from ..params import StageIndex, StudyId, parse_statuses, status_query
 from ..schemas import (
-    SAMPLER_OVERRIDES,
     CancelRequest,
     EventOut,
     SamplesPage,
     StageOut,
-    StudyCreate,
     StudyOut,
     StudyPage,
     SummaryOut,
@@ -70,72 +59,6 @@ router = APIRouter(prefix="/studies", tags=["studies"], dependencies=[Depends(re
 
 SAMPLE_PAGE_MAX = 5000
 CSV_CHUNK = 2000
-_TOP_OVERRIDES = ("name", "seed", "likelihood")
-
-
-# ---------------------------------------------------------------------------- submission
-
-
-def build_case(body: StudyCreate) -> CaseDefinition:
-    """The case of a request: the preset or the case document, with the overrides applied."""
-    sampler = {k: getattr(body, k) for k in SAMPLER_OVERRIDES if getattr(body, k) is not None}
-    top = {k: getattr(body, k) for k in _TOP_OVERRIDES if getattr(body, k) is not None}
-    return with_overrides(base_case(body.preset, body.case), top, sampler)
-
-
-def update_request(store: Store, settings: Settings, body: StudyCreate) -> StudySpec:
-    """The spec of a posterior update; the case's fields cannot be given with it."""
-    fixed = ("preset", "case", "likelihood", *SAMPLER_OVERRIDES)
-    given = [k for k in fixed if getattr(body, k) is not None]
-    if given:
-        raise StudyRequestError(
-            f"{given[0]}: an update keeps the case of study {body.update_of}; give only "
-            "update_of, dataset_ids, seed, name and batch_size"
-        )
-    return update_spec(
-        store,
-        settings,
-        body.update_of or 0,
-        body.dataset_ids,
-        seed=body.seed,
-        batch_size=body.batch_size,
-        name=body.name,
-    )
-
-
-@router.post(
-    "",
-    response_model=StudyOut,
-    status_code=201,
-    summary="Submit a study",
-    dependencies=[Depends(require_write)],
-    responses=errors(401, 413, 422),
-)
-def create_study(
-    body: StudyCreate,
-    response: Response,
-    store: StoreDep,
-    dispatcher: DispatcherDep,
-    settings: SettingsDep,
-) -> StudyOut:
-    """Create a study from a preset of the paper or a full case document on stored datasets,
-    with optional overrides (``seed``, ``n_samples``, ``moves``, ``n_steps``, ``max_stages``,
-    ``likelihood``, ``name``, ``batch_size``), and start it; with ``runs`` K, K such studies
-    with the seeds seed, seed + 1, ... as one run group (the answer is the first). Any problem
-    answers 422 naming the field, and nothing is stored. With ``update_of``: a posterior
-    update of that completed calibration with the new ``dataset_ids`` (``seed``, ``name`` and
-    ``batch_size`` may be given; the case is the earlier study's)."""
-    if body.update_of is not None:
-        if body.runs > 1:
-            raise StudyRequestError("runs: an update (update_of) is one study; give runs 1")
-        specs = [update_request(store, settings, body)]
-    else:
-        case = build_case(body)
-        spec = calibration_spec(store, settings, case, body.dataset_ids, body.batch_size)
-        specs = run_specs(case, spec, body.runs)
-    study_id = create_runs_and_start(store, specs, dispatcher)[0]
-    response.headers["Location"] = f"/studies/{study_id}"
-    return study_out(store, store.studies.get(study_id))
 
 
 # ---------------------------------------------------------------------------- reading

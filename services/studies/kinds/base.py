@@ -11,10 +11,11 @@ store sees only blobs and
 
 A kind says how the dashboard shows it (:class:`KindPanel`: its part of a study page, the
 figures drawn for it, its words for what its stages hold), so the dashboard spells no kind's
-name. A kind may bring its own collection of the HTTP API (:class:`KindHttp`: a path, a request
-model, its validation into a study and the model of its result); the API mounts
-``POST PATH``, ``GET PATH`` and ``GET PATH/{id}`` for every kind of the registry that has one,
-so a new kind needs its module and a line in the registry, nothing in the API. A kind may bring
+name. A kind brings its part of the HTTP API (:class:`KindHttp`: a path, a request model, its
+validation into one study or several and the model of its result); the API mounts
+``POST PATH``, ``GET PATH`` and ``GET PATH/{id}`` (or only ``POST PATH``, a create route
+answering the common study) for every kind of the registry that has one, so a new kind needs
+its module and a line in the registry, nothing in the API. A kind may bring
 a command of the ``scm-calib`` command line (:class:`KindCli`), which the CLI mounts from the
 registry likewise.
 """
@@ -73,24 +74,32 @@ class StudyRun(Protocol):
 
 @dataclass(frozen=True)
 class KindHttp:
-    """A kind's collection in the HTTP API (mounted by ``services.api``).
+    """A kind's part of the HTTP API (mounted by ``services.api`` for every kind that has one,
+    the same way for all).
 
     ``path``: the collection ("/predictions"); ``request``: the body of ``POST path`` (a
     pydantic model; unknown fields should be refused); ``spec(store, settings, body)``: the
-    validated study (StudyRequestError naming the field, nothing stored); ``result``: the model
-    of the study's stored ``result`` (None: any JSON object); ``description``: the POST's
-    documentation (the kind's ``title`` names one study of it). ``fields``: the kind's own
-    top-level fields of a study it shows (a pydantic model, e.g. a screening's design), made
-    by ``fields_of(study)`` from the stored study; None: the study, its payload, progress and
-    result only."""
+    validated study, or several (repeated runs, stored as one run group; the answer is the
+    first), StudyRequestError naming the field, nothing stored; ``result``: the model of the
+    study's stored ``result`` (None: any JSON object); ``description``: the POST's
+    documentation (``summary``: its title; default "Submit a <title>"). ``fields``: the
+    kind's own top-level fields of a study it shows (a pydantic model, e.g. a screening's
+    design), made by ``fields_of(study)`` from the stored study; None: the study, its
+    payload, progress and result only. ``reads``: ``GET path`` and ``GET path/{id}`` are
+    mounted too; False: the kind brings only its create route, which answers the common
+    study (``GET /studies/{id}``: its studies are read as every study is). ``statuses``: the
+    error statuses the POST documents."""
 
     path: str
     request: type[BaseModel]
-    spec: Callable[[Store, Settings, Any], StudySpec]
+    spec: Callable[[Store, Settings, Any], StudySpec | Sequence[StudySpec]]
     result: type[BaseModel] | None
     description: str
     fields: type[BaseModel] | None = None
     fields_of: Callable[[StudyRecord], BaseModel] | None = None
+    reads: bool = True
+    summary: str | None = None
+    statuses: tuple[int, ...] = (401, 404, 413, 422)
 
 
 @dataclass(frozen=True)
@@ -173,8 +182,9 @@ def case_terms(case: Mapping[str, Any]) -> StudyTerms:
 
 class StudyKind(Protocol):
     """A kind of study; ``name`` is what ``studies.kind`` holds; ``title`` what one study of
-    the kind is called on pages ("posterior update"); ``http`` its API collection, if it has
-    its own (None: studies of the kind are made elsewhere, e.g. ``POST /studies``);
+    the kind is called on pages ("posterior update"); ``http`` its part of the API (None:
+    studies of the kind are made by another kind's route, e.g. an update by a calibration's
+    ``POST /studies`` with ``update_of``);
     ``collection``: the API path its studies are read under, with their results
     (``GET COLLECTION/{id}``); ``posterior``: its stages temper to a posterior (a summary, log
     evidence, comparisons and pooling apply); ``panel``: how the dashboard shows it; ``cli``:

@@ -53,8 +53,10 @@ from services.store.codec import decode
 from ..batching import DEFAULT_BATCH_SIZE, DEFAULT_WORKERS, batch_size_of, work_batches
 from ..datasets import check_dataset_ids, load_datasets
 from ..errors import StudyRequestError
+from ..intake import run_specs
 from .base import (
     KindCli,
+    KindHttp,
     KindPanel,
     StudyTerms,
     batch_output,
@@ -62,9 +64,10 @@ from .base import (
     one_run_per_item,
     stored_case,
 )
+from .calibration_request import StudyCreate, build_case
 from .checks import check_runs, prior_medians
 
-__all__ = ["KIND", "CalibrationRun", "calibration_spec"]
+__all__ = ["KIND", "CalibrationRun", "calibration_spec", "request_specs"]
 
 T = TypeVar("T")
 
@@ -136,6 +139,18 @@ def calibration_spec(
         batch_size=size,
         kind=KIND.name,
     )
+
+
+def request_specs(store: Store, settings: Settings, body: Any) -> list[StudySpec]:
+    """The studies a calibration's request (a :data:`StudyCreate`) asks for: its ``runs``
+    repeated runs, or with ``update_of`` one posterior update (kind :mod:`.update`)."""
+    if body.update_of is not None:
+        from .update import update_request  # the update kind builds on this module
+
+        return [update_request(store, settings, body)]
+    case = build_case(body)
+    spec = calibration_spec(store, settings, case, body.dataset_ids, body.batch_size)
+    return run_specs(case, spec, body.runs)
 
 
 # ---------------------------------------------------------------------------- computation
@@ -275,7 +290,23 @@ class CalibrationKind:
 
     name = "calibration"
     title = "calibration"
-    http = None  # POST /studies
+    http = KindHttp(
+        path="/studies",
+        request=StudyCreate,
+        spec=request_specs,
+        result=None,
+        summary="Submit a study",
+        description="Create a study from a preset of the paper or a full case document on "
+        "stored datasets, with optional overrides (``seed``, ``n_samples``, ``moves``, "
+        "``n_steps``, ``max_stages``, ``likelihood``, ``name``, ``batch_size``), and start it; "
+        "with ``runs`` K, K such studies with the seeds seed, seed + 1, ... as one run group "
+        "(the answer is the first). Any problem answers 422 naming the field, and nothing is "
+        "stored. With ``update_of``: a posterior update of that completed calibration with the "
+        "new ``dataset_ids`` (``seed``, ``name`` and ``batch_size`` may be given; the case is "
+        "the earlier study's).",
+        reads=False,
+        statuses=(401, 413, 422),
+    )
     cli = KindCli("calibrate", "services.cli.calibrate:calibrate")
     collection = "/studies"
     posterior = True

@@ -38,12 +38,14 @@ from .calibration import (
     check_limits,
     precheck,
 )
+from .calibration_request import SAMPLER_OVERRIDES
 
 __all__ = [
     "KIND",
     "UpdateRun",
     "completed_calibration",
     "old_dataset_ids",
+    "update_request",
     "update_seed",
     "update_spec",
 ]
@@ -135,6 +137,29 @@ def update_spec(
         batch_size=size,
         kind=KIND.name,
         payload={"update_of": parent.id},
+    )
+
+
+def update_request(store: Store, settings: Settings, body: Any) -> StudySpec:
+    """The spec of the posterior update a calibration's request (``POST /studies`` with
+    ``update_of``) asks for; the case's fields cannot be given with it."""
+    if body.runs > 1:
+        raise StudyRequestError("runs: an update (update_of) is one study; give runs 1")
+    fixed = ("preset", "case", "likelihood", *SAMPLER_OVERRIDES)
+    given = [k for k in fixed if getattr(body, k) is not None]
+    if given:
+        raise StudyRequestError(
+            f"{given[0]}: an update keeps the case of study {body.update_of}; give only "
+            "update_of, dataset_ids, seed, name and batch_size"
+        )
+    return update_spec(
+        store,
+        settings,
+        body.update_of or 0,
+        body.dataset_ids,
+        seed=body.seed,
+        batch_size=body.batch_size,
+        name=body.name,
     )
 
 
