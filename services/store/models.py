@@ -152,6 +152,8 @@ class Study(Base):
     version: Mapped[int] = mapped_column(sa.BigInteger, default=0, server_default=sa.text("0"))
     #: repeated runs submitted together: the id of the group's first study (NULL: alone)
     run_group: Mapped[int | None] = mapped_column(sa.BigInteger, index=True)
+    #: the study this one starts from (an update's earlier study, a prediction's posterior)
+    parent_id: Mapped[int | None] = mapped_column(sa.BigInteger, index=True)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)

@@ -85,7 +85,8 @@ class StudySpec:
     0 <= seed < 2**63. n_samples: items of a stage (samples, design points, draws).
     kind: the plug-in that runs it (a name of ``services.studies.kinds.KINDS``). batch_size:
     items per work batch (None: the orchestrator decides). payload: the kind's own settings
-    (JSON).
+    (JSON). parent_id: the stored study it starts from (an update's, a prediction's), which
+    :meth:`~services.store.repositories.studies.StudyRepository.list` finds it by.
     """
 
     name: str
@@ -96,6 +97,7 @@ class StudySpec:
     kind: str
     batch_size: int | None = None
     payload: Mapping[str, Any] | None = None
+    parent_id: int | None = None
 
 
 @dataclass(frozen=True)
@@ -128,6 +130,8 @@ class StudyRecord:
     version: int = 0
     #: repeated runs submitted together: the id of the group's first study (None: alone)
     run_group: int | None = None
+    #: the study this one starts from (None: none)
+    parent_id: int | None = None
 
 
 def _column(sql: str, doc: str, *, by: tuple[str, ...] = ()) -> Any:

@@ -48,7 +48,7 @@ def _tables(url: str) -> set[str]:
 def test_migrations_directory_is_found() -> None:
     assert (migrations_dir() / "versions" / "0001_initial.py").is_file()
     assert (migrations_dir() / "versions" / "0004_kind_payload.py").is_file()
-    assert head_revision() == "0011"
+    assert head_revision() == "0012"
 
 
 def test_upgrade_to_head_and_downgrade_to_base(empty_url: str) -> None:
@@ -88,9 +88,9 @@ def test_store_refuses_a_database_at_the_wrong_revision(empty_url: str) -> None:
             conn.execute(sa.text("UPDATE alembic_version SET version_num = 'ffff'"))
     finally:
         engine.dispose()
-    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0011") as info:
+    with pytest.raises(SchemaVersionError, match="at revision ffff, code needs 0012") as info:
         Store.open(empty_url)
-    assert info.value.current == "ffff" and info.value.head == "0011"
+    assert info.value.current == "ffff" and info.value.head == "0012"
 
     engine = make_engine(empty_url)
     try:
@@ -133,7 +133,7 @@ def test_cli_db_upgrade_uses_settings_url(tmp_path, monkeypatch) -> None:
     try:
         res = CliRunner().invoke(cli, ["db", "upgrade"])
         assert res.exit_code == 0, res.output
-        assert current_revision(url) == "0011"
+        assert current_revision(url) == "0012"
     finally:
         get_settings.cache_clear()
 
@@ -478,5 +478,45 @@ def test_0011_names_the_kinds_as_the_user_meets_them_and_back(empty_url: str) ->
         with engine.connect() as conn:
             rows = conn.execute(sa.text("SELECT name, kind FROM studies")).all()
         assert all(name == kind for name, kind in rows) and len(rows) == 4
+    finally:
+        engine.dispose()
+
+
+def test_0012_gives_updates_and_predictions_their_parent_and_takes_it_back(
+    empty_url: str,
+) -> None:
+    """An update's ``update_of`` and a prediction's ``study_id`` become the indexed
+    ``parent_id`` the store lists them by; other studies have none; the downgrade drops it."""
+    upgrade(empty_url, "0011")
+    engine = make_engine(empty_url)
+    insert = sa.text(
+        "INSERT INTO studies (name, kind, status, case_spec, payload, seed, n_samples, "
+        "model_runs, failed_runs, created_at, updated_at) "
+        "VALUES (:n, :k, 'completed', '{}', :p, 1, 2, 0, 0, :t, :t)"
+    )
+    t = "2025-01-01 00:00:00"
+    rows = [
+        ("c", "calibration", None),
+        ("u", "update", {"update_of": 1}),
+        ("p", "prediction", {"study_id": 2, "conditions": None, "pooled_with": []}),
+        ("s", "sensitivity", {"design": {"study_id": 1}}),
+        ("q", "prediction", {"study_id": 1}),
+    ]
+    try:
+        with engine.begin() as conn:
+            for name, kind, payload in rows:
+                doc = None if payload is None else json.dumps(payload)
+                conn.execute(insert, {"n": name, "k": kind, "p": doc, "t": t})
+        upgrade(empty_url)
+        columns, indexes = _study_columns_and_indexes(empty_url)
+        assert "parent_id" in columns and "ix_studies_parent_id" in indexes
+        with Store.open(empty_url) as store:
+            parents = {s.name: s.parent_id for s in store.studies.list().items}
+            assert parents == {"c": None, "u": 1, "p": 2, "s": None, "q": 1}
+            made = store.studies.list(kind="prediction", parent=1).items
+            assert [s.name for s in made] == ["q"]
+            assert store.studies.list_versions(parent=1)[0] == 2
+        downgrade(empty_url, "0011")
+        assert "parent_id" not in _study_columns_and_indexes(empty_url)[0]
     finally:
         engine.dispose()

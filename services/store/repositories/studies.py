@@ -66,6 +66,7 @@ def _record(st: Study, dataset_ids: tuple[int, ...]) -> StudyRecord:
         payload=None if st.payload is None else dict(st.payload),
         version=int(st.version or 0),
         run_group=None if st.run_group is None else int(st.run_group),
+        parent_id=None if st.parent_id is None else int(st.parent_id),
     )
 
 
@@ -117,11 +118,15 @@ def _check_kind(kind: str) -> None:
         raise ValueError(f"study kind must match {STUDY_KIND_PATTERN}, got {kind!r}")
 
 
-def _list_filter(status: str | Sequence[str] | None, kind: str | None) -> list[Any]:
+def _list_filter(
+    status: str | Sequence[str] | None, kind: str | None, parent: int | None = None
+) -> list[Any]:
     where: list[Any] = []
     if kind is not None:
         _check_kind(kind)
         where.append(Study.kind == kind)
+    if parent is not None:
+        where.append(Study.parent_id == int(parent))
     if status is not None:
         statuses = [status] if isinstance(status, str) else list(status)
         unknown = set(statuses) - set(STUDY_STATUSES)
@@ -160,6 +165,7 @@ class StudyRepository:
                 status="queued",
                 case_spec=dict(spec.case),
                 payload=None if spec.payload is None else dict(spec.payload),
+                parent_id=None if spec.parent_id is None else int(spec.parent_id),
                 seed=int(spec.seed),
                 n_samples=int(spec.n_samples),
                 batch_size=None if spec.batch_size is None else int(spec.batch_size),
@@ -219,11 +225,13 @@ class StudyRepository:
         status: str | Sequence[str] | None = None,
         *,
         kind: str | None = None,
+        parent: int | None = None,
         limit: int = 50,
         offset: int = 0,
     ) -> Page[StudyRecord]:
-        """Studies, newest first, optionally only those with the given status(es) or kind."""
-        where = _list_filter(status, kind)
+        """Studies, newest first, optionally only those with the given status(es), kind or
+        parent study (those made from study ``parent``: one indexed query)."""
+        where = _list_filter(status, kind, parent)
         with self.db.read() as s:
             total = s.scalar(sa.select(sa.func.count()).select_from(Study).where(*where)) or 0
             studies = list(
@@ -244,12 +252,13 @@ class StudyRepository:
         status: str | Sequence[str] | None = None,
         *,
         kind: str | None = None,
+        parent: int | None = None,
         limit: int = 50,
         offset: int = 0,
     ) -> tuple[int, list[tuple[int, int]]]:
         """(total, [(id, version)]) of the page :meth:`list` would give: equal answers mean an
         unchanged page (a study's datasets never change). Reads the studies table only."""
-        where = _list_filter(status, kind)
+        where = _list_filter(status, kind, parent)
         with self.db.read() as s:
             total = s.scalar(sa.select(sa.func.count()).select_from(Study).where(*where)) or 0
             rows = s.execute(

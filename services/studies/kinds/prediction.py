@@ -237,6 +237,7 @@ def prediction_spec(store: Store, settings: Settings, body: PredictionRequest) -
             "conditions": conditions,
             "pooled_with": [int(i) for i in body.pooled_with],
         },
+        parent_id=parent.id,
     )
 
 

@@ -137,6 +137,7 @@ def update_spec(
         batch_size=size,
         kind=KIND.name,
         payload={"update_of": parent.id},
+        parent_id=parent.id,
     )
 
 
