@@ -22,7 +22,8 @@ from scm_core.jsondoc import finite_or_none
 from scm_core.signals.responses import N_RESPONSES, widened
 from services.store import NotFoundError, StageRecord, Store, StudyRecord, stage_columns
 from services.store.records import Page
-from services.studies.kinds import kind_of, study_terms
+from services.studies.kinds import KINDS, kind_of, study_terms
+from services.studies.kinds.calibration import KIND as CALIBRATION
 from services.studies.kinds.prediction import KIND as PREDICTION
 
 from .schemas import (
@@ -170,16 +171,33 @@ def _stage_evaluations(store: Store, study: StudyRecord, stage: StageRecord) -> 
     return planned, done, ran, int(sum(done_flags)), len(batches)
 
 
-#: how many of the newest prediction studies :func:`predictions_of` looks through
-PREDICTIONS_SCANNED = 500
+#: most predictions of one study the dashboard lists
+PREDICTIONS_SHOWN = 500
 
 
 def predictions_of(store: Store, study: StudyRecord) -> list[StudyRecord]:
-    """The prediction studies made from ``study``'s posterior, newest first (among the newest
-    :data:`PREDICTIONS_SCANNED` predictions: the link is in their stored payload, which the
-    store keeps as a document and does not query inside)."""
-    page = store.studies.list(kind=PREDICTION.name, limit=PREDICTIONS_SCANNED)
-    return [p for p in page.items if (p.payload or {}).get("study_id") == study.id]
+    """The prediction studies made from ``study``'s posterior, newest first (one indexed
+    query: a study's parent is a column of the store)."""
+    page = store.studies.list(kind=PREDICTION.name, parent=study.id, limit=PREDICTIONS_SHOWN)
+    return list(page.items)
+
+
+def kind_posts() -> dict[str, str]:
+    """Where a study of each kind is submitted (``POST``), by kind name, as the kinds declare
+    it (``StudyKind.http``; a kind made by another kind's route, an update, at its collection):
+    the dashboard's forms post there."""
+    return {
+        name: kind.http.path if kind.http is not None else kind.collection
+        for name, kind in KINDS.items()
+    }
+
+
+def next_step_posts() -> dict[str, str]:
+    """Where the dashboard's forms that start from a completed study post, from the kinds'
+    declarations: ``update_post`` (the calibration kind's create route takes ``update_of``)
+    and ``predict_post``."""
+    posts = kind_posts()
+    return {"update_post": posts[CALIBRATION.name], "predict_post": posts[PREDICTION.name]}
 
 
 def failed_by(store: Store, study: StudyRecord) -> dict[str, int]:

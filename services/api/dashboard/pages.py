@@ -41,6 +41,8 @@ from ..params import DatasetId, StudyId, parse_id_list, parse_statuses
 from ..routes.datasets import dataset_out
 from ..views import (
     agreement_of,
+    kind_posts,
+    next_step_posts,
     parameter_names,
     parameter_summaries,
     parameter_units,
@@ -399,6 +401,7 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
             s=study_brief(study),
             used=set(study.dataset_ids),
             datasets=datasets,
+            **next_step_posts(),
         )
 
     @reads.get("/ui/f/presets")
@@ -408,9 +411,8 @@ def _other_fragment_routes(templates: Jinja2Templates) -> APIRouter:
             {"name": k, "description": p.description, "cost": preset_cost(k).text()}
             for k, p in PRESETS.items()
         ]
-        return _fragment(
-            templates, request, "_new_study.html", None, presets=presets, datasets=datasets
-        )
+        ctx = {"presets": presets, "datasets": datasets, "posts": kind_posts()}
+        return _fragment(templates, request, "_new_study.html", None, **ctx)
 
     return reads
 

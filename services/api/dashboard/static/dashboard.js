@@ -398,11 +398,11 @@
         body.preset = f.preset.value;
       }
       if (f.name.value) body.name = f.name.value;
-      let path = "/studies";
+      // where the chosen kind's studies are submitted: the server's (data-post)
+      const path = form.querySelector("input[name=kind]:checked").dataset.post;
       if (f.kind.value === "sensitivity") {
         if (ids.length !== 1) return say(out, "dataset_id: a sensitivity study runs on exactly one dataset: check one", true);
         Object.assign(body, { dataset_id: ids[0], r: Number(f.r.value), levels: Number(f.levels.value) });
-        path = "/sensitivity";
       } else {
         body.dataset_ids = ids;
         if (f.n_samples.value) body.n_samples = Number(f.n_samples.value);
@@ -417,12 +417,11 @@
       const f = form.elements;
       const study = Number(form.dataset.study);
       const ids = checkedIds(form, "dataset_ids");
-      let path, body;
+      const path = form.dataset.post;  // the kind's create route, as the server gives it
+      let body;
       if (form.id === "update-form") {
-        path = "/studies";
         body = { update_of: study, dataset_ids: ids };
       } else {
-        path = "/predictions";
         body = { study_id: study, draws: Number(f.draws.value) };
         const sweep = sweepConditions(f);
         if (typeof sweep === "string") return say(out, sweep, true);
