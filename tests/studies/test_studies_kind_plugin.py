@@ -1,21 +1,26 @@
 """A study kind is a plug-in: a dummy kind added to the registry in this test (its module is
 this file) gets its API collection, runs through the same leases and stage machinery as every
 kind, shows its own panel on the dashboard and its command on the command line, with nothing
-else changed (issue 43)."""
+else changed (issue 43); a second one with only a create route of its own (its own request
+handling, repeated runs, answered with the common study, as the calibration kind's
+``POST /studies`` is) gets it the same way, and every kind's create route, the built-in ones'
+too, is the generic mount's (issue 72)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import click
 import numpy as np
 from click.testing import CliRunner
 from pydantic import BaseModel, ConfigDict, Field
-from test_api_support import AUTH, api_client, fresh_database
+from test_api_support import AUTH, api_client, fresh_database, settings_for
 
 from scm_core.inference.tmcmc_stage import PointEvaluation
+from services.api.main import create_app
+from services.api.views import kind_posts
 from services.store import (
     BatchLease,
     BatchOutput,
@@ -28,6 +33,7 @@ from services.store import (
     StudySpec,
 )
 from services.store.codec import decode
+from services.studies import StudyRequestError
 from services.studies.kinds import KINDS, KindPanel, StudyTerms
 from services.studies.kinds.base import KindCli, KindHttp, batch_output, one_run_per_item
 from worker.orchestrator import ContextCache, execute_batch
@@ -168,3 +174,116 @@ def test_a_new_kind_mounts_its_command_line_command(tmp_path, monkeypatch) -> No
     assert ran.exit_code == 0 and ran.output.strip() == "sum 285"
     bad = runner.invoke(cli, ["squares", "--n", "0"])
     assert bad.exit_code == 2 and "--n" in bad.output
+
+
+class TallyRequest(BaseModel):
+    """Tally 0 .. n - 1, ``runs`` times."""
+
+    model_config = ConfigDict(extra="forbid")
+    n: int = Field(ge=1, le=50)
+    runs: int = Field(1, ge=1, le=5)
+
+
+def tally_specs(store: Store, settings: Any, body: TallyRequest) -> list[StudySpec]:
+    """The kind's own request handling: a refusal naming the field, repeated runs."""
+    if body.n == 13:
+        raise StudyRequestError("n: 13 is not tallied")
+    spec = StudySpec(name="tally", case={}, dataset_ids=[], seed=0, n_samples=body.n, kind="tally")
+    return [replace(spec, name=f"tally {k + 1}", seed=k) for k in range(body.runs)]
+
+
+@click.command()
+@click.option("--n", type=click.IntRange(1, 50), required=True, help="How many numbers.")
+def tally_command(n: int) -> None:
+    """Tally 0 .. n - 1."""
+    click.echo(f"tally {n}")
+
+
+class TallyKind(SquaresKind):
+    """A kind with only a create route of its own: its studies are read as every study is."""
+
+    name = "tally"
+    title = "tally run"
+    http = KindHttp(
+        path="/tallies",
+        request=TallyRequest,
+        spec=tally_specs,
+        result=None,
+        description="Tallies the first n integers, runs times.",
+        reads=False,
+        summary="Start a tally",
+        statuses=(401, 422),
+    )
+    cli = KindCli("tally", "test_studies_kind_plugin:tally_command")
+    collection = "/studies"
+
+
+def _run(url: str, sid: int) -> None:
+    with Store.open(url) as store:
+        cache = ContextCache()
+        while store.studies.get(sid).status == "running":
+            pending = [b for b in store.batches.list(sid, 0) if b.status == "pending"]
+            execute_batch(store, pending[0].key, cache, None)
+
+
+def test_a_kind_with_its_own_create_route_is_mounted_the_same_way(tmp_path, monkeypatch) -> None:
+    panel_dir = tmp_path / "templates"
+    panel_dir.mkdir()
+    (panel_dir / "squares_panel.html").write_text(
+        '<p id="squares-sum">{% if result %}sum {{ result.sum|num(6) }}{% endif %}</p>'
+    )
+    monkeypatch.setitem(KINDS, "tally", TallyKind(panel_dir))
+    with fresh_database("sqlite", tmp_path) as url, api_client(url) as client:
+        spec = client.get("/openapi.json").json()
+        assert set(spec["paths"]["/tallies"]) == {"post"}  # a create route, no reads
+        assert spec["paths"]["/tallies"]["post"]["summary"] == "Start a tally"
+        assert not any(p.startswith("/tallies/") for p in spec["paths"])
+        assert client.post("/tallies", json={"n": 3}).status_code == 401  # a write
+        r = client.post("/tallies", json={"n": 13}, headers=AUTH)
+        assert r.status_code == 422 and r.json()["detail"] == "n: 13 is not tallied"
+        r = client.post("/tallies", json={"n": 4, "runs": 3, "bad": 1}, headers=AUTH)
+        assert r.status_code == 422 and "bad" in r.text  # its own request model
+        assert client.get("/studies", params={"kind": "tally"}).json()["total"] == 0
+        r = client.post("/tallies", json={"n": 4, "runs": 3}, headers=AUTH)
+        assert r.status_code == 201, r.text
+        study = r.json()  # the common study, read at /studies/{id}
+        sid = study["id"]
+        assert r.headers["Location"] == f"/studies/{sid}"
+        assert study["kind"] == "tally" and study["runs"] == [sid, sid + 1, sid + 2]
+        assert client.get("/studies", params={"kind": "tally"}).json()["total"] == 3
+        _run(url, sid)
+        read = client.get(f"/studies/{sid}").json()
+        assert read["status"] == "completed" and read["result"] == {"sum": 14.0}
+        assert "tally run" in client.get("/", params={"kind": "tally"}).text  # the filter
+        listed = client.get("/ui/f/studies", params={"kind": "tally"}).text
+        assert listed.count("<td>tally run</td>") == 3, listed  # the rows, by its title
+        results = client.get(f"/ui/f/studies/{sid}/results").text
+        assert '<p id="squares-sum">sum 14</p>' in results, results
+    assert kind_posts()["tally"] == "/tallies"  # where the dashboard's forms would post it
+
+
+def test_every_kinds_create_route_is_the_generic_mounts(tmp_path, monkeypatch) -> None:
+    """One ``POST`` route per kind's declared path, made by the kinds' router (none by hand,
+    the built-in kinds' included: the calibration's ``POST /studies``)."""
+    monkeypatch.setitem(KINDS, "squares", SquaresKind(tmp_path))
+    monkeypatch.setitem(KINDS, "tally", TallyKind(tmp_path))
+    app = create_app(settings_for(f"sqlite:///{tmp_path / 'x.db'}"), start_local_runtime=False)
+    posts: dict[str, list[str]] = {}
+    for route in app.state.api_routes:  # every router's routes, as mounted
+        if "POST" in route.methods:
+            posts.setdefault(route.path, []).append(route.endpoint.__module__)
+    declared = [k.http.path for k in KINDS.values() if k.http is not None]
+    assert {"/studies", "/sensitivity", "/predictions", "/squares", "/tallies"} <= set(declared)
+    for path in declared:
+        assert posts[path] == ["services.api.routes.kinds"], (path, posts.get(path))
+
+
+def test_a_kind_with_its_own_create_route_has_its_command(monkeypatch) -> None:
+    from services.cli.main import cli
+
+    monkeypatch.setitem(KINDS, "tally", TallyKind(None))
+    runner = CliRunner()
+    listed = runner.invoke(cli, ["--help"])
+    assert listed.exit_code == 0 and "tally" in listed.output
+    ran = runner.invoke(cli, ["tally", "--n", "4"])
+    assert ran.exit_code == 0 and ran.output.strip() == "tally 4"

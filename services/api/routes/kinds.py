@@ -61,10 +61,10 @@ def kind_router(kind: StudyKind) -> APIRouter:
         prefix=http.path, tags=[http.path.strip("/")], dependencies=[Depends(require_read)]
     )
     if http.reads:
-        _create_route(router, kind, out_model, out)
+        _create_route(router, kind, out_model, out, http.path)
         _read_routes(router, kind, out_model, page_model, out)
     else:
-        _create_route(router, kind, StudyOut, study_out)
+        _create_route(router, kind, StudyOut, study_out, "/studies")
     return router
 
 
@@ -73,9 +73,12 @@ def _specs(made: StudySpec | Any) -> list[StudySpec]:
     return [made] if isinstance(made, StudySpec) else list(made)
 
 
-def _create_route(router: APIRouter, kind: StudyKind, out_model: Any, out: Any) -> None:
+def _create_route(
+    router: APIRouter, kind: StudyKind, out_model: Any, out: Any, read_at: str
+) -> None:
     """``POST PATH``: the kind's request, validated into its studies, stored and started;
-    answered with ``out(store, first study)``."""
+    answered with ``out(store, first study)``, which is read at ``read_at/{id}``
+    (``Location``)."""
     http: KindHttp = kind.http  # type: ignore[assignment]
     request_model = http.request
 
@@ -97,7 +100,7 @@ def _create_route(router: APIRouter, kind: StudyKind, out_model: Any, out: Any) 
     ) -> Any:
         specs = _specs(http.spec(store, settings, body))
         study_id = create_runs_and_start(store, specs, dispatcher)[0]
-        response.headers["Location"] = f"{http.path}/{study_id}"
+        response.headers["Location"] = f"{read_at}/{study_id}"
         return out(store, store.studies.get(study_id))
 
 
