@@ -398,9 +398,11 @@
         body.preset = f.preset.value;
       }
       if (f.name.value) body.name = f.name.value;
-      // where the chosen kind's studies are submitted: the server's (data-post)
-      const path = form.querySelector("input[name=kind]:checked").dataset.post;
-      if (f.kind.value === "sensitivity") {
+      // the chosen kind: where its studies are submitted (the server's data-post), and
+      // whether it is a screening (one dataset, r and levels) rather than a calibration
+      const chosen = form.querySelector("input[name=kind]:checked");
+      const path = chosen.dataset.post;
+      if ("screening" in chosen.dataset) {
         if (ids.length !== 1) return say(out, "dataset_id: a sensitivity study runs on exactly one dataset: check one", true);
         Object.assign(body, { dataset_id: ids[0], r: Number(f.r.value), levels: Number(f.levels.value) });
       } else {
