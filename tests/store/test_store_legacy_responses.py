@@ -237,6 +237,7 @@ def test_a_prediction_stored_before_reads_back_as_its_result(store: Store, datas
     _run(store, study_id)
     study = store.studies.get(study_id)
     assert study.status == "completed", study.error
+    assert study.parent_id == parent_id
     result = study.result["predictions"]
     assert all(set(p["responses"]) == {"F", "T", "z"} for p in result)  # driven straight
     _make_old(store, study_id)

@@ -89,6 +89,8 @@ def test_update_is_the_in_memory_update_bit_for_bit(store: Store, dataset_ids) -
     _run(store, study_id)
     done = store.studies.get(study_id)
     assert done.status == "completed", done.error
+    assert done.parent_id == parent_id  # the store lists it among the parent's
+    assert [s.id for s in store.studies.list(parent=parent_id).items] == [study_id]
 
     datasets = load_datasets(store, CASE, dataset_ids)
     prior, sampler = CASE.prior(), CASE.tmcmc_settings()
