@@ -51,7 +51,7 @@ from scipy import stats
 
 from scm_core.calibration.case import load_case
 from scm_core.inference import JointPrior, StageState, TMCMCSettings, TruncatedNormal, run_tmcmc
-from scm_core.inference.tmcmc_stage import plan_stage
+from scm_core.inference.tmcmc.stage import plan_stage
 
 WASTE_FREE_DA = {"moves": "waste-free", "n_steps": 4, "delayed_acceptance": True}
 FORMS = {

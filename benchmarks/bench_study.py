@@ -67,8 +67,8 @@ from rich.table import Table
 from scipy.stats import ks_2samp
 
 from scm_core.calibration import CaseDefinition, StudyModel, load_case, run_tmcmc
-from scm_core.inference.tmcmc_moves import WasteFreeMove, stage_chains
-from scm_core.inference.tmcmc_types import RESAMPLING
+from scm_core.inference.tmcmc.moves import WasteFreeMove, stage_chains
+from scm_core.inference.tmcmc.types import RESAMPLING
 from scm_core.signals import load_dataset
 from services.studies.batching import local_batch_size
 from worker.batch_map import batch_map

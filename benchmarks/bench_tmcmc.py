@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from scm_core.inference import JointPrior, TMCMCSettings, Uniform, run_tmcmc
-from scm_core.inference.tmcmc_stage import plan_stage, reduce_stage, run_chains
+from scm_core.inference.tmcmc.stage import plan_stage, reduce_stage, run_chains
 
 
 class TimedGaussian:

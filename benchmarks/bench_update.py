@@ -45,7 +45,7 @@ from scm_core.calibration import (
     load_case,
     run_tmcmc,
 )
-from scm_core.inference.tmcmc_moves import stage_chains
+from scm_core.inference.tmcmc.moves import stage_chains
 from scm_core.signals import load_dataset
 from services.studies.batching import local_batch_size
 from worker.batch_map import batch_map

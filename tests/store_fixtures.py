@@ -22,7 +22,7 @@ import pytest
 import sqlalchemy as sa
 
 from scm_core.inference import JointPrior, TMCMCSettings, Uniform
-from scm_core.inference.tmcmc_stage import (
+from scm_core.inference.tmcmc.stage import (
     ChainBatchResult,
     PointEvaluation,
     StagePlan,

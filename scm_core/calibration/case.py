@@ -68,7 +68,7 @@ from scm_core.inference.priors import (
     JointPrior,
     distribution_from_dict,
 )
-from scm_core.inference.tmcmc_stage import TMCMCSettings
+from scm_core.inference.tmcmc.stage import TMCMCSettings
 from scm_core.seeds import SEED_MAX
 from scm_core.signals.responses import DEFAULT_KEYS, RESPONSE_KEYS, response
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry

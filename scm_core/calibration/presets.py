@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from scm_core.inference.priors import TABLE2_NOMINAL, table2_prior
-from scm_core.inference.tmcmc_moves import move_of
+from scm_core.inference.tmcmc.moves import move_of
 
 from .case import CaseDefinition, CaseError
 

@@ -1,7 +1,7 @@
 """A case's ``[sampler]`` table: the TMCMC settings as a case writes and stores them.
 
 :class:`SamplerSettings` validates the table, fills what it leaves to its move scheme
-(:func:`scm_core.inference.tmcmc_moves.form_defaults`) and holds every tuning field of
+(:func:`scm_core.inference.tmcmc.moves.form_defaults`) and holds every tuning field of
 :class:`~scm_core.inference.TMCMCSettings` with its default, so that a stored case keeps every
 setting its samples depend on; :data:`TUNING_BEFORE` is what a case stored before then ran with.
 """
@@ -13,9 +13,9 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, create_model, model_validator
 
-from scm_core.inference.tmcmc_moves import STUDY_MOVES, form_defaults
-from scm_core.inference.tmcmc_stage import TMCMCSettings
-from scm_core.inference.tmcmc_types import MOVES
+from scm_core.inference.tmcmc.moves import STUDY_MOVES, form_defaults
+from scm_core.inference.tmcmc.stage import TMCMCSettings
+from scm_core.inference.tmcmc.types import MOVES
 
 __all__ = [
     "TUNING",
@@ -43,7 +43,7 @@ class _SamplerFields(StrictModel):
     unaccelerated accurate form) or "leader" (the paper's form). ``n_steps`` (waste-free),
     ``delayed_acceptance``, ``surrogate_steps``, ``surrogate_jumps``, ``proposal_scale`` and
     ``resampling`` left out (or null) take the move scheme's defaults, filled in and stored with
-    the case (:func:`scm_core.inference.tmcmc_moves.form_defaults`): for "waste-free" 4 moves per
+    the case (:func:`scm_core.inference.tmcmc.moves.form_defaults`): for "waste-free" 4 moves per
     chain, surrogate transitions of 40 inner steps with population jumps, the log walk and
     multinomial resampling; for "resample-move" and "leader" plain steps in the parameters and
     systematic resampling (their ``n_steps`` left null adapts per stage).

@@ -2,7 +2,7 @@
 should not be very different", so updating is cheap).
 
 An update starts from the population of p(theta | old data) and tempers only L(new data); the
-old datasets' likelihood is the base density b (see :mod:`scm_core.inference.tmcmc_stage`), so
+old datasets' likelihood is the base density b (see :mod:`scm_core.inference.tmcmc.stage`), so
 the stages target prior x L(old) x L(new)^p, p from 0 to 1, and the evidence accumulated is
 Z(new | old) = Z(old and new) / Z(old).
 """
@@ -14,8 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from scm_core.inference.tmcmc_loop import PopulationStart
-from scm_core.inference.tmcmc_stage import StageState
+from scm_core.inference.tmcmc.loop import PopulationStart
+from scm_core.inference.tmcmc.stage import StageState
 from scm_core.signals.responses import N_RESPONSES, widened
 
 from .model import StudyModel
@@ -66,7 +66,7 @@ class UpdateLikelihood:
         """The old datasets' parts {k: lab-side means (m, N_RESPONSES)} from the responses
         (m, N_RESPONSES n_old) the earlier study returned at its population (its datasets are
         the first n_old, in order): stage 0 of the update then runs the new datasets only
-        (``known_parts`` of :func:`~scm_core.inference.tmcmc_stage.evaluate_points`), with the
+        (``known_parts`` of :func:`~scm_core.inference.tmcmc.stage.evaluate_points`), with the
         same result. A study stored before the later responses were declared returned fewer
         per dataset (F, T, z): those read as NaN (:func:`~scm_core.signals.responses.widened`),
         so that stage 0 runs its old datasets again, as it does any known part with a

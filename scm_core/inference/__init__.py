@@ -1,6 +1,6 @@
 """Bayesian inference core: priors, likelihoods, TMCMC, Morris screening, posterior summaries.
 
-Pure numerics (numpy/scipy), no I/O. See :mod:`scm_core.inference.tmcmc_loop` for the stage loop
+Pure numerics (numpy/scipy), no I/O. See :mod:`scm_core.inference.tmcmc.loop` for the stage loop
 every driver runs (``run_tmcmc`` here, the service's leased batches).
 """
 
@@ -47,7 +47,7 @@ from scm_core.inference.tmcmc import (
     rowwise,
     run_tmcmc,
 )
-from scm_core.inference.tmcmc_stage import (
+from scm_core.inference.tmcmc.stage import (
     ChainBatchResult,
     StagePlan,
     StageState,
@@ -62,7 +62,7 @@ from scm_core.inference.tmcmc_stage import (
     run_chains,
     stage_status,
 )
-from scm_core.inference.tmcmc_types import Failures, StageCounts, count_fields
+from scm_core.inference.tmcmc.types import Failures, StageCounts, count_fields
 
 __all__ = [
     "LIKELIHOODS",

@@ -10,7 +10,7 @@ from typing import Any
 
 from scm_core.inference import StageState
 from scm_core.inference._serial import encode_array
-from scm_core.inference.tmcmc_stage import StagePlan
+from scm_core.inference.tmcmc.stage import StagePlan
 from services.exports.inference_data import StageRow
 from services.store import PlannedStage, ReducedStage, SampleArrays, StageRecord, Store
 from services.store.codec import encode, split

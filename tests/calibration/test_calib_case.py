@@ -10,7 +10,7 @@ import pytest
 from scm_core.calibration import CaseDefinition, CaseError, load_case, preset_case
 from scm_core.calibration.presets import PRESETS, preset_cost, stage_runs
 from scm_core.inference import TABLE2_NOMINAL, TMCMCSettings, table2_prior
-from scm_core.inference.tmcmc_moves import form_defaults
+from scm_core.inference.tmcmc.moves import form_defaults
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

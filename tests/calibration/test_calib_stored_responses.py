@@ -12,7 +12,7 @@ import pytest
 
 from scm_core.calibration import CaseDefinition, DatasetTerms, StudyModel, UpdateLikelihood
 from scm_core.calibration.stored import with_all_responses
-from scm_core.inference.tmcmc_stage import PointEvaluation
+from scm_core.inference.tmcmc.stage import PointEvaluation
 from scm_core.signals.responses import N_FIRST, N_RESPONSES, RESPONSE_KEYS, widened
 
 

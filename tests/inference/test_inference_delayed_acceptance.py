@@ -38,7 +38,7 @@ from scm_core.inference import (
     Uniform,
     run_tmcmc,
 )
-from scm_core.inference.tmcmc_moves import form_defaults
+from scm_core.inference.tmcmc.moves import form_defaults
 
 
 @pytest.fixture(

@@ -36,7 +36,7 @@ from scm_core.inference import (
     run_tmcmc,
 )
 from scm_core.inference.early_rejection import evaluate_staged, is_parted
-from scm_core.inference.tmcmc_stage import evaluate_points, first_occurrences, initial_state
+from scm_core.inference.tmcmc.stage import evaluate_points, first_occurrences, initial_state
 
 LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 

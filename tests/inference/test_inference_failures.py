@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from scm_core.inference import Failures, JointPrior, TMCMCSettings, TruncatedNormal, run_tmcmc
-from scm_core.inference.tmcmc_types import StageCounts
+from scm_core.inference.tmcmc.types import StageCounts
 
 Y = np.array([0.8, -0.8])
 S = 0.5

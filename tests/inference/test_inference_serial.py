@@ -19,8 +19,8 @@ import pytest
 from typing_extensions import TypeAliasType
 
 import scm_core.inference._serial as serial
-import scm_core.inference.tmcmc as tmcmc_module
-import scm_core.inference.tmcmc_types as types_module
+import scm_core.inference.tmcmc.driver as tmcmc_module
+import scm_core.inference.tmcmc.types as types_module
 from scm_core.inference import (
     ChainBatchResult,
     JointPrior,
@@ -37,8 +37,8 @@ from scm_core.inference import (
     run_chains,
     run_tmcmc,
 )
-from scm_core.inference.tmcmc_moves import form_defaults
-from scm_core.inference.tmcmc_types import PointEvaluation
+from scm_core.inference.tmcmc.moves import form_defaults
+from scm_core.inference.tmcmc.types import PointEvaluation
 
 _ScalarT = TypeVar("_ScalarT", bound=np.generic)
 #: numpy 2.5's spelling of NDArray, built on Python 3.11

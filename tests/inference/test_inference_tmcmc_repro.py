@@ -20,7 +20,7 @@ from scm_core.inference import (
     rowwise,
     run_tmcmc,
 )
-from scm_core.inference.tmcmc_stage import (
+from scm_core.inference.tmcmc.stage import (
     ChainBatchResult,
     StagePlan,
     TMCMCSettings,

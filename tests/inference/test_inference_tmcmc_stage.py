@@ -9,7 +9,7 @@ import pytest
 from scipy import stats
 
 from scm_core.inference import JointPrior, TMCMCSettings, Uniform, run_tmcmc
-from scm_core.inference.tmcmc_stage import (
+from scm_core.inference.tmcmc.stage import (
     adapt_beta,
     multinomial_resample,
     next_exponent,
@@ -18,7 +18,7 @@ from scm_core.inference.tmcmc_stage import (
     systematic_resample,
     weighted_covariance,
 )
-from scm_core.inference.tmcmc_weights import genealogy_log_evidence_var
+from scm_core.inference.tmcmc.weights import genealogy_log_evidence_var
 
 
 def _cov(logl: np.ndarray, dp: float) -> float:
@@ -265,7 +265,7 @@ def test_waste_free_chains_keep_every_state_and_cost_n_minus_m_runs() -> None:
     moves; all P states of a chain, its start first, are samples, so a stage makes at most
     n - M model runs (out-of-support proposals are not run)."""
     from scm_core.inference import plan_stage
-    from scm_core.inference.tmcmc_stage import _chain_sizes
+    from scm_core.inference.tmcmc.stage import _chain_sizes
 
     prior = JointPrior({"x": Uniform(-1.0, 1.0), "y": Uniform(-1.0, 1.0)})
 
@@ -293,7 +293,7 @@ def test_waste_free_chains_keep_every_state_and_cost_n_minus_m_runs() -> None:
 
 
 def test_evidence_variance_counts_chains_as_the_independent_units() -> None:
-    from scm_core.inference.tmcmc_stage import _log_mean_weight_var
+    from scm_core.inference.tmcmc.stage import _log_mean_weight_var
 
     w = np.random.default_rng(0).random(60)
     w /= w.sum()

@@ -12,7 +12,7 @@ from pathlib import Path
 from scm_core.inference import StageCounts, count_fields
 
 ROOT = Path(__file__).resolve().parents[2]
-DECLARED = ROOT / "scm_core" / "inference" / "tmcmc_types.py"
+DECLARED = ROOT / "scm_core" / "inference" / "tmcmc" / "types.py"
 
 
 def test_no_second_list_of_the_counters() -> None:

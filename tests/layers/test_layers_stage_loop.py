@@ -15,8 +15,8 @@ import numpy as np
 from layer_support import parse_file
 
 from scm_core.inference import JointPrior, TruncatedNormal, run_tmcmc
-from scm_core.inference.tmcmc_loop import Tempering
-from scm_core.inference.tmcmc_stage import TMCMCSettings
+from scm_core.inference.tmcmc.loop import Tempering
+from scm_core.inference.tmcmc.stage import TMCMCSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the stage functions only the loop calls (the stage modules define them)
@@ -28,8 +28,8 @@ STEPS = {
     "plan_stage",
     "reduce_stage",
 }
-LOOP = "scm_core/inference/tmcmc_loop.py"
-DEFINED_IN = ("scm_core/inference/tmcmc_stage", "scm_core/inference/tmcmc_steps")
+LOOP = "scm_core/inference/tmcmc/loop.py"
+DEFINED_IN = ("scm_core/inference/tmcmc/stage", "scm_core/inference/tmcmc/steps")
 
 
 def _calls(path: Path) -> set[str]:
@@ -54,7 +54,7 @@ def test_only_the_loop_steps_a_stage() -> None:
 
 
 def test_both_drivers_go_through_the_loop() -> None:
-    for rel in ("scm_core/inference/tmcmc.py", "services/studies/kinds/calibration.py"):
+    for rel in ("scm_core/inference/tmcmc/driver.py", "services/studies/kinds/calibration.py"):
         calls = _calls(ROOT / rel)
         assert {"Tempering", "begin", "advance"} <= calls, rel
 

@@ -9,7 +9,7 @@ from datetime import timedelta
 import numpy as np
 import pytest
 
-from scm_core.inference.tmcmc_stage import PointEvaluation, evaluate_points
+from scm_core.inference.tmcmc.stage import PointEvaluation, evaluate_points
 from services.store import BatchKey, BatchOutput, NotFoundError, Store
 from services.store.codec import decode
 

@@ -24,7 +24,7 @@ from scm_core.calibration import (
     UpdateLikelihood,
     run_tmcmc,
 )
-from scm_core.inference.tmcmc_stage import ChainBatchResult, StagePlan
+from scm_core.inference.tmcmc.stage import ChainBatchResult, StagePlan
 from scm_core.signals import load_log
 from scm_core.signals.responses import N_FIRST, N_RESPONSES
 from services.api.views import named_responses

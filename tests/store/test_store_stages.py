@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from store_fixtures import in_memory_run, work_one
 
-from scm_core.inference.tmcmc_stage import evaluate_points
+from scm_core.inference.tmcmc.stage import evaluate_points
 from services.stages import reduced_stage
 from services.store import BatchKey, InvalidStateError, ReduceInput, StageAdvance, Store
 
@@ -199,7 +199,7 @@ def test_samples_pagination(store: Store, toy) -> None:
 
 def _adoption(toy, states):
     """(plan, reduced) of each stage of an in-memory run, and what follows the last."""
-    from scm_core.inference.tmcmc_stage import plan_stage, stage_status
+    from scm_core.inference.tmcmc.stage import plan_stage, stage_status
     from services.stages import planned_stage
 
     pairs = [(None, reduced_stage(states[0]))]

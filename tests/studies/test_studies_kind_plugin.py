@@ -18,7 +18,7 @@ from click.testing import CliRunner
 from pydantic import BaseModel, ConfigDict, Field
 from test_api_support import AUTH, api_client, fresh_database, settings_for
 
-from scm_core.inference.tmcmc_stage import PointEvaluation
+from scm_core.inference.tmcmc.stage import PointEvaluation
 from services.api.main import create_app
 from services.api.views import kind_posts
 from services.store import (

@@ -13,7 +13,7 @@ from test_api_support import AUTH, api_client, fresh_database, run_inline, summa
 
 from scm_core.calibration import CaseDefinition, SamplerSettings
 from scm_core.calibration import case as case_module
-from scm_core.inference import tmcmc_moves
+from scm_core.inference.tmcmc import moves as tmcmc_moves
 from services.store import Store
 from services.studies.kinds import base
 
@@ -35,7 +35,7 @@ def _retune(tuning: dict, form: dict) -> None:
 
 @pytest.fixture
 def new_release(monkeypatch) -> Iterator[None]:
-    """Changes the defaults in code, as an edit of case.py / tmcmc_moves.py would."""
+    """Changes the defaults in code, as an edit of case.py / tmcmc/moves.py would."""
     old_tuning = {n: SamplerSettings.model_fields[n].default for n in NEW_TUNING}
     old_form = {k: tmcmc_moves._PLAIN[k] for k in NEW_FORM}
     _retune(NEW_TUNING, NEW_FORM)

@@ -22,8 +22,8 @@ from test_api_support import (
 from test_dashboard_browser import ARGS, CHROMIUM, SHOTS, Watched
 
 from scm_core.calibration import CaseDefinition
-from scm_core.inference.tmcmc_stage import initial_samples, initial_state, plan_stage
-from scm_core.inference.tmcmc_types import PointEvaluation
+from scm_core.inference.tmcmc.stage import initial_samples, initial_state, plan_stage
+from scm_core.inference.tmcmc.types import PointEvaluation
 from services.stages import planned_stage, reduced_stage
 from services.store import BatchKey, BatchOutput, ReducedStage, SampleArrays, StageAdvance, Store
 from services.store.codec import encode

@@ -2,7 +2,7 @@
 
 Stage 0 evaluates the likelihood at ``n_samples`` prior draws (rows of
 ``initial_samples(prior, n_samples, seed)``, one work batch per row range); every later stage
-runs the chains of its plan (``scm_core.inference.tmcmc_stage``). The reducer is
+runs the chains of its plan (``scm_core.inference.tmcmc.stage``). The reducer is
 ``initial_state``/``reduce_stage`` followed by ``plan_stage`` or the end of the study. Plans
 and batch results are stored as :mod:`services.store.codec` blobs; a stage's population as
 sample rows with the scalar fields of its ``StageState`` as ``meta``. What a study stored
@@ -22,9 +22,9 @@ import numpy as np
 
 from scm_core.calibration import CaseDefinition, StudyModel
 from scm_core.calibration.stored import with_all_responses
-from scm_core.inference.tmcmc_loop import PopulationStart, StageStep, Tempering, evaluate_zero
-from scm_core.inference.tmcmc_moves import move_of
-from scm_core.inference.tmcmc_stage import (
+from scm_core.inference.tmcmc.loop import PopulationStart, StageStep, Tempering, evaluate_zero
+from scm_core.inference.tmcmc.moves import move_of
+from scm_core.inference.tmcmc.stage import (
     ChainBatchResult,
     PointEvaluation,
     StagePlan,

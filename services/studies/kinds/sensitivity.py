@@ -35,7 +35,7 @@ from scm_core.calibration import (
 )
 from scm_core.calibration.failures import failure_counts
 from scm_core.inference import LOG_SCALE_KINDS
-from scm_core.inference.tmcmc_stage import PointEvaluation
+from scm_core.inference.tmcmc.stage import PointEvaluation
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import SWTDataset
 from scm_core.signals.responses import widened

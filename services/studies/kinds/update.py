@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from scm_core.calibration import CaseError, StudyModel, UpdateLikelihood
-from scm_core.inference.tmcmc_loop import PopulationStart
-from scm_core.inference.tmcmc_stage import StageState
+from scm_core.inference.tmcmc.loop import PopulationStart
+from scm_core.inference.tmcmc.stage import StageState
 from scm_core.seeds import SEED_MAX
 from services.config import Settings
 from services.limits import seed_error

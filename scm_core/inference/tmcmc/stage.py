@@ -14,10 +14,10 @@ One stage j -> j+1 is three steps, each a pure function of its inputs:
 
 Stage 0 (prior draws, ``spawn_key=(0,)``) is built by :func:`initial_samples`,
 :func:`evaluate_points` (per batch) and :func:`initial_state`, in
-:mod:`scm_core.inference.tmcmc_stage0`. The data (settings, states, plans,
-batch results) are in :mod:`scm_core.inference.tmcmc_types`, the move schemes in
-:mod:`scm_core.inference.tmcmc_moves`, the chains (with early rejection and delayed acceptance)
-in :mod:`scm_core.inference.tmcmc_chains`.
+:mod:`scm_core.inference.tmcmc.stage0`. The data (settings, states, plans,
+batch results) are in :mod:`scm_core.inference.tmcmc.types`, the move schemes in
+:mod:`scm_core.inference.tmcmc.moves`, the chains (with early rejection and delayed acceptance)
+in :mod:`scm_core.inference.tmcmc.chains`.
 :func:`stage_status` says when to stop.
 
 Model calls go through ``log_likelihood_batch(X)`` with X of shape (m, d) in the prior's parameter
@@ -34,7 +34,7 @@ evidence it accumulates is the incremental one, Z(new | old) (see :func:`initial
 Three move schemes (``TMCMCSettings.moves``):
 
 * ``"resample-move"`` (the default of :class:`TMCMCSettings`; a study that names no moves runs
-  ``"waste-free"``, :data:`~scm_core.inference.tmcmc_moves.STUDY_MOVES`): every resampled
+  ``"waste-free"``, :data:`~scm_core.inference.tmcmc.moves.STUDY_MOVES`): every resampled
   point starts a chain of ``n_steps`` Metropolis steps; the chain's final state is the new
   sample. ``n_steps`` is fixed or adapted so that a chain moves at least once with probability
   ``move_probability`` given the last acceptance rate.
@@ -44,7 +44,7 @@ Three move schemes (``TMCMCSettings.moves``):
   targets with exact answers (evidence off by ~0.5-1 nat at 2000 samples).
 * ``"waste-free"`` (Dau & Chopin 2022): M = n / P resampled points each start a chain of P - 1
   moves and all P states of each chain, its start included, are samples: n - M model runs per
-  stage, consistent for any P (:class:`~scm_core.inference.tmcmc_moves.WasteFreeMove`).
+  stage, consistent for any P (:class:`~scm_core.inference.tmcmc.moves.WasteFreeMove`).
 """
 
 from __future__ import annotations
@@ -58,16 +58,16 @@ from numpy.typing import NDArray
 
 from scm_core.inference import portable
 from scm_core.inference.priors import JointPrior
-from scm_core.inference.tmcmc_chains import chain_rng, run_chains
-from scm_core.inference.tmcmc_moves import move_of, steps_for_acceptance
-from scm_core.inference.tmcmc_stage0 import (
+from scm_core.inference.tmcmc.chains import chain_rng, run_chains
+from scm_core.inference.tmcmc.moves import move_of, steps_for_acceptance
+from scm_core.inference.tmcmc.stage0 import (
     evaluate_points,
     first_occurrences,
     initial_samples,
     initial_state,
     stage_rng,
 )
-from scm_core.inference.tmcmc_types import (
+from scm_core.inference.tmcmc.types import (
     MOVES,
     ChainBatchResult,
     LogLikelihoodBatch,
@@ -77,7 +77,7 @@ from scm_core.inference.tmcmc_types import (
     StageState,
     TMCMCSettings,
 )
-from scm_core.inference.tmcmc_weights import (
+from scm_core.inference.tmcmc.weights import (
     adapt_beta,
     genealogy_log_evidence_var,
     multinomial_resample,
@@ -179,7 +179,7 @@ def plan_stage(
     correlation that resampling and slowly mixing chains carry from one stage to the next
     (2-6 times too small in sd where chains make few moves, docs/calibration.md). The variance
     of log Z-hat reported is the genealogy estimate
-    :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`, which counts it,
+    :func:`~scm_core.inference.tmcmc.weights.genealogy_log_evidence_var`, which counts it,
     guarded from below by the stage-wise sum: max(genealogy, sum). The guard catches the
     genealogy estimate's low draws where lineages have coalesced to a few Eves (its noise; it
     is negative where small against it): over 20 seeds of the quick case, whose chains mix well

@@ -16,8 +16,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from scm_core.inference.early_rejection import is_parted, n_parts
 from scm_core.inference.priors import JointPrior
-from scm_core.inference.tmcmc_eval import batch_output, call_batch
-from scm_core.inference.tmcmc_types import (
+from scm_core.inference.tmcmc.evaluate import batch_output, call_batch
+from scm_core.inference.tmcmc.types import (
     Failures,
     LogLikelihoodBatch,
     PointEvaluation,

@@ -1,6 +1,6 @@
 """TMCMC's move schemes as small strategy objects (as emcee's moves): how a stage's resampled
-points become Metropolis chains (:func:`scm_core.inference.tmcmc_stage.plan_stage`) and which
-states of a chain are the next stage's samples (:func:`~scm_core.inference.tmcmc_stage.run_chains`).
+points become Metropolis chains (:func:`scm_core.inference.tmcmc.stage.plan_stage`) and which
+states of a chain are the next stage's samples (:func:`~scm_core.inference.tmcmc.stage.run_chains`).
 ``TMCMCSettings.moves`` names one; :func:`move_of` gives it.
 """
 
@@ -12,7 +12,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference.tmcmc_types import MOVES, TMCMCSettings
+from scm_core.inference.tmcmc.types import MOVES, TMCMCSettings
 
 __all__ = [
     "LeaderMove",

@@ -19,15 +19,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.inference.priors import JointPrior
-from scm_core.inference.tmcmc_loop import PopulationStart, Tempering, evaluate_zero
-from scm_core.inference.tmcmc_stage import (
+from scm_core.inference.tmcmc.loop import PopulationStart, Tempering, evaluate_zero
+from scm_core.inference.tmcmc.stage import (
     LogLikelihoodBatch,
     StageState,
     TMCMCSettings,
     chain_batches,
     run_chains,
 )
-from scm_core.inference.tmcmc_types import Failures, count_fields
+from scm_core.inference.tmcmc.types import Failures, count_fields
 
 __all__ = [
     "PopulationStart",
@@ -79,7 +79,7 @@ class TMCMCResult:
 
     samples (n, d): final-stage samples (the posterior if status == "completed"), columns in
     ``names`` order. log_evidence, log_evidence_se: log p(D) (natural log) and its delta-method
-    standard error, the genealogy estimate (:func:`~scm_core.inference.tmcmc_stage.plan_stage`;
+    standard error, the genealogy estimate (:func:`~scm_core.inference.tmcmc.stage.plan_stage`;
     :attr:`log_evidence_se_stagewise` is the lower bound from the per-stage terms alone).
     stages: every :class:`StageState` from stage 0. status: "completed", "stalled" or
     "max_stages".

@@ -1,6 +1,6 @@
 """Calling a study's batch likelihood inside TMCMC: its output normalised (failed runs counted,
 the base density of an update separated) and the tempered target (see
-:mod:`scm_core.inference.tmcmc_stage` for the conventions)."""
+:mod:`scm_core.inference.tmcmc.stage` for the conventions)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from scm_core.inference.tmcmc_types import LogLikelihoodBatch
+from scm_core.inference.tmcmc.types import LogLikelihoodBatch
 
 __all__ = ["BatchOutput", "batch_output", "call_batch", "clean_log_likelihood", "tempered"]
 
@@ -52,7 +52,7 @@ def call_batch(log_likelihood_batch: LogLikelihoodBatch, X: NDArray[np.float64])
 
 def batch_output(out: Any, X: NDArray[np.float64]) -> BatchOutput:
     """:func:`call_batch` from the likelihood's output ``out`` at X (see
-    :data:`~scm_core.inference.tmcmc_types.LogLikelihoodBatch` for its forms). A failure
+    :data:`~scm_core.inference.tmcmc.types.LogLikelihoodBatch` for its forms). A failure
     reason is kept only where the run failed."""
     m = X.shape[0]
     base = failure = None

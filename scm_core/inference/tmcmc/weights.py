@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from scm_core.inference import portable
-from scm_core.inference.tmcmc_types import TMCMCSettings
+from scm_core.inference.tmcmc.types import TMCMCSettings
 
 __all__ = [
     "adapt_beta",

@@ -1,4 +1,4 @@
-"""The data of Transitional MCMC (:mod:`scm_core.inference.tmcmc_stage` has the functions):
+"""The data of Transitional MCMC (:mod:`scm_core.inference.tmcmc.stage` has the functions):
 sampler settings, a stage's population, a stage's plan, a batch of chains' result and stage 0's
 point evaluations. Each is a frozen dataclass whose strict-JSON form (``to_dict``, exact with
 ``from_dict``) and bit-identical comparison (``equals``) are derived from its fields
@@ -70,8 +70,8 @@ class TMCMCSettings(_Fields):
 
     These field defaults are the unaccelerated accurate form (resample-move without a
     surrogate), the sampler's own. A study that names no moves gets the accelerated accurate
-    form instead (:data:`scm_core.inference.tmcmc_moves.STUDY_MOVES`, its settings from
-    :func:`~scm_core.inference.tmcmc_moves.form_defaults`: waste-free chains of surrogate
+    form instead (:data:`scm_core.inference.tmcmc.moves.STUDY_MOVES`, its settings from
+    :func:`~scm_core.inference.tmcmc.moves.form_defaults`: waste-free chains of surrogate
     transitions, ``ACCELERATED_STEPS`` inner steps with a share ``ACCELERATED_JUMPS`` of
     population jumps, the log walk and multinomial resampling; docs/sampler.md). Each part
     is exact.
@@ -81,7 +81,7 @@ class TMCMCSettings(_Fields):
     n_steps: Metropolis steps per chain for resample-move; None adapts it per stage with
         :func:`steps_for_acceptance` (``initial_steps`` for stage 1, where no acceptance is known).
         For waste-free: the moves of each chain (states per chain less one; None:
-        :data:`~scm_core.inference.tmcmc_moves.WASTE_FREE_STEPS`).
+        :data:`~scm_core.inference.tmcmc.moves.WASTE_FREE_STEPS`).
     min_steps, max_steps: clip of the adapted n_steps.
     move_probability: adapted n_steps makes P(chain moves at least once) reach this value.
     target_cov: coefficient of variation of the plausibility weights (Ching & Chen: 1.0).
@@ -112,7 +112,7 @@ class TMCMCSettings(_Fields):
     resampling: "systematic" (default; less resampling noise) or "multinomial" (independent
         draws, as Ching & Chen). Either way the reported evidence standard error is the
         genealogy estimate, whose correction for the resampling's own noise follows the
-        scheme; see :func:`~scm_core.inference.tmcmc_weights.genealogy_log_evidence_var`.
+        scheme; see :func:`~scm_core.inference.tmcmc.weights.genealogy_log_evidence_var`.
     """
 
     moves: str = "resample-move"

@@ -1,7 +1,7 @@
 """TMCMC's Metropolis chains of one stage (the per-batch unit of work): :func:`run_chains`, with
 the exact accelerations of its moves (early rejection across datasets,
 :mod:`scm_core.inference.early_rejection`; delayed acceptance with a response surrogate,
-:mod:`scm_core.inference.surrogate`). See :mod:`scm_core.inference.tmcmc_stage` for the stage
+:mod:`scm_core.inference.surrogate`). See :mod:`scm_core.inference.tmcmc.stage` for the stage
 as a whole."""
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from scm_core.inference import portable
 from scm_core.inference.early_rejection import n_parts
 from scm_core.inference.population_jump import JUMP_DOF
 from scm_core.inference.surrogate import ResponseSurrogate, fit_surrogate, supports_surrogate
-from scm_core.inference.tmcmc_eval import tempered
-from scm_core.inference.tmcmc_moves import Move, move_of
-from scm_core.inference.tmcmc_steps import (
+from scm_core.inference.tmcmc.evaluate import tempered
+from scm_core.inference.tmcmc.moves import Move, move_of
+from scm_core.inference.tmcmc.steps import (
     ChainNumbers,
     ChainState,
     MoveStrategy,
@@ -25,7 +25,7 @@ from scm_core.inference.tmcmc_steps import (
     StepContext,
     SurrogateTransition,
 )
-from scm_core.inference.tmcmc_types import ChainBatchResult, LogLikelihoodBatch, StagePlan
+from scm_core.inference.tmcmc.types import ChainBatchResult, LogLikelihoodBatch, StagePlan
 from scm_core.inference.walk_space import log_columns
 
 __all__ = ["chain_rng", "draw_numbers", "run_chains", "surrogate_floor"]

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.inference.priors import JointPrior
-from scm_core.inference.tmcmc_stage import (
+from scm_core.inference.tmcmc.stage import (
     ChainBatchResult,
     LogLikelihoodBatch,
     PointEvaluation,
@@ -52,7 +52,7 @@ def evaluate_zero(rows: ZeroRows, log_likelihood_batch: LogLikelihoodBatch) -> P
 class PopulationStart:
     """Stage 0 from an earlier posterior's population (n_samples, d) instead of prior draws: a
     posterior update, whose likelihood gives log b = log L(earlier data) (see
-    :mod:`.tmcmc_stage`). ``tuning`` (beta, acceptance rate of that population's last stage)
+    :mod:`.stage`). ``tuning`` (beta, acceptance rate of that population's last stage)
     starts stage 1 with the proposal scale and step count adapted to it (see
     :func:`initial_state`); ``known_parts`` {part k: responses (n_samples, r_k)}: parts of a
     parted likelihood already simulated at those points (the old datasets), not run again."""

@@ -12,7 +12,7 @@ numbers). A move strategy's ``move(ctx, state, active, t)`` makes move ``t`` of 
   section 9.4.3; Christen & Fox 2005 for K = 1).
 
 Both end in :func:`model_step`, the model run with early rejection across the likelihood's
-parts (:mod:`scm_core.inference.early_rejection`). See :func:`scm_core.inference.tmcmc_chains.
+parts (:mod:`scm_core.inference.early_rejection`). See :func:`scm_core.inference.tmcmc.chains.
 run_chains` for the loop over moves and the reproducibility rules.
 """
 
@@ -27,8 +27,8 @@ from numpy.typing import NDArray
 from scm_core.inference.early_rejection import evaluate_staged
 from scm_core.inference.population_jump import jump_log_density, jump_proposal
 from scm_core.inference.surrogate import ResponseSurrogate
-from scm_core.inference.tmcmc_eval import batch_output, tempered
-from scm_core.inference.tmcmc_types import (
+from scm_core.inference.tmcmc.evaluate import batch_output, tempered
+from scm_core.inference.tmcmc.types import (
     Failures,
     LogLikelihoodBatch,
     StageCounts,
@@ -52,7 +52,7 @@ __all__ = [
 
 
 class ChainCounters:
-    """A batch's counters as its moves run: :class:`~scm_core.inference.tmcmc_types.
+    """A batch's counters as its moves run: :class:`~scm_core.inference.tmcmc.types.
     StageCounts`' fields, added to with :meth:`add` and :meth:`failed`, read out with
     :meth:`counts`."""
 
