@@ -13,9 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, create_model, model_validator
 
-from scm_core.inference.tmcmc.moves import STUDY_MOVES, form_defaults
+from scm_core.inference.tmcmc.moves import MOVES, STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc.stage import TMCMCSettings
-from scm_core.inference.tmcmc.types import MOVES
 
 __all__ = [
     "TUNING",

@@ -31,8 +31,7 @@ from scm_core.calibration.failures import READ_MORE, reasons_text
 from scm_core.calibration.report import not_a_posterior
 from scm_core.inference import StageState
 from scm_core.inference.tmcmc import result_of
-from scm_core.inference.tmcmc.moves import stage_chains
-from scm_core.inference.tmcmc.types import MOVES
+from scm_core.inference.tmcmc.moves import MOVES, stage_chains
 from scm_core.seeds import SEED_MAX
 from scm_core.signals import SWTDataset
 from services.limits import run_seeds

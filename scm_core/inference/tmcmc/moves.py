@@ -7,14 +7,16 @@ states of a chain are the next stage's samples (:func:`~scm_core.inference.tmcmc
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference.tmcmc.types import MOVES, TMCMCSettings
+if TYPE_CHECKING:  # the settings name a move scheme: they import this module
+    from scm_core.inference.tmcmc.types import TMCMCSettings
 
 __all__ = [
+    "MOVES",
     "LeaderMove",
     "Move",
     "ResampleMove",
@@ -188,6 +190,9 @@ class WasteFreeMove:
 
 
 _MOVES: dict[str, Move] = {m.name: m for m in (ResampleMove(), LeaderMove(), WasteFreeMove())}
+#: the move schemes' names, from the registry: the settings', a case's, the API's and the CLI's
+#: choices
+MOVES: tuple[str, ...] = tuple(_MOVES)
 
 
 #: the accelerated accurate form (issue 12, docs/sampler.md): waste-free chains whose moves

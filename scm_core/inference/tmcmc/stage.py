@@ -59,7 +59,7 @@ from numpy.typing import NDArray
 from scm_core.inference import portable
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc.chains import chain_rng, run_chains
-from scm_core.inference.tmcmc.moves import move_of, steps_for_acceptance
+from scm_core.inference.tmcmc.moves import MOVES, move_of, steps_for_acceptance
 from scm_core.inference.tmcmc.stage0 import (
     evaluate_points,
     first_occurrences,
@@ -68,7 +68,6 @@ from scm_core.inference.tmcmc.stage0 import (
     stage_rng,
 )
 from scm_core.inference.tmcmc.types import (
-    MOVES,
     ChainBatchResult,
     LogLikelihoodBatch,
     PointEvaluation,

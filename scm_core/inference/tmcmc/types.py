@@ -17,9 +17,9 @@ from numpy.typing import NDArray
 
 from scm_core.inference._serial import dataclass_equal, dataclass_from_dict, dataclass_to_dict
 from scm_core.inference.priors import JointPrior
+from scm_core.inference.tmcmc.moves import move_of
 
 __all__ = [
-    "MOVES",
     "ChainBatchResult",
     "Failures",
     "LogLikelihoodBatch",
@@ -31,7 +31,6 @@ __all__ = [
     "count_fields",
 ]
 
-MOVES = ("resample-move", "leader", "waste-free")
 RESAMPLING = ("systematic", "multinomial")
 
 #: X (m, d) -> log L (m,), or (log L, responses (m, k)), or (log L, responses, log b (m,) or
@@ -141,8 +140,7 @@ class TMCMCSettings(_Fields):
     resampling: str = "systematic"
 
     def __post_init__(self) -> None:
-        if self.moves not in MOVES:
-            raise ValueError(f"'moves' must be one of {MOVES}, got {self.moves!r}")
+        move_of(self.moves)  # one of MOVES (ValueError names the field)
         if self.n_steps is not None and int(self.n_steps) < 1:
             raise ValueError(f"'n_steps' must be >= 1 or None, got {self.n_steps!r}")
         if not 1 <= self.min_steps <= self.max_steps:
