@@ -1,8 +1,8 @@
 """TMCMC's Metropolis chains of one stage (the per-batch unit of work): :func:`run_chains`, with
-the exact accelerations of its moves (early rejection across datasets,
-:mod:`scm_core.inference.early_rejection`; delayed acceptance with a response surrogate,
-:mod:`scm_core.inference.surrogate`). See :mod:`scm_core.inference.tmcmc.stage` for the stage
-as a whole."""
+the exact accelerations of its moves (early rejection across datasets, delayed acceptance with
+a response surrogate, population jumps) as the strategies
+:func:`~scm_core.inference.tmcmc.accelerations.accelerations_of` chooses from the settings.
+See :mod:`scm_core.inference.tmcmc.stage` for the stage as a whole."""
 
 from __future__ import annotations
 
@@ -12,27 +12,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scm_core.inference import portable
-from scm_core.inference.early_rejection import n_parts
-from scm_core.inference.population_jump import JUMP_DOF
-from scm_core.inference.surrogate import ResponseSurrogate, fit_surrogate, supports_surrogate
-from scm_core.inference.tmcmc.evaluate import tempered
+from scm_core.inference.tmcmc.accelerations import Accelerations, Jumps, accelerations_of
 from scm_core.inference.tmcmc.moves import Move, move_of
-from scm_core.inference.tmcmc.steps import (
-    ChainNumbers,
-    ChainState,
-    MoveStrategy,
-    PlainSteps,
-    StepContext,
-    SurrogateTransition,
-)
+from scm_core.inference.tmcmc.steps import ChainNumbers, ChainState, StepContext
 from scm_core.inference.tmcmc.types import ChainBatchResult, LogLikelihoodBatch, StagePlan
 from scm_core.inference.walk_space import log_columns
 
-__all__ = ["chain_rng", "draw_numbers", "run_chains", "surrogate_floor"]
-
-#: nats below the lowest tempered likelihood part of a stage's starting states at which the
-#: surrogate target is floored where the surrogate gives no finite value
-FLOOR_MARGIN = 10.0
+__all__ = ["chain_rng", "draw_numbers", "run_chains"]
 
 
 def chain_rng(seed: int, stage: int, chain: int) -> np.random.Generator:
@@ -40,40 +26,6 @@ def chain_rng(seed: int, stage: int, chain: int) -> np.random.Generator:
     return np.random.Generator(
         np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(stage, chain)))
     )
-
-
-def _surrogate_for(plan: StagePlan, f: LogLikelihoodBatch) -> ResponseSurrogate | None:
-    """The delayed-acceptance surrogate of a stage (None: off, or too few training states),
-    fitted on the plan's starting states and the states earlier stages evaluated, with their
-    responses: a function of the plan alone."""
-    settings = plan.settings
-    if not (settings.delayed_acceptance and supports_surrogate(f)):
-        return None
-    samples, responses = plan.start_samples, plan.start_responses
-    if plan.train_samples is not None and responses is not None:
-        samples = np.concatenate([samples, plan.train_samples])
-        responses = np.concatenate([responses, plan.train_responses])
-    return fit_surrogate(
-        samples,
-        responses,
-        tuple(f.response_inputs),
-        settings.surrogate_neighbors,
-        settings.surrogate_smoothing,
-        getattr(f, "response_outputs", None),
-    )
-
-
-def surrogate_floor(plan: StagePlan) -> float:
-    """The floor of the surrogate's tempered likelihood part (log b~ + exponent log L~) where
-    the surrogate gives no finite value: the lowest finite value of the exact part over the
-    stage's starting states, less :data:`FLOOR_MARGIN`. A constant of the plan, so pi~ is a
-    fixed positive density wherever the prior is (the surrogate chain can reach every state
-    the exact chain can)."""
-    base = plan.start_log_prior - np.asarray(plan.prior.log_pdf(plan.start_samples), float)
-    with np.errstate(invalid="ignore"):
-        part = tempered(base, plan.start_log_likelihood, plan.exponent)
-    finite = part[np.isfinite(part)]
-    return float(finite.min() - FLOOR_MARGIN) if finite.size else 0.0
 
 
 def run_chains(
@@ -113,33 +65,27 @@ def run_chains(
     settings = plan.settings
     lengths = plan.chain_length[idx]
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-    sur = _surrogate_for(plan, f)
-    K = int(settings.surrogate_steps) if settings.delayed_acceptance else 1
-    jumps = sur is not None and settings.surrogate_jumps > 0.0 and plan.jump_chol is not None
-    parts = n_parts(f)
+    acc = accelerations_of(settings)
+    sur = acc.moves.surrogate(plan, f)
+    jumps = acc.jumps.for_batch(plan, sur)
     ctx = StepContext(
         plan=plan,
         f=f,
-        numbers=draw_numbers(plan, idx, offsets, K, jumps),
+        numbers=draw_numbers(plan, idx, offsets, acc, jumps),
         offsets=offsets,
-        K=K,
+        K=acc.moves.inner_steps,
         logs=log_columns(plan.prior, settings.proposal_scale),
         jumps=jumps,
-        staged=settings.early_rejection and parts > 1,
-        parts=parts,
+        runs=acc.runs.for_likelihood(f),
     )
     state = ChainState(
         x=plan.start_samples[idx].copy(),
         ll=plan.start_log_likelihood[idx].copy(),
         lp=plan.start_log_prior[idx].copy(),
         resp=None if plan.start_responses is None else plan.start_responses[idx].copy(),
-        keep_evaluated=settings.delayed_acceptance and plan.start_responses is not None,
+        keep_evaluated=acc.moves.keeps_evaluated(plan),
     )
-    strategy: MoveStrategy = (
-        PlainSteps(count_inner=settings.delayed_acceptance)
-        if sur is None
-        else SurrogateTransition(sur, surrogate_floor(plan), ctx, state)
-    )
+    strategy = acc.moves.mover(sur, ctx, state)
     accepted = np.zeros(idx.size, dtype=np.int64)
     proposed = np.zeros(idx.size, dtype=np.int64)
     out = _Output(move_of(settings.moves), lengths, state)
@@ -161,15 +107,19 @@ def run_chains(
 
 
 def draw_numbers(
-    plan: StagePlan, idx: NDArray[np.int64], offsets: NDArray[np.int64], K: int, jumps: bool
+    plan: StagePlan,
+    idx: NDArray[np.int64],
+    offsets: NDArray[np.int64],
+    acc: Accelerations,
+    jumps: Jumps,
 ) -> ChainNumbers:
     """Every random number of the chains ``idx``, each chain's from :func:`chain_rng` in a
     fixed order: the normal variates, the acceptance numbers, with delayed acceptance the inner
-    steps' numbers, then (with jumps) the jumps' choices and chi-square variates; so a chain's
-    numbers do not depend on its batch, and a chain without jumps draws what it drew before
-    jumps existed."""
+    steps' numbers (``acc.moves``), then (with the batch's ``jumps``) the jumps' choices and
+    chi-square variates; so a chain's numbers do not depend on its batch, and a chain without
+    jumps draws what it drew before jumps existed."""
     d = plan.start_samples.shape[1]
-    settings = plan.settings
+    K = acc.moves.inner_steps
     total = int(offsets[-1]) * K
     Z = np.empty((total, d))
     log_u = np.empty(total)
@@ -181,11 +131,12 @@ def draw_numbers(
         a, b = offsets[k] * K, offsets[k + 1] * K
         Z[a:b] = rng.standard_normal((b - a, d))
         log_u[a:b] = portable.log(rng.random(b - a))
-        if settings.delayed_acceptance:
-            log_u1[a:b] = portable.log(rng.random(b - a))
-        if jumps:
-            jump_at[a:b] = rng.random(b - a) < settings.surrogate_jumps
-            chi2[a:b] = rng.chisquare(JUMP_DOF, b - a)
+        inner = acc.moves.draw(rng, b - a)
+        if inner is not None:
+            log_u1[a:b] = inner
+        jumped = jumps.draw(rng, b - a)
+        if jumped is not None:
+            jump_at[a:b], chi2[a:b] = jumped
     return ChainNumbers(Z, log_u, log_u1, jump_at, chi2)
 
 

@@ -56,8 +56,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference import portable
 from scm_core.inference.priors import JointPrior
+from scm_core.inference.tmcmc.accelerations import accelerations_of
 from scm_core.inference.tmcmc.chains import chain_rng, run_chains
 from scm_core.inference.tmcmc.moves import MOVES, move_of, steps_for_acceptance
 from scm_core.inference.tmcmc.stage0 import (
@@ -219,25 +219,14 @@ def plan_stage(
     walk = to_walk(state.samples, logs)
     pop_cov = weighted_covariance(walk, weights)
     cov, chol = proposal_factor(state.beta**2 * pop_cov, walk_bounds(prior.bounds, logs))
-    jump = {}
-    if settings.delayed_acceptance and settings.surrogate_jumps > 0.0:
-        # the population jumps' t proposal: the weighted population in walk coordinates
-        _, jump_chol = proposal_factor(pop_cov, walk_bounds(prior.bounds, logs))
-        jump = {
-            "jump_mean": portable.weighted_mean(np.ascontiguousarray(walk), weights),
-            "jump_chol": jump_chol,
-            "jump_inv": portable.lower_inverse(jump_chol),
-        }
+    acc = accelerations_of(settings)
+    # the population jumps' t proposal: the weighted population in walk coordinates
+    jump = acc.jumps.plan_fields(walk, weights, pop_cov, walk_bounds(prior.bounds, logs))
 
     chain_start, chain_length = move.chains(parent, n, state.acceptance_rate, settings)
     chain_start = chain_start.astype(np.int64)
     resp = state.responses
-    train_x = train_r = None
-    if settings.delayed_acceptance and resp is not None:
-        # what earlier stages evaluated, else (stage 0, an update's parent) the population
-        have = state.train_samples is not None and state.train_responses is not None
-        train_x = state.train_samples if have else state.samples
-        train_r = state.train_responses if have else resp
+    train_x, train_r = acc.moves.training_start(state)
     return StagePlan(
         stage=stage,
         seed=state.seed,
@@ -352,27 +341,5 @@ def reduce_stage(plan: StagePlan, batch_results: Sequence[ChainBatchResult]) -> 
         surrogate_error_sum=float(np.sum(_chain_ordered(results, "surrogate_error"))),
         **n.count_values(),
         eve=None if plan.start_eve is None else plan.start_eve[row_chain[order]],
-        **_training_set(plan, results),
+        **accelerations_of(plan.settings).moves.carried(plan, results),
     )
-
-
-def _training_set(
-    plan: StagePlan, results: Sequence[ChainBatchResult]
-) -> dict[str, NDArray[np.float64] | None]:
-    """The surrogate's carried training set after the stage: the plan's, then the states the
-    stage's model runs evaluated (chain by chain, each in step order, whatever the batches),
-    the newest ``surrogate_memory`` rows; None without delayed acceptance."""
-    if not plan.settings.delayed_acceptance or plan.start_responses is None:
-        return {"train_samples": None, "train_responses": None}
-    kept = [r for r in results if r.evaluated_counts is not None]
-    labels = [np.repeat(r.chain_indices, r.evaluated_counts) for r in kept]
-    order = np.argsort(np.concatenate(labels), kind="stable") if labels else np.empty(0, int)
-    d, k = plan.start_samples.shape[1], plan.start_responses.shape[1]
-    new_x = np.concatenate([r.evaluated_samples for r in kept] or [np.empty((0, d))])[order]
-    new_r = np.concatenate([r.evaluated_responses for r in kept] or [np.empty((0, k))])[order]
-    old_x = np.empty((0, d)) if plan.train_samples is None else plan.train_samples
-    old_r = np.empty((0, k)) if plan.train_responses is None else plan.train_responses
-    keep = plan.settings.surrogate_memory
-    x = np.concatenate([old_x, new_x])[-keep:] if keep else np.empty((0, d))
-    r = np.concatenate([old_r, new_r])[-keep:] if keep else np.empty((0, k))
-    return {"train_samples": x, "train_responses": r}

@@ -11,21 +11,20 @@ numbers). A move strategy's ``move(ctx, state, active, t)`` makes move ``t`` of 
   then one model run and the correction min(1, pi(y) pi~(x) / (pi(x) pi~(y))) (Liu 2001,
   section 9.4.3; Christen & Fox 2005 for K = 1).
 
-Both end in :func:`model_step`, the model run with early rejection across the likelihood's
-parts (:mod:`scm_core.inference.early_rejection`). See :func:`scm_core.inference.tmcmc.chains.
+Both end in :func:`model_step`, the model run (its strategy, with or without early rejection
+across the likelihood's parts, and the inner steps' population jumps are the context's:
+:mod:`scm_core.inference.tmcmc.accelerations`). See :func:`scm_core.inference.tmcmc.chains.
 run_chains` for the loop over moves and the reproducibility rules.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from scm_core.inference.early_rejection import evaluate_staged
-from scm_core.inference.population_jump import jump_log_density, jump_proposal
 from scm_core.inference.surrogate import ResponseSurrogate
 from scm_core.inference.tmcmc.evaluate import batch_output, tempered
 from scm_core.inference.tmcmc.types import (
@@ -36,6 +35,9 @@ from scm_core.inference.tmcmc.types import (
     count_fields,
 )
 from scm_core.inference.walk_space import from_walk, log_proposal_ratio, rows_times, to_walk
+
+if TYPE_CHECKING:  # the accelerations build the moves of this module
+    from scm_core.inference.tmcmc.accelerations import Jumps, ModelRuns
 
 __all__ = [
     "ChainCounters",
@@ -95,8 +97,9 @@ class ChainNumbers:
 class StepContext:
     """What every move of a batch reads: the stage plan, the likelihood, the random numbers,
     each chain's first row in them (``offsets``), the inner steps per move K, the walk's log
-    columns, whether inner steps may be jumps, and how the model runs (``staged``: part by part
-    with early rejection; ``parts``: parts of a full evaluation)."""
+    columns, the inner steps' jumps (:class:`~scm_core.inference.tmcmc.accelerations.Jumps`)
+    and how the model runs (:class:`~scm_core.inference.tmcmc.accelerations.ModelRuns`: all
+    parts at once, or part by part with early rejection)."""
 
     plan: StagePlan
     f: LogLikelihoodBatch
@@ -104,9 +107,8 @@ class StepContext:
     offsets: NDArray[np.int64]
     K: int
     logs: NDArray[np.bool_]
-    jumps: bool
-    staged: bool
-    parts: int
+    jumps: Jumps
+    runs: ModelRuns
 
     def rows(self, active: NDArray[np.int64], t: int, j: int) -> NDArray[np.int64]:
         """Rows of inner step j of move t of the chains ``active`` in :class:`ChainNumbers`."""
@@ -150,19 +152,7 @@ def propose(
     else:
         y_prop = y + rows_times(plan.proposal_chol, num.Z[rows])
         q_ratio = np.zeros(y.shape[0])
-    if ctx.jumps:
-        jump = num.jump_at[rows]
-        if jump.any():
-            u_old = to_walk(y[jump], logs)
-            u_new = jump_proposal(
-                plan.jump_mean, plan.jump_chol, num.Z[rows[jump]], num.chi2[rows[jump]]
-            )
-            y_prop[jump] = from_walk(u_new, logs)
-            q_ratio[jump] = (
-                jump_log_density(u_old, plan.jump_mean, plan.jump_inv)
-                - jump_log_density(u_new, plan.jump_mean, plan.jump_inv)
-                + log_proposal_ratio(u_new, u_old, logs)
-            )
+    ctx.jumps.propose(ctx, y, rows, y_prop, q_ratio)
     lp_prop = np.asarray(plan.prior.log_pdf(y_prop), dtype=float)
     ok = np.isfinite(lp_prop) & np.asarray(plan.prior.in_support(y_prop))
     state.counters.add(out_of_support=ok.size - int(np.count_nonzero(ok)))
@@ -232,24 +222,11 @@ def model_step(
     resp_prop = None
     n_run = int(np.count_nonzero(run))
     if n_run:
-        evaluated = run
-        if ctx.staged:
-            with np.errstate(invalid="ignore"):
-                threshold = (log_un + current + gate - lp_prop)[run]
-            ev = evaluate_staged(ctx.f, x_prop[run], threshold, p)
-            evaluated = run.copy()
-            evaluated[run] = ev.complete
-            n.add(
-                part_runs=ev.part_runs,
-                part_runs_saved=ev.part_runs_saved,
-                early_rejections=int(np.count_nonzero(ev.rejected)),
-                failed_runs=ev.failed_rejected,
-            )
-            n.failed(ev.failure)
-            out = ev.output
-        else:
-            out = ctx.f(x_prop[run])
-            n.add(part_runs=n_run * ctx.parts)
+        with np.errstate(invalid="ignore"):
+            threshold = (log_un + current + gate - lp_prop)[run]
+        out, complete = ctx.runs.run(ctx.f, x_prop[run], threshold, p, n)
+        evaluated = run.copy()
+        evaluated[run] = complete
         n.add(model_runs=n_run)
         lp_prop[run & ~evaluated] = -np.inf
         if out is not None:
@@ -258,8 +235,7 @@ def model_step(
             if base_ok is not None:
                 lp_prop[evaluated] = lp_prop[evaluated] + base_ok
             n.add(failed_runs=n_failed)
-            if not ctx.staged:  # a staged evaluation's reasons are its parts' (above)
-                n.failed(failure)
+            ctx.runs.failed(n, failure)
             resp_prop = _record_run(state, active, evaluated, x_prop, resp_ok)
             if sur_ll is not None:
                 diff = np.abs(ll_ok - sur_ll[evaluated])
@@ -343,11 +319,7 @@ class SurrogateTransition:
                 self.sur, ctx.f, y_prop[ok], lp_prop[ok], p, self.floor
             )
             acc = ok & (num.log_u1[rows] < s_prop - sur_y + q_ratio)
-            if ctx.jumps:
-                n.add(
-                    population_jumps=int(np.count_nonzero(num.jump_at[rows])),
-                    population_jumps_accepted=int(np.count_nonzero(acc & num.jump_at[rows])),
-                )
+            ctx.jumps.count(n, num, rows, acc)
             y[acc], lp_y[acc], sur_y[acc], sur_ll[acc] = (
                 y_prop[acc],
                 lp_prop[acc],
