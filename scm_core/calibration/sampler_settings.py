@@ -1,22 +1,32 @@
 """A case's ``[sampler]`` table: the TMCMC settings as a case writes and stores them.
 
 :class:`SamplerSettings` validates the table, fills what it leaves to its move scheme
-(:func:`scm_core.inference.tmcmc.moves.form_defaults`) and holds every tuning field of
-:class:`~scm_core.inference.TMCMCSettings` with its default, so that a stored case keeps every
+(:func:`scm_core.inference.tmcmc.moves.form_defaults`) and holds every field of
+:class:`~scm_core.inference.TMCMCSettings`, generated from its declaration (type, default,
+description, choices and bounds: :func:`_case_field`), so that a stored case keeps every
 setting its samples depend on; :data:`TUNING_BEFORE` is what a case stored before then ran with.
+Declared here are only the keys that are not TMCMCSettings fields (``n_samples``,
+``batch_size``) and where a case differs from the sampler: its default move scheme
+(:data:`~scm_core.inference.tmcmc.moves.STUDY_MOVES`), the keys its move scheme fills
+(:data:`FORM_KEYS`, null until filled) and :data:`CASE_LIMITS`.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import typing
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, create_model, model_validator
+from pydantic.fields import FieldInfo
 
 from scm_core.inference.tmcmc.moves import MOVES, STUDY_MOVES, form_defaults
 from scm_core.inference.tmcmc.stage import TMCMCSettings
 
 __all__ = [
+    "CASE_KEYS",
+    "CASE_LIMITS",
+    "FORM_KEYS",
     "TUNING",
     "TUNING_BEFORE",
     "WASTE_FREE_STEPS_BEFORE",
@@ -31,12 +41,9 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
-#: the sampler's defaults (a case's ``[sampler]`` table leaves out what it keeps)
-_DEFAULT = TMCMCSettings()
-
-
 class _SamplerFields(StrictModel):
-    """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`).
+    """TMCMC settings (see :class:`scm_core.inference.TMCMCSettings`, whose fields are this
+    table's keys with their descriptions, defaults and bounds, less where a case differs).
 
     ``moves``: "waste-free" (the default: the accelerated accurate form), "resample-move" (the
     unaccelerated accurate form) or "leader" (the paper's form). ``n_steps`` (waste-free),
@@ -64,44 +71,15 @@ class _SamplerFields(StrictModel):
     log Z").
 
     The sampler's finer tuning (``min_steps``, ``beta0``, ``surrogate_neighbors`` ...: the
-    other fields of TMCMCSettings, :data:`TUNING`) is a field here too, generated from
-    TMCMCSettings with its defaults, so that a case's stored form (:meth:`CaseDefinition.to_dict`)
-    holds every setting its samples depend on: a later change of a default in code changes no
-    stored study. A stored case from before these were stored is read with the values they had
-    then (:data:`TUNING_BEFORE`, :meth:`CaseDefinition.from_stored`).
+    other fields of TMCMCSettings, :data:`TUNING`) is a key too, so that a case's stored form
+    (:meth:`CaseDefinition.to_dict`) holds every setting its samples depend on: a later change
+    of a default in code changes no stored study. A stored case from before these were stored
+    is read with the values they had then (:data:`TUNING_BEFORE`,
+    :meth:`CaseDefinition.from_stored`).
     """
 
     n_samples: int = Field(2000, ge=10, description="Samples per stage.")
-    moves: Literal[MOVES] = Field(
-        STUDY_MOVES,
-        description="Move scheme: waste-free (the default, the accelerated accurate form), "
-        "resample-move (unaccelerated) or leader (the paper's form).",
-    )
-    n_steps: int | None = Field(
-        _DEFAULT.n_steps,
-        ge=1,
-        description="Moves per chain: waste-free (default 4), resample-move (default adapted).",
-    )
     batch_size: int | None = Field(None, ge=1)
-    max_stages: int = Field(
-        _DEFAULT.max_stages, ge=1, description="Stop after this many tempering stages."
-    )
-    target_cov: float = Field(_DEFAULT.target_cov, gt=0.0)
-    early_rejection: bool = Field(
-        _DEFAULT.early_rejection,
-        description="Stop simulating a proposal's datasets once they cannot lift it over the "
-        "acceptance threshold (exact: the same samples, fewer runs).",
-    )
-    delayed_acceptance: bool | None = Field(
-        None,
-        description="Screen proposals with a surrogate of the responses before simulating "
-        "them (default: true for waste-free moves, false for resample-move and leader; exact: "
-        "the chain still targets the posterior).",
-    )
-    surrogate_steps: int | None = Field(None, ge=1, le=100)
-    surrogate_jumps: float | None = Field(None, ge=0.0, lt=1.0)
-    proposal_scale: Literal["linear", "log"] | None = None
-    resampling: Literal["systematic", "multinomial"] | None = None
 
     _filled: frozenset[str] = PrivateAttr(default=frozenset())
 
@@ -137,26 +115,52 @@ class _SamplerFields(StrictModel):
         return self.model_dump(include=keys, exclude_none=True)
 
     def tmcmc_settings(self) -> TMCMCSettings:
-        return TMCMCSettings(
-            **{name: getattr(self, name) for name in TUNING},
-            moves=self.moves,
-            n_steps=self.n_steps,
-            max_stages=self.max_stages,
-            target_cov=self.target_cov,
-            early_rejection=self.early_rejection,
-            delayed_acceptance=bool(self.delayed_acceptance),
-            surrogate_steps=int(self.surrogate_steps or 1),
-            surrogate_jumps=float(self.surrogate_jumps or 0.0),
-            proposal_scale=str(self.proposal_scale),
-            resampling=str(self.resampling),
-        )
+        """The sampler's settings (every key the move scheme fills is filled by now)."""
+        return TMCMCSettings(**{f.name: getattr(self, f.name) for f in _SETTINGS})
 
 
-#: TMCMCSettings' fields a case's [sampler] table does not declare above: its finer tuning,
-#: generated into SamplerSettings with TMCMCSettings' defaults
-TUNING = tuple(
-    f.name for f in dataclasses.fields(TMCMCSettings) if f.name not in _SamplerFields.model_fields
+_SETTINGS = dataclasses.fields(TMCMCSettings)
+_BY_NAME = {f.name: f for f in _SETTINGS}
+_TYPES = typing.get_type_hints(TMCMCSettings)
+
+#: the TMCMCSettings fields a case's [sampler] table had before its tuning was stored (names
+#: only: each is generated from its TMCMCSettings field), in the order a case lists them
+CASE_KEYS = (
+    "moves",
+    "n_steps",
+    "max_stages",
+    "target_cov",
+    "early_rejection",
+    "delayed_acceptance",
+    "surrogate_steps",
+    "surrogate_jumps",
+    "proposal_scale",
+    "resampling",
 )
+
+#: TMCMCSettings' other fields: a case's finer tuning
+TUNING = tuple(f.name for f in _SETTINGS if f.name not in CASE_KEYS)
+
+#: the keys a case may leave to its move scheme (null until form_defaults fills them)
+FORM_KEYS = frozenset(key for moves in MOVES for key in form_defaults(moves))
+
+#: a case's bounds beyond the sampler's own
+CASE_LIMITS: dict[str, dict[str, Any]] = {"surrogate_steps": {"le": 100}}
+
+
+def _case_field(f: dataclasses.Field) -> tuple[Any, FieldInfo]:
+    """The [sampler] key of TMCMCSettings' field ``f``: its type (its ``choices`` a Literal),
+    default, description and bounds from the field's declaration; a case's default move
+    scheme is :data:`STUDY_MOVES`, and a key of :data:`FORM_KEYS` is optional and null."""
+    limits = {k: v for k, v in f.metadata.items() if k not in ("doc", "choices")}
+    limits.update(CASE_LIMITS.get(f.name, {}))
+    choices = f.metadata.get("choices")
+    kind: Any = Literal[choices] if choices else _TYPES[f.name]
+    default = STUDY_MOVES if f.name == "moves" else f.default
+    if f.name in FORM_KEYS:
+        kind, default = kind | None, None
+    return kind, Field(default, description=f.metadata.get("doc"), **limits)
+
 
 #: the tuning's values before stored cases held it (its code defaults until then): what a case
 #: stored without it ran with. A record of the past, like a migration: never edit it when a
@@ -187,5 +191,5 @@ SamplerSettings = create_model(
     __base__=_SamplerFields,
     __module__=__name__,
     __doc__=_SamplerFields.__doc__,
-    **{name: (type(getattr(_DEFAULT, name)), getattr(_DEFAULT, name)) for name in TUNING},
+    **{name: _case_field(_BY_NAME[name]) for name in (*CASE_KEYS, *TUNING)},
 )

@@ -17,7 +17,8 @@ from numpy.typing import NDArray
 
 from scm_core.inference._serial import dataclass_equal, dataclass_from_dict, dataclass_to_dict
 from scm_core.inference.priors import JointPrior
-from scm_core.inference.tmcmc.moves import move_of
+from scm_core.inference.tmcmc.moves import MOVES, move_of
+from scm_core.inference.walk_space import PROPOSAL_SCALES
 
 __all__ = [
     "ChainBatchResult",
@@ -61,6 +62,14 @@ class _Fields:
     def equals(self, other: object) -> bool:
         """Bit-identical comparison of every field (NaN equal to NaN)."""
         return dataclass_equal(self, other)
+
+
+def _setting(default: Any, doc: str | None = None, **limits: Any) -> Any:
+    """A field of :class:`TMCMCSettings` with, for a case's ``[sampler]`` table
+    (:mod:`scm_core.calibration.sampler_settings` generates its keys from these fields), its
+    description ``doc`` and ``limits``: ``choices`` (the allowed values), ``ge``, ``gt``,
+    ``lt`` (bounds; :meth:`TMCMCSettings.__post_init__` checks them too)."""
+    return field(default=default, metadata={"doc": doc, **limits})
 
 
 @dataclass(frozen=True)
@@ -114,13 +123,20 @@ class TMCMCSettings(_Fields):
         scheme; see :func:`~scm_core.inference.tmcmc.weights.genealogy_log_evidence_var`.
     """
 
-    moves: str = "resample-move"
-    n_steps: int | None = None
+    moves: str = _setting(
+        "resample-move",
+        "Move scheme: resample-move (the unaccelerated accurate form), leader (the paper's "
+        "form) or waste-free (the accelerated accurate form, a study's default).",
+        choices=MOVES,
+    )
+    n_steps: int | None = _setting(
+        None, "Moves per chain: waste-free (default 4), resample-move (default adapted).", ge=1
+    )
     min_steps: int = 10
     max_steps: int = 50
     initial_steps: int = 20
     move_probability: float = 0.99
-    target_cov: float = 1.0
+    target_cov: float = _setting(1.0, gt=0.0)
     beta0: float = 0.2
     target_acceptance: float = 0.234
     beta_gain: float = 1.0
@@ -128,16 +144,25 @@ class TMCMCSettings(_Fields):
     beta_max: float = 3.0
     stall_tol: float = 1e-8
     stall_stages: int = 3
-    max_stages: int = 50
-    early_rejection: bool = True
-    delayed_acceptance: bool = False
+    max_stages: int = _setting(50, "Stop after this many tempering stages.", ge=1)
+    early_rejection: bool = _setting(
+        True,
+        "Stop simulating a proposal's datasets once they cannot lift it over the acceptance "
+        "threshold (exact: the same samples, fewer runs).",
+    )
+    delayed_acceptance: bool = _setting(
+        False,
+        "Screen proposals with a surrogate of the responses before simulating them (a study's "
+        "default: true for waste-free moves, false for resample-move and leader; exact: the "
+        "chain still targets the posterior).",
+    )
     surrogate_neighbors: int = 50
     surrogate_smoothing: float = 1e-3
-    surrogate_steps: int = 1
+    surrogate_steps: int = _setting(1, ge=1)
     surrogate_memory: int = 20_000
-    surrogate_jumps: float = 0.0
-    proposal_scale: str = "linear"
-    resampling: str = "systematic"
+    surrogate_jumps: float = _setting(0.0, ge=0.0, lt=1.0)
+    proposal_scale: str = _setting("linear", choices=PROPOSAL_SCALES)
+    resampling: str = _setting("systematic", choices=RESAMPLING)
 
     def __post_init__(self) -> None:
         move_of(self.moves)  # one of MOVES (ValueError names the field)
@@ -167,7 +192,7 @@ class TMCMCSettings(_Fields):
             raise ValueError(f"'max_stages' must be >= 1, got {self.max_stages!r}")
         if self.stall_stages < 1:
             raise ValueError(f"'stall_stages' must be >= 1, got {self.stall_stages!r}")
-        if self.proposal_scale not in ("linear", "log"):
+        if self.proposal_scale not in PROPOSAL_SCALES:
             raise ValueError(
                 f"'proposal_scale' must be 'linear' or 'log', got {self.proposal_scale!r}"
             )
