@@ -77,6 +77,7 @@ from scm_core.inference.tmcmc.types import (
     TMCMCSettings,
 )
 from scm_core.inference.tmcmc.weights import (
+    RESAMPLERS,
     adapt_beta,
     genealogy_log_evidence_var,
     multinomial_resample,
@@ -87,9 +88,6 @@ from scm_core.inference.tmcmc.weights import (
     weighted_covariance,
 )
 from scm_core.inference.walk_space import log_columns, to_walk, walk_bounds
-
-#: resampling schemes of TMCMCSettings.resampling
-RESAMPLERS = {"systematic": systematic_resample, "multinomial": multinomial_resample}
 
 __all__ = [
     "MOVES",

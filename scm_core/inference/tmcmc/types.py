@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from scm_core.inference._serial import dataclass_equal, dataclass_from_dict, dataclass_to_dict
 from scm_core.inference.priors import JointPrior
 from scm_core.inference.tmcmc.moves import MOVES, move_of
+from scm_core.inference.tmcmc.weights import RESAMPLERS
 from scm_core.inference.walk_space import PROPOSAL_SCALES
 
 __all__ = [
@@ -32,7 +33,7 @@ __all__ = [
     "count_fields",
 ]
 
-RESAMPLING = ("systematic", "multinomial")
+RESAMPLING = tuple(RESAMPLERS)
 
 #: X (m, d) -> log L (m,), or (log L, responses (m, k)), or (log L, responses, log b (m,) or
 #: None), or (log L, responses, log b or None, failure (m,)): why each failed run failed, in the

@@ -7,12 +7,15 @@ arrays."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from scm_core.inference import portable
-from scm_core.inference.tmcmc.types import TMCMCSettings
+
+if TYPE_CHECKING:
+    from scm_core.inference.tmcmc.types import TMCMCSettings
 
 __all__ = [
     "adapt_beta",
@@ -110,6 +113,11 @@ def multinomial_resample(weights: ArrayLike, n: int, rng: np.random.Generator) -
     systematic resampling, which has less variance of its own, that function leaves it out
     (``bench_evidence_error.py``, docs/calibration.md)."""
     return _pick(weights, np.sort(rng.random(n)))
+
+
+#: the resampling schemes (TMCMCSettings.resampling names one): the one declaration of their
+#: names
+RESAMPLERS = {"systematic": systematic_resample, "multinomial": multinomial_resample}
 
 
 def genealogy_log_evidence_var(
