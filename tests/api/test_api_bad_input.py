@@ -27,6 +27,10 @@ from test_api_support import (
     upload_file,
 )
 
+#: one worker runs the module: its module fixtures (a served API, a results folder) are
+#: built once, not once per pytest-xdist worker
+pytestmark = pytest.mark.xdist_group("test_api_bad_input")
+
 UPLOAD_LIMIT = 600_000  # the example log has 430 244 bytes
 
 

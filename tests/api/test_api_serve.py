@@ -26,6 +26,10 @@ from test_api_support import (
 from services.cli.main import cli
 from services.client import SCMCalibClient, SCMCalibError
 
+#: one worker runs the module: its module fixtures (a served API, a results folder) are
+#: built once, not once per pytest-xdist worker
+pytestmark = pytest.mark.xdist_group("test_api_serve")
+
 
 def _cli(*args: str, env: dict[str, str], cwd: Path, timeout: float = 120.0):
     return subprocess.run(

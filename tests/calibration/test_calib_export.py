@@ -13,6 +13,10 @@ import numpy as np
 import pytest
 from test_calib_cli import CASE, run_cli
 
+#: one worker runs the module: its module fixtures (a served API, a results folder) are
+#: built once, not once per pytest-xdist worker
+pytestmark = pytest.mark.xdist_group("test_calib_export")
+
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory) -> Path:

@@ -30,6 +30,10 @@ from steering_fixtures import cmu_rows
 from test_api_support import AUTH, LOG, LOG2, TOKEN, serving, summary_doc, tiny_case, wait_ended
 from test_dashboard_steered import ANGLES, make_steered_study
 
+#: one worker runs the module: its module fixtures (a served API, a results folder) are
+#: built once, not once per pytest-xdist worker
+pytestmark = pytest.mark.xdist_group("test_dashboard_browser")
+
 ROOT = Path(__file__).resolve().parents[2]
 #: where the pages' screenshots go, if anywhere: a full-page screenshot costs about a second of
 #: the suite's CPU, so only a run that asks for them takes them (docs/screenshots.py does;
