@@ -1,6 +1,7 @@
 """Transfer from straight driving to steering: the joint case's soil at the CMU slip angles.
 
-Run: ``python benchmarks/steering_transfer.py [--angles 0,30,60,90] [--threads 2] [--json OUT]``.
+Run: ``python benchmarks/steering_transfer.py [--angles 0,30,60,90] [--threads 2] [--json OUT]
+[--figure PNG]``.
 
 The soil of ``examples/cmu_joint.toml`` as committed (its posterior medians, docs/cmu-record.md
 "The joint calibration with both", the model options of the case file) predicts the development
@@ -12,6 +13,9 @@ condition's mean measured load). Prints per condition F (along the heading), Fy 
 max(1.5 N, 20 % of |measured|), z within 3 mm: issue 70's transfer criteria), the run's status and
 wall time, and per angle how many conditions meet each criterion. A point prediction at the
 posterior medians, not a predictive band: it measures the physics, not the calibration's spread.
+``--figure`` draws the same rows: F, Fy and z against the rim speed, a column per angle, the
+measured means with their trials' standard deviation and the model, both wheels
+(docs/figures/steering_transfer.png).
 """
 
 from __future__ import annotations
@@ -96,12 +100,72 @@ def met(pred: float, meas: float, kind: str) -> bool:
     return abs(pred - meas) <= max(1.5, 0.2 * abs(meas))
 
 
+def draw(rows: list[dict], path: Path) -> None:
+    """F, Fy and z [N, N, mm] against the rim speed, a column per angle: measured means (+- the
+    trials' sd) and the model's steady means, both wheels."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    angles = sorted({r["slip_angle_deg"] for r in rows})
+    quantities = (
+        ("F", "drawbar_pull_N", 1.0, "F along the heading [N]"),
+        ("Fy", "lateral_force_N", 1.0, "Fy along the axle [N]"),
+        ("z", "sinkage_m", 1e3, "sinkage z [mm]"),
+    )
+    fig, axes = plt.subplots(
+        3, len(angles), figsize=(3.2 * len(angles), 8.4), sharex=True, sharey="row", squeeze=False
+    )
+    colours = {"smooth": "tab:blue", "grouser": "tab:orange"}
+    for col, beta in enumerate(angles):
+        for wheel, colour in colours.items():
+            mine = sorted(
+                (r for r in rows if r["wheel"] == wheel and r["slip_angle_deg"] == beta),
+                key=lambda r: r["vry_cmd_mmps"],
+            )
+            rim = [r["vry_cmd_mmps"] for r in mine]
+            for row, (key, column, scale, label) in enumerate(quantities):
+                ax = axes[row, col]
+                ax.errorbar(
+                    rim,
+                    [r[f"{column}_mean"] * scale for r in mine],
+                    yerr=[r[f"{column}_sd"] * scale for r in mine],
+                    fmt="o",
+                    color=colour,
+                    ms=4,
+                    capsize=2,
+                    label=f"{wheel}: measured" if col == 0 else None,
+                )
+                ax.plot(
+                    rim,
+                    [r[f"pred_{key}"] * scale for r in mine],
+                    "-x",
+                    color=colour,
+                    lw=1,
+                    label=f"{wheel}: model" if col == 0 else None,
+                )
+                if col == 0:
+                    ax.set_ylabel(label)
+        axes[0, col].set_title(f"slip angle {beta:.0f} deg")
+        axes[-1, col].set_xscale("symlog", linthresh=10.0)
+        axes[-1, col].set_xlabel("rim speed [mm/s] (carriage 10)")
+    for ax in axes.flat:
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("cmu_joint.toml's soil (posterior medians) predicting the steered CMU wheels")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--angles", default="0,30,60,90")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--data", type=Path, default=DATA)
     ap.add_argument("--json", type=Path, default=None, help="write the rows as JSON")
+    ap.add_argument("--figure", type=Path, default=None, help="draw the rows (PNG)")
     args = ap.parse_args()
     case = load_case(CASE)
     rows = conditions(args.data, {float(a) for a in args.angles.split(",")})
@@ -153,6 +217,8 @@ def main() -> None:
     console.print(summary)
     if args.json:
         args.json.write_text(json.dumps(out, indent=1))
+    if args.figure:
+        draw(out, args.figure)
 
 
 if __name__ == "__main__":
