@@ -392,15 +392,16 @@ def evaluate_contact(
             mu = tanphi if stuck_soil and pen > 0.0 and vt <= tandelta * pen * sv else tandelta
         if disp_form:
             fsh = 1.0 - math.exp(-(pst[p, 4] + vt * dt) / J)
-        incl = 1.0
-        if incl_exp > 0.0:
-            incl = inclination_factor(nx, nz, tx, tz, fsh * mu, incl_exp, ty)
         rows = pj1[p] - pj0[p]
         sink = pst[p, 0] - (zw + e[k])
         sel = pst[p, 3] * (sink - pst[p, 1])
         if sel > pst[p, 2]:
             pflag[p] = 2
             if kstar > 0.0:
+                # the inclination factor scales the yield stress only (elastic nodes skip it)
+                incl = 1.0
+                if incl_exp > 0.0:
+                    incl = inclination_factor(nx, nz, tx, tz, fsh * mu, incl_exp, ty)
                 sb = incl * kstar * sink**n_exp
                 dsb = n_exp * sb / sink
             else:
