@@ -21,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, create_model, mo
 from pydantic.fields import FieldInfo
 
 from scm_core.inference.tmcmc.moves import MOVES, STUDY_MOVES, form_defaults
-from scm_core.inference.tmcmc.stage import TMCMCSettings
+from scm_core.inference.tmcmc.types import TMCMCSettings
 
 __all__ = [
     "CASE_KEYS",
