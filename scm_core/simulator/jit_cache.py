@@ -18,7 +18,9 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import importlib
 import os
+import pkgutil
 from collections.abc import Iterable
 from pathlib import Path
 from types import ModuleType
@@ -59,9 +61,12 @@ def _cached_dispatchers(modules: Iterable[ModuleType]) -> list[Dispatcher]:
 
 
 def _simulator_modules() -> list[ModuleType]:
-    from . import contact, deformation, geometry, kernel
-
-    return [contact, deformation, geometry, kernel]
+    """Every module of the package: a jitted caller's cached code holds its callees' code, so
+    all of them are flushed together (a module split off later is not forgotten)."""
+    return [
+        importlib.import_module(f"{__package__}.{m.name}")
+        for m in pkgutil.iter_modules([str(PACKAGE_DIR)])
+    ]
 
 
 def refresh(dispatchers: Iterable[Dispatcher], digest: str) -> list[Path]:

@@ -66,3 +66,27 @@ def test_digest_follows_every_python_source_and_nothing_else(tmp_path):
     assert sources_digest(tmp_path) == base
     (tmp_path / "c.py").write_text("")
     assert sources_digest(tmp_path) != base
+
+
+def test_every_cached_function_of_the_package_is_flushed_with_the_rest():
+    """A caller's cached machine code holds its callees' (numba does not follow them across
+    files), so every function the package caches on disk is flushed when any source changes:
+    found by reading the sources for ``@njit(cache=True ...)``, not by asking the module list
+    (which once named four modules and left the flows, the side and erosion stale)."""
+    import re
+
+    from scm_core.simulator import jit_cache
+
+    pattern = re.compile(r"@njit\(cache=True[^)]*\)\s*\ndef (\w+)")
+    declared = {
+        f"scm_core.simulator.{path.stem}.{name}"
+        for path in sorted(jit_cache.PACKAGE_DIR.glob("*.py"))
+        for name in pattern.findall(path.read_text())
+    }
+    flushed = {
+        f"{d.__module__}.{d.__name__}"
+        for d in jit_cache._cached_dispatchers(jit_cache._simulator_modules())
+    }
+    assert "scm_core.simulator.flow.flow_and_deposit" in declared
+    assert len(declared) > 30
+    assert declared <= flushed, sorted(declared - flushed)
