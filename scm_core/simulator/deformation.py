@@ -1,6 +1,7 @@
 """Plastic soil deformation (paper section 3.2): the node update under the wheel and the bow wave's
-load; the flow fields are :mod:`.flow`, erosion :mod:`.erosion`, the grid's node operations
-:mod:`.soil_grid`.
+load; the flow fields are :mod:`.flow` (the dragged layer's rules along one direction
+:mod:`.layer`, a steered wheel's in the plane :mod:`.lateral_flow`), erosion :mod:`.erosion`,
+the grid's node operations :mod:`.soil_grid`.
 
 Volume bookkeeping: the soil volume is V = dA * sum(h0 - sp) (the unloaded surface). Plastic sinkage
 removes volume from the footprint; the fraction ``compaction`` of it is lost to densification (and
@@ -109,6 +110,9 @@ def commit_contact(
     vz = vz * prm[P_SLIPV]
     vty = prm[P_VLAT] * prm[P_SLIPV]  # a steered wheel's slip along its axle
     omega = prm[P_OMEGA] * prm[P_SHEARSCALE]
+    # the shear path: eq. (8)'s displacement form, and a steered wheel's layer
+    # (lateral_flow.carry_across: how long a node has been under the wheel)
+    track = disp_form or vty != 0.0
     flow = 0.0
     for p in range(npatch):
         k = pc[p]
@@ -117,7 +121,7 @@ def commit_contact(
         if pflag[p] == 0:
             continue
         vt = 0.0
-        if disp_form:
+        if track:
             vpx, vpz, vn = surface_velocity(v, vz, omega, xi[k], e[k], fx[k], fz[k])
             vt = math.hypot(math.hypot(vpx - vn * fx[k], vpz - vn * fz[k]), vty)
         sb = psig[p]
@@ -136,7 +140,7 @@ def commit_contact(
                 ke[c, jj] = sb / el if el > 1e-12 and sb / el > K else K
             else:
                 cflag[k + 1, jj] = LOADED_ELASTIC
-            if disp_form:
+            if track:
                 js[c, jj] += vt * dt
     for k in range(ncw):  # loose soil above the wheel's surface is pushed away
         if not np.isfinite(e[k]):

@@ -11,6 +11,8 @@ import numpy as np
 from numba import njit
 
 from .contact import surface_velocity
+from .lateral_flow import carry_across, drag_along_axle
+from .layer import conveyed, row_mobilised, sliding_face_height, travel_slip
 from .layout import (
     P_B,
     P_COMPACTION,
@@ -37,75 +39,6 @@ from .layout import (
 )
 from .soil_grid import LOADED_ELASTIC, LOADED_YIELDING, LOOSE_PUSHED, deposit_soil, take_soil
 from .state import Columns, FlowScratch, Ground, Marks, Window
-
-
-@njit(cache=True)
-def _row_mobilised(u: float, v: float, length: float, J: float, disp_form: bool) -> float:
-    """Mean mobilised shear of eq. (8) over a row of contact ``length`` [m] sliding at its mean
-    slip velocity ``u`` [m/s] over ground at carriage speed v [m/s].
-
-    Velocity form: 1 - exp(-|u|/J). Displacement form (Janosi & Hanamoto 1961): the ground
-    under the row has slid j(x) = x |u| / v by the time it is x behind the front of the
-    contact, so the mean over the length L is 1 - (1 - exp(-a)) / a with a = L |u| / (v J);
-    fully mobilised for a wheel spinning in place (v = 0). Vanishes with the slip, so the dug
-    depth is continuous where the row's slip changes sign.
-    """
-    if not disp_form:
-        return 1.0 - math.exp(-abs(u) / J)
-    if v <= 0.0:
-        return 1.0
-    a = length * abs(u) / (v * J)
-    if a < 1e-6:
-        return 0.5 * a
-    return 1.0 - (1.0 - math.exp(-a)) / a
-
-
-@njit(cache=True)
-def sliding_face_height(v: float, omega: float, r: float, tan_phi: float) -> float:
-    """Height [m] above a skidding wheel's lowest point of the part of its front face where the
-    rim slides over the soil (0 unless omega r < v).
-
-    At the angle theta ahead of the lowest point the rim moves over the ground with a normal
-    component v sin(theta) (into the soil) and a tangential one v cos(theta) - omega r (up the
-    face). It slides where that velocity lies outside the friction cone of the rim-soil
-    interface, whose angle is the one of the shear law of eq. (8) on the wheel (``tan_phi``:
-    tan(delta), the soil's phi unless SoilParams.interface_friction < 1): v cos(theta) -
-    omega r > tan(phi) v sin(theta), i.e. below theta_s = arccos((1 - f) cos phi) - phi with
-    f = 1 - omega r / v the skid (0: rolling; 1: locked, theta_s = 90 deg - phi). Above
-    theta_s the soil moves with the rim (a wedge pushed ahead, the forward-flow zone of a braked
-    wheel, Wong & Reece 1967 part II); below, the sliding rim shears it out forwards. Height
-    r (1 - cos theta_s) [m]; locked: r (1 - sin phi).
-    """
-    if v <= 0.0 or omega * r >= v:
-        return 0.0
-    f = 1.0 - omega * r / v
-    cos_phi = 1.0 / math.sqrt(1.0 + tan_phi * tan_phi)
-    theta_s = math.acos((1.0 - f) * cos_phi) - math.atan(tan_phi)
-    return r * (1.0 - math.cos(theta_s))
-
-
-@njit(cache=True)
-def _conveyed(depth: float, f: float, u: float, v: float, mobilised: bool) -> float:
-    """Flux [m^2/s] of the layer of ``depth`` the rim drags at the mean slip velocity ``u``
-    over ground (< 0: backwards, a driven wheel), f the dragged fraction (slip_flow times the
-    mobilised shear of eq. (8)), v the carriage speed.
-
-    Drive, ``mobilised`` False (thinning): continuity in the wheel's frame; the ground enters
-    the footprint at v, a layer accelerated backwards to v + f|u| thins to depth v / (v + f|u|),
-    and the wheel sinks by the difference, depth f|u| / (v + f|u|), at most depth * slip.
-    Drive, ``mobilised`` True: the rim carries off the layer to the fraction f of its depth in
-    which its shear is mobilised (f from the row's slip, :func:`_row_mobilised`: the soil in the
-    band has failed and escapes backwards and to the sides), dug depth depth * f over the path,
-    flux depth f v, not bounded by the slip. Skid: a layer dragged forwards cannot thicken
-    under the wheel; it keeps its depth and what it carries, depth f|u|, is pushed ahead.
-    """
-    speed = f * abs(u)
-    if u < 0.0 and v > 0.0:
-        if mobilised:
-            return depth * f * v
-        return depth * v / (v + speed) * speed
-    return depth * speed
-
 
 #: the flow fields' scratch rows (FlowScratch.work, .iwork): per window column the swept
 #: circle's lowest level (0), the slip velocity along x (1), the parallel share (2) and the slip
@@ -166,7 +99,8 @@ def flow_and_deposit(
     compacted = _displaced(keep, cols.xi, marks, window, scratch, xc, yc, wx, vty)
     _convey(prm, zw, cols.xi, ground, marks, window, scratch)
     if vty != 0.0:
-        _convey_lateral(prm, ground, marks, window, scratch, vty, dy)
+        drag_along_axle(prm, ground, marks, window, scratch, vty, dy)
+        carry_across(prm, cols.xi, ground, marks, window, scratch, vty, dy)
     spilled, tail = _deposit_flows(ground, marks, window, scratch, tail)
     return compacted * dA, spilled * dA, tail
 
@@ -327,6 +261,19 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
     # where the rim slides over the soil (see sliding_face_height)
     v_s = v * prm[P_SLIPV]  # the carriage's speed in the shearing surface's slip
     y_slide = sliding_face_height(v_s, omega_s, r_out, prm[P_TANDELTA]) if face_plough else 0.0
+    v_lat = prm[P_VLAT]  # a steered wheel's lateral velocity (0 straight)
+    vty = v_lat * prm[P_SLIPV]  # and its slip along the axle
+    travel_x = 1.0  # the heading's share of the carriage's speed, v / V
+    if v_lat != 0.0:
+        # a steered wheel's layer digs and thins by its slip along the travel (layer.travel_slip),
+        # and a skidding rim's sliding face is the one it meets along the travel, where the rim
+        # moves at omega r cos(beta) against the carriage's V
+        speed = math.hypot(v, v_lat)
+        travel_x = v / speed
+        if face_plough:
+            y_slide = sliding_face_height(
+                speed * prm[P_SLIPV], omega_s * travel_x, r_out, prm[P_TANDELTA]
+            )
     dig_mobilised = prm[P_DIGMOB] > 0.5
     # soil trapped between grousers: carried at the rim speed of the pocket's mean radius,
     # half a pocket inside the tips
@@ -336,8 +283,6 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
     kept_only = prm[P_POCKETKEEP] > 0.5  # no continuity floor: only the soil the pockets keep
     J = prm[P_J]
     disp_form = prm[P_SHEARDISP] > 0.5
-    v_lat = prm[P_VLAT]  # a steered wheel's lateral velocity (0 straight)
-    vty = v_lat * prm[P_SLIPV]  # and its slip along the axle
     # ---- conveyor: the layer dragged by the sliding surface, per row along the mean slip
     if (depth > 0.0 and fslip > 0.0) or plough > 0.0 or y_slide > 0.0 or pocket > 0.0:
         for j in range(jw0, jw0 + nyw):
@@ -356,19 +301,25 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                     nu += 1
             u /= nu
             mob /= nu
+            if v_lat != 0.0:
+                u = travel_slip(u, vty, v, v_lat)
             if u == 0.0:
                 continue
             sgn = 1 if u > 0.0 else -1
             f = fslip
             v_pass = v  # the ground's speed through the row's footprint
             if v_lat != 0.0:
-                # a steered wheel drags the layer along its slip: the x share of it here, the y
-                # share in _convey_lateral; fresh ground enters the row's footprint across it
-                # too, at |v_y| over the row's loaded length out of the wheel's width
-                f *= abs(u) / (abs(u) + abs(vty))
+                # fresh ground enters a steered row's footprint across it too, at |v_y| over the
+                # row's loaded length out of the wheel's width; a skid's dig is shared with the
+                # ground entering across the side (lateral_flow.drag_along_axle) as the
+                # carriage's velocity is: the heading's share v / V of it here
                 v_pass = v + abs(v_lat) * nu * dx / prm[P_B]
+                if sgn > 0:
+                    if travel_x == 0.0:
+                        continue
+                    f *= travel_x
             if dig_mobilised and sgn < 0:
-                mob = _row_mobilised(u, v_pass, nu * dx, J, disp_form)
+                mob = row_mobilised(u, v_pass, nu * dx, J, disp_form)
             # path ahead of a skidding row: its height above the wheel's lowest point [m]
             h = 0.0
             if sgn > 0 and (face_plough or plough > 0.0):
@@ -381,7 +332,7 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                 # its front face meets (at most the path's height; at least the grousers'),
                 # pushed ahead under the wedge that the face above carries
                 layer = max(min(y_slide, h), prm[P_HG])
-            flux = _conveyed(layer, f * mob, u, v_pass, dig_mobilised)
+            flux = conveyed(layer, f * mob, u, v_pass, dig_mobilised)
             if sgn > 0 and plough > 0.0 and not face_plough:
                 # ploughing: in the wheel's frame the path ahead comes at v; the rim rolls it
                 # under at its bottom speed omega r, the rest meets the front face as a blade,
@@ -424,61 +375,6 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                     # excavated instead of compacting it; left behind the wheel with the layer
                     take_soil(c0 + gmax[j], j, a_pocket, h0, hl)
                 acc_b[j] += a + a_pocket
-
-
-@njit(cache=True)
-def _convey_lateral(prm, ground, marks, window, scratch, vty, dy):
-    """The layer a steered wheel's rim drags along its axle, per window column: the rim's
-    bottom slides over the ground at the lateral slip ``vty`` [m/s] (tangential to the rim, as
-    a driven rim slides backwards) and drags the layer of grouser height + shear band d along
-    at ``slip_flow`` f times the slip, its y share |vty| / (|vtx| + |vty|) (:func:`_convey`
-    drags the x share). The layer cannot thicken under the wheel: as in a skid, what it carries
-    is dragged off the ground and pushed out of the leading side into the soil beside the rut,
-    where it is deposited (the soil flows along the slip whatever the wheel's heading). A node
-    loses the layer as its shear mobilises (eq. (8)): in the displacement form by
-    d f (exp(-(j - dj)/J) - exp(-j/J)) in a step in which its shear path grew from j - dj to j,
-    so d f (1 - exp(-j/J)) over its passage, most of it near the leading side where the rim
-    meets it; in the velocity form, mobilised at once, d f (1 - exp(-|v_t|/J)) at the leading
-    node. A node passing under a wheel dragged sideways is dug by up to d f: the lateral slip
-    sinkage, the skid's digging in along the axle. No new parameter: d, slip_flow and J are the
-    straight wheel's. Added to the columns' accumulators."""
-    h0, hl, js = ground.h0, ground.hl, ground.js
-    cflag = marks.cflag
-    c0, ncw = window.c0, window.ncw
-    work, iwork = scratch.work, scratch.iwork
-    vtx_col, vt_col = work[1], work[7]
-    acc_p, acc_m = work[5], work[6]
-    cmin, cmax = iwork[3, :ncw], iwork[4, :ncw]
-    depth = prm[P_FLOWDEPTH]
-    fslip = prm[P_SLIPFLOW]
-    if depth <= 0.0 or fslip <= 0.0:
-        return
-    J = prm[P_J]
-    disp_form = prm[P_SHEARDISP] > 0.5
-    dt = prm[P_DT]
-    for k in range(ncw):
-        if cmax[k] < 0:
-            continue
-        f = fslip * abs(vty) / (abs(vtx_col[k]) + abs(vty))  # the slip's y share
-        a = 0.0  # [m * nodes] dragged off in this step
-        lead = -1
-        for j in range(cmin[k], cmax[k] + 1):
-            if LOADED_ELASTIC <= cflag[k + 1, j] <= LOADED_YIELDING:
-                if disp_form:
-                    path = js[c0 + k, j]
-                    grown = math.exp(-max(path - vt_col[k] * dt, 0.0) / J) - math.exp(-path / J)
-                    take_soil(c0 + k, j, depth * f * grown, h0, hl)
-                    a += depth * f * grown
-                elif lead < 0 or vty > 0.0:
-                    lead = j
-        if lead >= 0:
-            # the layer's flux depth f mob |vty| per length, all of it where the rim meets it
-            a = depth * f * (1.0 - math.exp(-vt_col[k] / J)) * abs(vty) * dt / dy
-            take_soil(c0 + k, lead, a, h0, hl)
-        if vty > 0.0:
-            acc_p[k] += a
-        else:
-            acc_m[k] += a
 
 
 @njit(cache=True)

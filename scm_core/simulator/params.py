@@ -334,7 +334,8 @@ class RigConfig(_Frozen):
     max_sinkage: float | None = Field(
         None,
         gt=0.0,
-        description="Sinkage that counts as bottomed out [m]; default min(0.1 m, outer radius)",
+        description="Sinkage that counts as bottomed out [m]; default min(0.1 m, outer radius), "
+        "at a slip angle min(0.1 m, outer diameter)",
     )
     side_margin: float = Field(0.04, ge=0.0, description="Soil beside the wheel track [m]")
     model: Literal[MODEL_NAMES] | None = Field(  # type: ignore[valid-type]

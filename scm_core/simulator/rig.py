@@ -17,7 +17,11 @@ v = 1 cm/s: dx 5 mm, dt 20 ms, 50 s, offsets 20, 20 and 1 s), rounded to three s
   T, ``offset_z_fraction`` (default 0.02) of it for z (the paper's 20, 20 and 1 s of a 50 s run);
 * max_sinkage = min(0.1 m, outer radius): beyond the outer radius the axle would be below the
   undisturbed surface and soil would reach the wheel's upper half, which the z-buffer of the lower
-  surface does not model.
+  surface does not model. A steered wheel's leading side is the whole disc below the soil
+  (:mod:`.side`, up to the disc's upper edge), and a wheel dragged along its axle digs a trench
+  deeper than its radius (the CMU wheels at 90 deg: 62-88 mm on a 58 mm rim), so at a slip
+  angle min(0.1 m, the outer diameter); what is still not modelled there is the upper front
+  quadrant meeting soil along the heading.
 """
 
 from __future__ import annotations
@@ -123,9 +127,12 @@ def resolve_rig(wheel: WheelGeometry, rig: RigConfig) -> ResolvedRig:
         )
     if dt > duration / 10:
         raise ValueError(f"dt: {dt:g} s is more than a tenth of the duration {duration:g} s")
-    max_sink = (
-        rig.max_sinkage if rig.max_sinkage is not None else min(MAX_SINKAGE_CAP, wheel.outer_radius)
-    )
+    if rig.max_sinkage is not None:
+        max_sink = rig.max_sinkage
+    elif rig.slip_angle == 0.0:
+        max_sink = min(MAX_SINKAGE_CAP, wheel.outer_radius)
+    else:  # a steered wheel's side is a disc (side.py): it may dig in to its diameter
+        max_sink = min(MAX_SINKAGE_CAP, 2.0 * wheel.outer_radius)
     return ResolvedRig(
         W=rig.W,
         mass=rig.vertical_mass,

@@ -26,9 +26,10 @@ it for the wheel's side. The side's depth varies along it (the rim's circle, the
 the rut): the wall is the rectangle with the same area and the same Rankine force, d =
 Sum h^2 / Sum h and w = dx (Sum h)^2 / Sum h^2 over the window's columns where the side's lower
 edge, the circle through the grouser tips, is below the level of the row the side moves into
-(ground, plastic sinkage and the loose soil heaped there). Mobilised like the shear of eq. (8):
-1 - exp(-|v_y| / J) (velocity form), 1 - exp(-|v_y| t / J) (displacement form, the wall's travel
-into the soil). No new parameter: gamma, c and phi are the soil's.
+(ground, plastic sinkage and the loose soil heaped there), and at most the disc's height there
+(a wheel dug in beyond its radius pushes with its whole side, not above it). Mobilised like the
+shear of eq. (8): 1 - exp(-|v_y| / J) (velocity form), 1 - exp(-|v_y| t / J) (displacement form,
+the wall's travel into the soil). No new parameter: gamma, c and phi are the soil's.
 """
 
 from __future__ import annotations
@@ -110,7 +111,8 @@ def side_force(
         if not np.isfinite(bottom):
             continue
         c = c0 + k
-        depth = h0[c, j] - sp[c, j] + hl[c, j] - (zw + bottom)
+        # the wall is the disc: at most its height in this column, from eb to -eb
+        depth = min(h0[c, j] - sp[c, j] + hl[c, j] - (zw + bottom), -2.0 * bottom)
         if depth > 0.0:
             s1 += depth
             s2 += depth * depth

@@ -16,7 +16,7 @@ import pytest
 
 from scm_core.signals.responses import N_RESPONSES
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_batch
-from scm_core.simulator.flow import sliding_face_height
+from scm_core.simulator.layer import sliding_face_height
 
 DRIVE_SLIPS = (0.1, 0.5, 0.95)
 SKIDS = (-0.2, -0.5, -1.0)
