@@ -316,7 +316,7 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                 v_pass = v + abs(v_lat) * nu * dx / prm[P_B]
                 if sgn > 0:
                     if travel_x == 0.0:
-                        continue
+                        continue  # dragged along its axle: all of it across the side
                     f *= travel_x
             if dig_mobilised and sgn < 0:
                 mob = row_mobilised(u, v_pass, nu * dx, J, disp_form)
@@ -339,6 +339,9 @@ def _convey(prm, zw, xi, ground, marks, window, scratch):
                 # which pushes the fraction `plough` of it ahead with the dragged layer
                 flux += plough * h * max(v - omega * r_shear, 0.0)
             a_pocket = 0.0
+            # (a steered wheel's pockets too only where its slip along the travel is drive-like:
+            # the straight rule has no continuity floor, and a wheel at 90 deg, whose pockets
+            # pass the same trench again and again, then digs without bound; docs/steering.md)
             if sgn < 0 and pocket > 0.0 and u_pocket > 0.0:
                 # the trapped soil moves with the rim, backwards over the ground at u_pocket
                 # whatever the shear: by continuity the pocket layer thins under the wheel
