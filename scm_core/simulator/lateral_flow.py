@@ -98,7 +98,7 @@ def drag_along_axle(prm, ground, marks, window, scratch, vty, dy):
     if disp_form:
         n_cols = _footprint_extent(cmin, cmax, ncw)[0]
         side_in = abs(v_lat) * n_cols * prm[P_DX] / prm[P_B]
-        side_share = side_in / (v + side_in)
+        side_share = side_in / (v + side_in) if side_in > 0.0 else 0.0
     for k in range(ncw):
         if cmax[k] < 0:
             continue
