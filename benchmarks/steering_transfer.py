@@ -25,6 +25,7 @@ import csv
 import json
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict
 from pathlib import Path
 
 from rich.console import Console
@@ -90,6 +91,7 @@ def predict(row: dict, case) -> dict:
         "F": m.F if m else nan,
         "Fy": m.Fy if m else nan,
         "z": m.z + Z_OFFSET if m else nan,
+        "budget": asdict(res.budget) if res.budget else None,
     }
 
 

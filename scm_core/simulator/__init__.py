@@ -5,6 +5,7 @@ from .params import RigConfig, SoilParams, WheelGeometry
 from .rig import ResolvedRig, resolve_rig
 from .swt import (
     BatchResult,
+    ForceBudget,
     SteadyMeans,
     SWTResult,
     Terrain,
@@ -18,6 +19,7 @@ from .swt import (
 __all__ = [
     "STATUS_NAMES",
     "BatchResult",
+    "ForceBudget",
     "ResolvedRig",
     "RigConfig",
     "SWTResult",

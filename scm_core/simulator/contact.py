@@ -60,7 +60,13 @@ R_NORM = 7  # normalisation of the border taper
 R_CMIN = 8  # footprint extent: first and last loaded column of the window
 R_CMAX = 9
 R_FY = 10  # lateral force: soil force on the wheel along its axle (+y) [N]
-N_RES = 11
+# the drawbar pull's parts (R_FX = R_FXN + R_FXS + R_FXCAP): what the normal stresses give (eq.
+# (9)'s sigma n_x: compaction and bulldozing resistance, the heap's surcharge on the face), what
+# the shear gives (-tau t_x: thrust or drag), and the Coulomb cap's cut of the forward thrust
+R_FXN = 11
+R_FXS = 12
+R_FXCAP = 13
+N_RES = 14
 
 
 @njit(cache=True)
@@ -332,6 +338,7 @@ def evaluate_contact(
     pc, pj0, pj1, pst, pflag, psig = patches
     xi, e, fx, fz, gx, gyc = cols.xi, cols.e, cols.fx, cols.fz, cols.gx, cols.gyc
     res[R_FX] = res[R_FZ] = res[R_T] = res[R_DFZ] = res[R_FY] = 0.0
+    res[R_FXN] = res[R_FXS] = res[R_FXCAP] = 0.0
     n_exp = prm[P_N]
     tanphi = prm[P_TANPHI]  # the soil's strength under the wheel (the Coulomb cap)
     tandelta = prm[P_TANDELTA]  # the soil on the wheel's surface (eq. (8)), at phi where it
@@ -363,6 +370,7 @@ def evaluate_contact(
     taper = prm[P_TAPER] > 0.5
     # ---- pass 2: stresses and forces (patches come column by column)
     Fx = 0.0
+    Fxn = 0.0  # the normal stresses' part of Fx
     Fy = 0.0
     Fz = 0.0
     Ty = 0.0
@@ -422,6 +430,7 @@ def evaluate_contact(
         dfx = (sig_sum * nx - tau_sum * tx) * dA  # eq. (9): shear opposes the sliding
         dfz = (sig_sum * nz - tau_sum * tz) * dA
         Fx += dfx
+        Fxn += sig_sum * nx * dA
         Fy -= tau_sum * ty * dA  # the shear opposes the sideways sliding too
         Fz += dfz
         Ty += kin * (rz * dfx - rx * dfz)  # eq. (10), moment about the axle (y component)
@@ -435,10 +444,13 @@ def evaluate_contact(
     # law alone does not bound) shears the soil instead, so the forward contributions are scaled
     # to the limit, and the torque with them
     cap = coh * ncont * dA + max(Fz, 0.0) * tanphi
+    res[R_FXN] = Fxn
+    res[R_FXS] = Fx - Fxn
     if Fx > cap and Fx_fwd > 0.0:
         lam = max((cap - (Fx - Fx_fwd)) / Fx_fwd, 0.0)
         Ty -= (1.0 - lam) * Ty_fwd
         Fx = cap if lam > 0.0 else Fx - Fx_fwd
+    res[R_FXCAP] = Fx - res[R_FXN] - res[R_FXS]
     res[R_FX] = Fx
     res[R_FY] = Fy
     res[R_FZ] = Fz

@@ -27,6 +27,9 @@ from .contact import (
     R_BEFF,
     R_DFZ,
     R_FX,
+    R_FXCAP,
+    R_FXN,
+    R_FXS,
     R_FY,
     R_FZ,
     R_KSTAR,
@@ -87,7 +90,15 @@ S_Z = 3
 S_FN = 4
 S_BEFF = 5
 S_FY = 6  # lateral force along the axle [N] (a steered wheel; 0 straight)
-N_SERIES = 7
+# the force budget: F = S_F_NORMAL + S_F_SHEAR + S_F_CAP + S_F_HEAP, Fy = its shear + S_FY_SIDE
+S_F_NORMAL = 7  # normal stresses on the rim along the heading (compaction, bulldozing) [N]
+S_F_SHEAR = 8  # shear stresses on the rim along the heading (thrust, drag) [N]
+S_F_CAP = 9  # the Coulomb cap's cut of the forward thrust (<= 0) [N]
+S_F_HEAP = 10  # the bow wave's own wedge pushing the rim back (<= 0) [N]
+S_FY_SIDE = 11  # the leading side's passive force along the axle [N]
+N_SERIES = 12
+#: the force budget's columns (swt.ForceBudget's fields, in order)
+BUDGET_COLUMNS = (S_F_NORMAL, S_F_SHEAR, S_F_CAP, S_F_HEAP, S_FY_SIDE)
 #: the series columns of the steady means, in the order of the responses
 #: (scm_core.signals.responses.RESPONSES: F, T, z, Fy)
 MEAN_COLUMNS = (S_F, S_TORQUE, S_Z, S_FY)
@@ -386,7 +397,8 @@ def run_swt(prm: np.ndarray):
 
     Series columns: time [s], drawbar pull F [N], driving torque T [N m], sinkage z [m] (axle drop
     from first contact with the undisturbed surface, less P_ZDATUM), normal force [N], b_eff [m],
-    lateral force Fy [N] (along the axle; a steered wheel slides across the grid's rows);
+    lateral force Fy [N] (along the axle; a steered wheel slides across the grid's rows), then
+    the force budget (S_F_NORMAL .. S_FY_SIDE: F's and Fy's parts by mechanism);
     each sample is the mean over the steps since the previous one. A run that stops early
     (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded soil
     surface h0 - sp + hl [m] (ground plus loose deposits).
@@ -474,8 +486,10 @@ def run_swt(prm: np.ndarray):
         if heap_force > 0.0:  # the heap's own wedge pushes the rim back above its base
             res[R_FX] -= heap_force
             res[R_T] += (heap_z - z_new) * heap_force  # eq. (10), the moment about the axle
+        side = 0.0
         if v_lat != 0.0:  # a steered wheel's leading side pushes the soil beside it
-            res[R_FY] += side_force(prm, ground, cols, c0, ncw, jw0, nyw, z_new, dx, t)
+            side = side_force(prm, ground, cols, c0, ncw, jw0, nyw, z_new, dx, t)
+            res[R_FY] += side
         tick = _lap(diag, np.int64(D_CYC_SOLVE), tick)
         if not ok or not np.isfinite(z_new) or not np.isfinite(res[R_FX]):
             status = STATUS_UNSTABLE
@@ -516,9 +530,14 @@ def run_swt(prm: np.ndarray):
         acc[S_FN] += res[R_FZ]
         acc[S_BEFF] += res[R_BEFF]
         acc[S_FY] += res[R_FY]
+        acc[S_F_NORMAL] += res[R_FXN]
+        acc[S_F_SHEAR] += res[R_FXS]
+        acc[S_F_CAP] += res[R_FXCAP]
+        acc[S_F_HEAP] -= heap_force
+        acc[S_FY_SIDE] += side
         if (step + 1) % out_every == 0 and n_out < n_out_max:
             series[n_out, S_T] = t
-            for col in (S_F, S_TORQUE, S_Z, S_FN, S_BEFF, S_FY):
+            for col in range(S_F, N_SERIES):
                 series[n_out, col] = acc[col] / out_every
                 acc[col] = 0.0
             n_out += 1
@@ -571,20 +590,33 @@ def settled(series: np.ndarray, prm: np.ndarray, duration: float) -> bool:
 
 
 @njit(cache=True, nogil=True)
+def _window_mean(series: np.ndarray, col: int, offset: float) -> float:
+    """Mean of the series column ``col`` over t >= ``offset`` [s]; NaN for an empty window."""
+    s = 0.0
+    n = 0
+    for i in range(series.shape[0]):
+        if series[i, S_T] >= offset - 1e-9:
+            s += series[i, col]
+            n += 1
+    return s / n if n > 0 else np.nan
+
+
+@njit(cache=True, nogil=True)
 def steady_means(series: np.ndarray, prm: np.ndarray) -> np.ndarray:
     """Means (N_MEANS,) of F, T, z and Fy (the order of scm_core.signals.responses.RESPONSES)
     over t >= their offsets (paper section 4.3: 20 s, 20 s, 1 s; Fy over F's window); NaN
     for an empty window."""
     out = np.full(N_MEANS, np.nan)
     offs = (prm[P_OFF_F], prm[P_OFF_T], prm[P_OFF_Z], prm[P_OFF_F])
-    cols = MEAN_COLUMNS
     for q in range(N_MEANS):
-        s = 0.0
-        n = 0
-        for i in range(series.shape[0]):
-            if series[i, S_T] >= offs[q] - 1e-9:
-                s += series[i, cols[q]]
-                n += 1
-        if n > 0:
-            out[q] = s / n
+        out[q] = _window_mean(series, MEAN_COLUMNS[q], offs[q])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def budget_means(series: np.ndarray, prm: np.ndarray) -> np.ndarray:
+    """Means of the force budget's columns (BUDGET_COLUMNS) over F's window, as F's own."""
+    out = np.full(len(BUDGET_COLUMNS), np.nan)
+    for q in range(len(BUDGET_COLUMNS)):
+        out[q] = _window_mean(series, BUDGET_COLUMNS[q], prm[P_OFF_F])
     return out

@@ -30,6 +30,31 @@ class SteadyMeans:
 
 
 @dataclass(frozen=True)
+class ForceBudget:
+    """Where the steady drawbar pull and lateral force come from [N], means over F's window
+    (the kernel's series columns ``S_F_NORMAL`` .. ``S_FY_SIDE``): F = F_normal + F_shear +
+    F_cap + F_heap, Fy = Fy_shear + Fy_side (to rounding). F_normal: eq. (9)'s normal stresses
+    along the heading (compaction and bulldozing resistance on the rim's faces, with the heap's
+    surcharge on the front); F_shear: its shear stresses (eq. (8): thrust, or a skid's drag);
+    F_cap: the Coulomb cap's cut of the thrust (Micklethwaite's c A + W tan(phi)), <= 0; F_heap:
+    the bow wave's own wedge on the rim (``bulk_density`` > 0), <= 0; Fy_shear: the shear
+    along the axle; Fy_side: the leading side's passive force (a steered wheel, side.py)."""
+
+    F_normal: float
+    F_shear: float
+    F_cap: float
+    F_heap: float
+    Fy_shear: float
+    Fy_side: float
+
+    @classmethod
+    def from_window(cls, parts: np.ndarray, Fy: float) -> ForceBudget:
+        """From :func:`kernel.budget_means` and the steady lateral force."""
+        normal, shear, cap, heap, side = map(float, parts)
+        return cls(normal, shear, cap, heap, Fy - side, side)
+
+
+@dataclass(frozen=True)
 class Terrain:
     """Final DEM: x (nx,) and y (ny,) node coordinates [m], heights h (nx, ny) [m]."""
 
@@ -47,7 +72,8 @@ class SWTResult:
     equal to 1 - v/(omega r) when driving), b_eff [m], Fy [N] (lateral force along the axle,
     + for a wheel sliding toward -y: RigConfig.slip_angle > 0). ``means`` is None unless
     status == "ok".
-    ``rig`` is the resolved rig (kinematics, both slips, numerics).
+    ``rig`` is the resolved rig (kinematics, both slips, numerics). ``budget``: the steady
+    forces by mechanism (None unless status == "ok").
     """
 
     status: str
@@ -57,6 +83,7 @@ class SWTResult:
     wall_time_s: float
     rig: ResolvedRig
     diagnostics: dict[str, float] = field(default_factory=dict)
+    budget: ForceBudget | None = None
 
     @property
     def ok(self) -> bool:
@@ -81,6 +108,7 @@ def simulate_swt(
     wall = time.perf_counter() - t0
     status_name = STATUS_NAMES[status]
     means = SteadyMeans(*map(float, means_arr)) if status == STATUS_OK else None
+    budget = ForceBudget.from_window(kernel.budget_means(series, prm), means.Fy) if means else None
     d = {name: float(diag[i]) for i, name in enumerate(_DIAG_NAMES)}
     dy = d["dy"]
     ny = h.shape[1]
@@ -105,6 +133,7 @@ def simulate_swt(
         wall_time_s=wall,
         rig=resolved,
         diagnostics=d,
+        budget=budget,
     )
 
 

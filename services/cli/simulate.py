@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import click
@@ -63,6 +64,7 @@ def result_summary(result: SWTResult) -> dict:
         "T_mean": m.T if m else None,
         "z_mean": m.z if m else None,
         "Fy_mean": m.Fy if m else None,
+        "force_budget": asdict(result.budget) if result.budget else None,
         "wall_time_s": result.wall_time_s,
         "steps": int(d["steps"]),
         "mean_loaded_nodes": d["node_steps"] / max(d["steps"], 1.0),
@@ -89,6 +91,15 @@ def write_series_csv(result: SWTResult, path: Path) -> None:
             writer.writerow([f"{v:.9g}" for v in row])
 
 
+#: the drawbar pull's parts in the table (ForceBudget's fields)
+_F_PARTS = (
+    ("F_normal", "normal stresses (compaction, bulldozing)"),
+    ("F_shear", "shear stresses (thrust, drag)"),
+    ("F_cap", "Coulomb cap on the thrust"),
+    ("F_heap", "bow wave's own wedge"),
+)
+
+
 def _print_table(summary: dict, result: SWTResult) -> None:
     rig = result.rig
     kin = (
@@ -104,10 +115,18 @@ def _print_table(summary: dict, result: SWTResult) -> None:
         return "-" if v is None else f"{v * scale:.4g} {unit}"
 
     table.add_row("drawbar pull F", fmt(summary["F_mean"], unit="N"), f"t >= {rig.offset_F:g} s")
+    budget = summary["force_budget"]
+    if budget:  # where F comes from (swt.ForceBudget)
+        for key, label in _F_PARTS:
+            if key in ("F_normal", "F_shear") or budget[key] != 0.0:
+                table.add_row(f"  {label}", fmt(budget[key], unit="N"), "")
     table.add_row("torque T", fmt(summary["T_mean"], unit="N m"), f"t >= {rig.offset_T:g} s")
     table.add_row("sinkage z", fmt(summary["z_mean"], 1000.0, "mm"), f"t >= {rig.offset_z:g} s")
     if rig.slip_angle:
         fy = fmt(summary["Fy_mean"], unit="N")
         table.add_row(f"lateral force Fy ({rig.slip_angle:g} deg)", fy, f"t >= {rig.offset_F:g} s")
+        if budget:
+            table.add_row("  shear along the axle", fmt(budget["Fy_shear"], unit="N"), "")
+            table.add_row("  side's passive force", fmt(budget["Fy_side"], unit="N"), "")
     table.add_row("wall time", f"{summary['wall_time_s']:.3f} s", "")
     Console().print(table)

@@ -37,6 +37,10 @@ def test_simulate_json_files(tmp_path):
     for key in ("F_mean", "T_mean", "z_mean", "wall_time_s"):
         assert isinstance(data[key], float)
     assert data["config"]["soil"]["phi"] == 28.0
+    parts = data["force_budget"]  # where F comes from: the parts add up to it
+    assert sum(parts[k] for k in ("F_normal", "F_shear", "F_cap", "F_heap")) == pytest.approx(
+        data["F_mean"], abs=1e-9
+    )
     header = out.read_text().splitlines()[0]
     assert header.startswith("time [s],drawbar_pull [N],torque [Nm],sinkage [m]")
     assert fig.stat().st_size > 10_000
