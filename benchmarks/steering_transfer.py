@@ -16,10 +16,11 @@ posterior medians, not a predictive band: it measures the physics, not the calib
 ``--lab-window`` runs each condition for 75 s and averages over 70-75 s, the authors' window,
 instead of the rig's default (two wheel diameters of travel, four for a locked wheel; an early
 stop once settled). ``--budget`` adds a table of where the model's F and Fy come from
-(swt.ForceBudget: normal and shear stresses along the heading, the shear along the axle and
-the leading side's passive force). ``--figure`` draws the same rows: F, Fy and z against the
-rim speed, a column per angle, the measured means with their trials' standard deviation and
-the model, both wheels (docs/figures/steering_transfer.png).
+(swt.ForceBudget: normal and shear stresses along the heading, the shear along the axle, the
+leading side's passive force, and the compaction's power with the share of it F_normal
+pays). ``--figure`` draws the same rows: F, Fy and z against the rim speed, a column per
+angle, the measured means with their trials' standard deviation and the model, both wheels
+(docs/figures/steering_transfer.png).
 """
 
 from __future__ import annotations
@@ -174,7 +175,7 @@ def budget_table(rows: list[dict]) -> Table:
     """Where the model's F and Fy come from at each condition (swt.ForceBudget) [N]."""
     table = Table(title="where the model's forces come from [N] (swt.ForceBudget)")
     cols = ("wheel", "beta", "rim mm/s", "F", "normal", "shear", "heap", "F meas")
-    for col in (*cols, "Fy", "shear y", "side", "Fy meas"):
+    for col in (*cols, "Fy", "shear y", "side", "Fy meas", "compaction mW", "paid"):
         table.add_column(col, justify="right")
     for r in rows:
         b = r["pred_budget"]
@@ -188,6 +189,10 @@ def budget_table(rows: list[dict]) -> Table:
             f"{r['drawbar_pull_N_mean']:.1f}",
             *(f"{v:.1f}" for v in (r["pred_Fy"], b["Fy_shear"], b["Fy_side"])),
             f"{r['lateral_force_N_mean']:.1f}",
+            f"{b['compaction_power'] * 1e3:.0f}",
+            f"{-b['F_normal'] * b['v_heading'] / b['compaction_power']:.0%}"
+            if b["compaction_power"] > 0.0
+            else "-",
         )
     return table
 

@@ -86,9 +86,10 @@ def commit_contact(
     ground: Ground,
     marks: Marks,
     window: Window,
-) -> float:
+) -> tuple[float, float]:
     """Apply the converged step to the nodes under the wheel; return the displaced soil
-    [m * nodes].
+    [m * nodes] and the plastic work done on the nodes per unit area, the sum of their yield
+    stress times their plastic sinkage's increment [Pa m = J/m^2] (the compaction's energy).
 
     Yielding nodes update sp, sy, ke (plastic sinkage never decreases, elastic rebound never lifts
     a node above its reference level). A node's surface is the wheel's while loaded and h0 - sp +
@@ -114,6 +115,7 @@ def commit_contact(
     # (lateral_flow.carry_across: how long a node has been under the wheel)
     track = disp_form or vty != 0.0
     flow = 0.0
+    work = 0.0
     for p in range(npatch):
         k = pc[p]
         c = c0 + k
@@ -134,6 +136,7 @@ def commit_contact(
                 spn = max(sp[c, jj], sink - sb / K, 0.0)
                 dsp[k + 1, jj] = spn - sp[c, jj]
                 flow += spn - sp[c, jj]
+                work += sb * (spn - sp[c, jj])
                 sp[c, jj] = spn
                 sy[c, jj] = sb
                 el = sink - spn
@@ -161,7 +164,7 @@ def commit_contact(
             flow += d
             if cflag[k + 1, jj] == 0:
                 cflag[k + 1, jj] = LOOSE_PUSHED
-    return flow
+    return flow, work
 
 
 @njit(cache=True)

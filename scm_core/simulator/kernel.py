@@ -96,9 +96,10 @@ S_F_SHEAR = 8  # shear stresses on the rim along the heading (thrust, drag) [N]
 S_F_CAP = 9  # the Coulomb cap's cut of the forward thrust (<= 0) [N]
 S_F_HEAP = 10  # the bow wave's own wedge pushing the rim back (<= 0) [N]
 S_FY_SIDE = 11  # the leading side's passive force along the axle [N]
-N_SERIES = 12
+S_P_COMPACTION = 12  # the plastic work done on the soil's nodes per time [W]
+N_SERIES = 13
 #: the force budget's columns (swt.ForceBudget's fields, in order)
-BUDGET_COLUMNS = (S_F_NORMAL, S_F_SHEAR, S_F_CAP, S_F_HEAP, S_FY_SIDE)
+BUDGET_COLUMNS = (S_F_NORMAL, S_F_SHEAR, S_F_CAP, S_F_HEAP, S_FY_SIDE, S_P_COMPACTION)
 #: the series columns of the steady means, in the order of the responses
 #: (scm_core.signals.responses.RESPONSES: F, T, z, Fy)
 MEAN_COLUMNS = (S_F, S_TORQUE, S_Z, S_FY)
@@ -398,7 +399,8 @@ def run_swt(prm: np.ndarray):
     Series columns: time [s], drawbar pull F [N], driving torque T [N m], sinkage z [m] (axle drop
     from first contact with the undisturbed surface, less P_ZDATUM), normal force [N], b_eff [m],
     lateral force Fy [N] (along the axle; a steered wheel slides across the grid's rows), then
-    the force budget (S_F_NORMAL .. S_FY_SIDE: F's and Fy's parts by mechanism);
+    the force budget (S_F_NORMAL .. S_FY_SIDE: F's and Fy's parts by mechanism; S_P_COMPACTION:
+    the plastic work rate on the nodes [W]);
     each sample is the mean over the steps since the previous one. A run that stops early
     (status != 0) returns the samples written so far. surface (nx, ny): the final unloaded soil
     surface h0 - sp + hl [m] (ground plus loose deposits).
@@ -502,7 +504,8 @@ def run_swt(prm: np.ndarray):
         zw = z_new
         diag[D_NODE_STEPS] += res[R_NCONTACT]
         window = Window(c0, ncw, jw0, nyw)
-        flow = commit_contact(zw, vz, prm, npatch, patches, cols, ground, marks, window)
+        flow, plastic = commit_contact(zw, vz, prm, npatch, patches, cols, ground, marks, window)
+        acc[S_P_COMPACTION] += plastic * dA / dt
         tick = _lap(diag, np.int64(D_CYC_COMMIT), tick)
         if bulldoze:
             compacted, spilled, tail = flow_and_deposit(

@@ -12,7 +12,7 @@ import numpy as np
 
 from . import kernel
 from .jit_cache import ensure_fresh_cache
-from .layout import STATUS_NAMES, STATUS_OK, pack_resolved
+from .layout import P_V, STATUS_NAMES, STATUS_OK, pack_resolved
 from .params import RigConfig, SoilParams, WheelGeometry
 from .rig import ResolvedRig, resolve_rig
 
@@ -38,7 +38,13 @@ class ForceBudget:
     surcharge on the front); F_shear: its shear stresses (eq. (8): thrust, or a skid's drag);
     F_cap: the Coulomb cap's cut of the thrust (Micklethwaite's c A + W tan(phi)), <= 0; F_heap:
     the bow wave's own wedge on the rim (``bulk_density`` > 0), <= 0; Fy_shear: the shear
-    along the axle; Fy_side: the leading side's passive force (a steered wheel, side.py)."""
+    along the axle; Fy_side: the leading side's passive force (a steered wheel, side.py).
+
+    And the energy the soil's compaction takes: ``compaction_power`` [W], the plastic work done
+    on the nodes per second (each yielding node's stress times its plastic sinkage's
+    increment). The normal stresses pay for it where they push against the motion: a wheel
+    driven straight and pressing soil only (no flows) has -F_normal v close to it
+    (:attr:`compaction_paid`, docs/simulator.md, "The force budget")."""
 
     F_normal: float
     F_shear: float
@@ -46,12 +52,24 @@ class ForceBudget:
     F_heap: float
     Fy_shear: float
     Fy_side: float
+    compaction_power: float = 0.0
+    #: the carriage's velocity along the heading [m/s] (the power of F_normal is F_normal v)
+    v_heading: float = 0.0
 
     @classmethod
-    def from_window(cls, parts: np.ndarray, Fy: float) -> ForceBudget:
-        """From :func:`kernel.budget_means` and the steady lateral force."""
-        normal, shear, cap, heap, side = map(float, parts)
-        return cls(normal, shear, cap, heap, Fy - side, side)
+    def from_window(cls, parts: np.ndarray, Fy: float, v_heading: float) -> ForceBudget:
+        """From :func:`kernel.budget_means`, the steady lateral force and the carriage's
+        velocity along the heading [m/s]."""
+        normal, shear, cap, heap, side, power = map(float, parts)
+        return cls(normal, shear, cap, heap, Fy - side, side, power, v_heading)
+
+    @property
+    def compaction_paid(self) -> float:
+        """The share of the compaction's energy the normal stresses along the heading pay,
+        -F_normal v / compaction_power [-] (NaN without compaction)."""
+        if self.compaction_power <= 0.0:
+            return float("nan")
+        return -self.F_normal * self.v_heading / self.compaction_power
 
 
 @dataclass(frozen=True)
@@ -108,7 +126,11 @@ def simulate_swt(
     wall = time.perf_counter() - t0
     status_name = STATUS_NAMES[status]
     means = SteadyMeans(*map(float, means_arr)) if status == STATUS_OK else None
-    budget = ForceBudget.from_window(kernel.budget_means(series, prm), means.Fy) if means else None
+    budget = (
+        ForceBudget.from_window(kernel.budget_means(series, prm), means.Fy, float(prm[P_V]))
+        if means
+        else None
+    )
     d = {name: float(diag[i]) for i, name in enumerate(_DIAG_NAMES)}
     dy = d["dy"]
     ny = h.shape[1]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from dataclasses import asdict
 from pathlib import Path
 
@@ -64,12 +65,22 @@ def result_summary(result: SWTResult) -> dict:
         "T_mean": m.T if m else None,
         "z_mean": m.z if m else None,
         "Fy_mean": m.Fy if m else None,
-        "force_budget": asdict(result.budget) if result.budget else None,
+        "force_budget": _budget(result),
         "wall_time_s": result.wall_time_s,
         "steps": int(d["steps"]),
         "mean_loaded_nodes": d["node_steps"] / max(d["steps"], 1.0),
         "compacted_volume_m3": d["compacted_volume"],
     }
+
+
+def _budget(result: SWTResult) -> dict | None:
+    """The force budget as JSON (swt.ForceBudget's fields and the compaction's share F_normal
+    pays; None where there is no compaction to pay for)."""
+    b = result.budget
+    if b is None:
+        return None
+    paid = b.compaction_paid
+    return {**asdict(b), "compaction_paid": None if math.isnan(paid) else paid}
 
 
 def write_series_csv(result: SWTResult, path: Path) -> None:
@@ -120,6 +131,12 @@ def _print_table(summary: dict, result: SWTResult) -> None:
         for key, label in _F_PARTS:
             if key in ("F_normal", "F_shear") or budget[key] != 0.0:
                 table.add_row(f"  {label}", fmt(budget[key], unit="N"), "")
+        if budget["compaction_power"] > 0.0:  # the energy the soil's compaction takes
+            table.add_row(
+                "  compaction's power",
+                fmt(budget["compaction_power"], 1e3, "mW"),
+                f"{budget['compaction_paid']:.0%} paid by F",
+            )
     table.add_row("torque T", fmt(summary["T_mean"], unit="N m"), f"t >= {rig.offset_T:g} s")
     table.add_row("sinkage z", fmt(summary["z_mean"], 1000.0, "mm"), f"t >= {rig.offset_z:g} s")
     if rig.slip_angle:
