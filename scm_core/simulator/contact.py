@@ -96,6 +96,22 @@ def inclination_factor(
 
 
 @njit(cache=True, inline="always")
+def coulomb_cap(
+    Fx: float, Ty: float, Fx_fwd: float, Ty_fwd: float, cap: float
+) -> tuple[float, float]:
+    """The drawbar pull and moment (Fx [N], Ty [N m]) within the Coulomb sliding limit of the
+    soil under the wheel, ``cap`` = c A + W tan(phi) (Micklethwaite's maximum tractive effort):
+    thrust beyond it (grouser faces pressing columns that Bekker's law alone does not bound)
+    shears the soil instead, so the forward contributions (Fx_fwd, their moment Ty_fwd) are
+    scaled to the limit, and the torque with them."""
+    if Fx > cap and Fx_fwd > 0.0:
+        lam = max((cap - (Fx - Fx_fwd)) / Fx_fwd, 0.0)
+        Ty -= (1.0 - lam) * Ty_fwd
+        Fx = cap if lam > 0.0 else Fx - Fx_fwd
+    return Fx, Ty
+
+
+@njit(cache=True, inline="always")
 def surface_velocity(
     v: float, vz: float, omega: float, rx: float, rz: float, nx: float, nz: float
 ) -> tuple[float, float, float]:
@@ -439,17 +455,9 @@ def evaluate_contact(
             Ty_fwd += kin * rz * dfx
         dsig = -gam * dsb + rows * dsd  # d(sig_sum)/d(zw): sinkage falls as the axle rises
         dFz += (dsig * nz - fsh * mu * dsig * tz) * dA
-    # Coulomb sliding limit of the soil under the wheel (Micklethwaite's maximum tractive
-    # effort c A + W tan(phi)): thrust beyond it (grouser faces pressing columns that Bekker's
-    # law alone does not bound) shears the soil instead, so the forward contributions are scaled
-    # to the limit, and the torque with them
-    cap = coh * ncont * dA + max(Fz, 0.0) * tanphi
     res[R_FXN] = Fxn
     res[R_FXS] = Fx - Fxn
-    if Fx > cap and Fx_fwd > 0.0:
-        lam = max((cap - (Fx - Fx_fwd)) / Fx_fwd, 0.0)
-        Ty -= (1.0 - lam) * Ty_fwd
-        Fx = cap if lam > 0.0 else Fx - Fx_fwd
+    Fx, Ty = coulomb_cap(Fx, Ty, Fx_fwd, Ty_fwd, coh * ncont * dA + max(Fz, 0.0) * tanphi)
     res[R_FXCAP] = Fx - res[R_FXN] - res[R_FXS]
     res[R_FX] = Fx
     res[R_FY] = Fy

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from . import kernel
+from . import kernel, outputs
 from .jit_cache import ensure_fresh_cache
 from .layout import P_V, STATUS_NAMES, STATUS_OK, pack_resolved
 from .params import RigConfig, SoilParams, WheelGeometry
@@ -20,7 +20,7 @@ from .rig import ResolvedRig, resolve_rig
 @dataclass(frozen=True)
 class SteadyMeans:
     """Steady means over the averaging windows (paper section 4.3), as
-    :func:`kernel.steady_means` gives them (the fields in the order of
+    :func:`outputs.steady_means` gives them (the fields in the order of
     :data:`scm_core.signals.responses.RESPONSES`)."""
 
     F: float  # drawbar pull [N]
@@ -32,7 +32,7 @@ class SteadyMeans:
 @dataclass(frozen=True)
 class ForceBudget:
     """Where the steady drawbar pull and lateral force come from [N], means over F's window
-    (the kernel's series columns ``S_F_NORMAL`` .. ``S_FY_SIDE``): F = F_normal + F_shear +
+    (the output series' columns ``outputs.S_F_NORMAL`` .. ``S_P_COMPACTION``): F = F_normal + F_shear +
     F_cap + F_heap, Fy = Fy_shear + Fy_side (to rounding). F_normal: eq. (9)'s normal stresses
     along the heading (compaction and bulldozing resistance on the rim's faces, with the heap's
     surcharge on the front); F_shear: its shear stresses (eq. (8): thrust, or a skid's drag);
@@ -58,7 +58,7 @@ class ForceBudget:
 
     @classmethod
     def from_window(cls, parts: np.ndarray, Fy: float, v_heading: float) -> ForceBudget:
-        """From :func:`kernel.budget_means`, the steady lateral force and the carriage's
+        """From :func:`outputs.budget_means`, the steady lateral force and the carriage's
         velocity along the heading [m/s]."""
         normal, shear, cap, heap, side, power = map(float, parts)
         return cls(normal, shear, cap, heap, Fy - side, side, power, v_heading)
@@ -122,12 +122,12 @@ def simulate_swt(
     ensure_fresh_cache()
     t0 = time.perf_counter()
     series, n_out, status, h, diag = kernel.run_swt(prm)
-    means_arr = kernel.steady_means(series, prm)
+    means_arr = outputs.steady_means(series, prm)
     wall = time.perf_counter() - t0
     status_name = STATUS_NAMES[status]
     means = SteadyMeans(*map(float, means_arr)) if status == STATUS_OK else None
     budget = (
-        ForceBudget.from_window(kernel.budget_means(series, prm), means.Fy, float(prm[P_V]))
+        ForceBudget.from_window(outputs.budget_means(series, prm), means.Fy, float(prm[P_V]))
         if means
         else None
     )
@@ -138,14 +138,14 @@ def simulate_swt(
     y = (np.arange(ny) - jw0 - 0.5 * d["nyw"] + 0.5) * dy
     x = d["x0"] + np.arange(h.shape[0]) * resolved.dx
     out = {
-        "t": series[:, kernel.S_T].copy(),
-        "F": series[:, kernel.S_F].copy(),
-        "T": series[:, kernel.S_TORQUE].copy(),
-        "z": series[:, kernel.S_Z].copy(),
-        "normal_force": series[:, kernel.S_FN].copy(),
+        "t": series[:, outputs.S_T].copy(),
+        "F": series[:, outputs.S_F].copy(),
+        "T": series[:, outputs.S_TORQUE].copy(),
+        "z": series[:, outputs.S_Z].copy(),
+        "normal_force": series[:, outputs.S_FN].copy(),
         "slip": np.full(n_out, resolved.slip_symmetric),
-        "b_eff": series[:, kernel.S_BEFF].copy(),
-        "Fy": series[:, kernel.S_FY].copy(),
+        "b_eff": series[:, outputs.S_BEFF].copy(),
+        "Fy": series[:, outputs.S_FY].copy(),
     }
     return SWTResult(
         status=status_name,
@@ -185,7 +185,7 @@ _DIAG_NAMES = (
 
 @dataclass(frozen=True)
 class BatchResult:
-    """Steady means (n, kernel.N_MEANS) = F [N], T [N m], z [m], Fy [N] (NaN where status !=
+    """Steady means (n, outputs.N_MEANS) = F [N], T [N m], z [m], Fy [N] (NaN where status !=
     'ok'; :class:`SteadyMeans`'s fields) and statuses."""
 
     means: np.ndarray
@@ -229,8 +229,8 @@ def _run_row(prm: np.ndarray) -> tuple[np.ndarray, int]:
     """Steady means (NaN unless ok) and status of one packed run (the kernel releases the GIL)."""
     series, _, status, _, _ = kernel.run_swt(prm)
     if status != STATUS_OK:
-        return np.full(kernel.N_MEANS, np.nan), int(status)
-    return kernel.steady_means(series, prm), int(status)
+        return np.full(outputs.N_MEANS, np.nan), int(status)
+    return outputs.steady_means(series, prm), int(status)
 
 
 def simulate_packed(prms: np.ndarray) -> BatchResult:
@@ -251,7 +251,7 @@ def simulate_packed(prms: np.ndarray) -> BatchResult:
         with ThreadPoolExecutor(max_workers=threads) as pool:
             out = list(pool.map(_run_row, rows))
     wall = time.perf_counter() - t0
-    means = np.array([m for m, _ in out]).reshape(len(rows), kernel.N_MEANS)
+    means = np.array([m for m, _ in out]).reshape(len(rows), outputs.N_MEANS)
     return BatchResult(means=means, status=[STATUS_NAMES[s] for _, s in out], wall_time_s=wall)
 
 

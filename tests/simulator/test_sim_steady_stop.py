@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from scm_core.simulator import RigConfig, SoilParams, WheelGeometry, simulate_swt
-from scm_core.simulator.kernel import S_F, S_FY, S_T, S_TORQUE, S_Z, settled
 from scm_core.simulator.layout import N_PARAMS, P_OFF_F, P_OFF_T, P_OFF_Z, P_R, P_SETTLE, P_W
+from scm_core.simulator.outputs import S_F, S_FY, S_T, S_TORQUE, S_Z, settled
 
 DURATION = 10.0  # s
 OFFSET = 4.0  # s, all three responses

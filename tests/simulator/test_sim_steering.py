@@ -197,7 +197,7 @@ def test_a_wheel_dragged_sideways_digs_its_shear_band(shear: str) -> None:
 
 @pytest.mark.parametrize("beta", [0.0, 45.0, -60.0])
 def test_batch_lateral_force_is_the_single_runs_bit_for_bit(beta: float) -> None:
-    """The batch simulator's steady means (simulate_batch: kernel.steady_means on a thread)
+    """The batch simulator's steady means (simulate_batch: outputs.steady_means on a thread)
     carry the lateral force as the fourth mean, over F's window, and are the single run's
     SteadyMeans bit for bit (one computation for both paths); the columns are the responses'
     (scm_core.signals.responses), in order."""
