@@ -32,13 +32,14 @@ class SteadyMeans:
 @dataclass(frozen=True)
 class ForceBudget:
     """Where the steady drawbar pull and lateral force come from [N], means over F's window
-    (the output series' columns ``outputs.S_F_NORMAL`` .. ``S_P_COMPACTION``): F = F_normal + F_shear +
-    F_cap + F_heap, Fy = Fy_shear + Fy_side (to rounding). F_normal: eq. (9)'s normal stresses
-    along the heading (compaction and bulldozing resistance on the rim's faces, with the heap's
-    surcharge on the front); F_shear: its shear stresses (eq. (8): thrust, or a skid's drag);
-    F_cap: the Coulomb cap's cut of the thrust (Micklethwaite's c A + W tan(phi)), <= 0; F_heap:
-    the bow wave's own wedge on the rim (``bulk_density`` > 0), <= 0; Fy_shear: the shear
-    along the axle; Fy_side: the leading side's passive force (a steered wheel, side.py).
+    (the output series' columns ``outputs.S_F_NORMAL`` .. ``S_P_COMPACTION``): F = F_normal +
+    F_shear + F_cap + F_heap, Fy = Fy_shear + Fy_side (to rounding). F_normal: eq. (9)'s
+    normal stresses along the heading (compaction and bulldozing resistance on the rim's
+    faces, with the heap's surcharge on the front); F_shear: its shear stresses (eq. (8):
+    thrust, or a skid's drag); F_cap: the Coulomb cap's cut of the thrust (Micklethwaite's
+    c A + W tan(phi)), <= 0; F_heap: the bow wave's own wedge on the rim (``bulk_density`` >
+    0), <= 0; Fy_shear: the shear along the axle; Fy_side: the leading side's passive force
+    (a steered wheel, side.py).
 
     And the energy the soil's compaction takes: ``compaction_power`` [W], the plastic work done
     on the nodes per second (each yielding node's stress times its plastic sinkage's
