@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict
@@ -101,7 +102,9 @@ def predict(row: dict, case) -> dict:
         "F": m.F if m else nan,
         "Fy": m.Fy if m else nan,
         "z": m.z + Z_OFFSET if m else nan,
-        "budget": asdict(res.budget) if res.budget else None,
+        "budget": {**asdict(res.budget), "compaction_paid": res.budget.compaction_paid}
+        if res.budget
+        else None,
     }
 
 
@@ -190,9 +193,7 @@ def budget_table(rows: list[dict]) -> Table:
             *(f"{v:.1f}" for v in (r["pred_Fy"], b["Fy_shear"], b["Fy_side"])),
             f"{r['lateral_force_N_mean']:.1f}",
             f"{b['compaction_power'] * 1e3:.0f}",
-            f"{-b['F_normal'] * b['v_heading'] / b['compaction_power']:.0%}"
-            if b["compaction_power"] > 0.0
-            else "-",
+            "-" if math.isnan(b["compaction_paid"]) else f"{b['compaction_paid']:.0%}",
         )
     return table
 

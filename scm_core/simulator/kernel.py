@@ -75,7 +75,7 @@ from .layout import (
     STATUS_OK,
     STATUS_UNSTABLE,
 )
-from .outputs import N_SERIES, S_F, S_P_COMPACTION, S_T, record_step, settled
+from .outputs import N_SERIES, S_F, S_T, record_step, settled
 from .side import side_force
 from .state import Columns, FlowScratch, Ground, Marks, Patches, Window
 
@@ -479,7 +479,6 @@ def run_swt(prm: np.ndarray):
         diag[D_NODE_STEPS] += res[R_NCONTACT]
         window = Window(c0, ncw, jw0, nyw)
         flow, plastic = commit_contact(zw, vz, prm, npatch, patches, cols, ground, marks, window)
-        acc[S_P_COMPACTION] += plastic * dA / dt  # the compaction's energy per second [W]
         tick = _lap(diag, np.int64(D_CYC_COMMIT), tick)
         if bulldoze:
             compacted, spilled, tail = flow_and_deposit(
@@ -501,7 +500,8 @@ def run_swt(prm: np.ndarray):
         diag[D_STEPS] += 1
         # each output sample is the mean over the steps since the last one (a box-car
         # anti-aliasing filter: grouser impacts between samples are not lost)
-        record_step(acc, res, r_out - zw - prm[P_ZDATUM], heap_force, side)
+        # the compaction's energy per second [W]: the plastic work per area over the node area
+        record_step(acc, res, r_out - zw - prm[P_ZDATUM], heap_force, side, plastic * dA / dt)
         if (step + 1) % out_every == 0 and n_out < n_out_max:
             series[n_out, S_T] = t
             for col in range(S_F, N_SERIES):

@@ -35,9 +35,12 @@ N_MEANS = len(MEAN_COLUMNS)
 
 
 @njit(cache=True, nogil=True)
-def record_step(acc: np.ndarray, res: np.ndarray, z: float, heap_force: float, side: float) -> None:
+def record_step(
+    acc: np.ndarray, res: np.ndarray, z: float, heap_force: float, side: float, power: float
+) -> None:
     """Add one step's forces ``res`` (contact.R_*), sinkage ``z`` [m], the bow wave's wedge
-    force and the side's passive force [N] to the sample's sums ``acc`` (N_SERIES)."""
+    force and the side's passive force [N] and the compaction's power [W] to the sample's sums
+    ``acc`` (N_SERIES)."""
     acc[S_F] += res[R_FX]
     acc[S_TORQUE] += res[R_T]
     acc[S_Z] += z
@@ -49,6 +52,7 @@ def record_step(acc: np.ndarray, res: np.ndarray, z: float, heap_force: float, s
     acc[S_F_CAP] += res[R_FXCAP]
     acc[S_F_HEAP] -= heap_force
     acc[S_FY_SIDE] += side
+    acc[S_P_COMPACTION] += power
 
 
 @njit(cache=True, nogil=True)
