@@ -864,6 +864,7 @@ def _refuse_nonfinite(token: str) -> float:
     raise ValueError(f"non-standard JSON constant {token}")
 
 
+@pytest.mark.slow  # every file of a whole CLI session (CI's slow tier)
 def test_every_json_file_the_cli_wrote_is_strict_json(work: Path, reference: Path) -> None:
     """Exported stages, their manifest, summary, predictions and sensitivity are strict JSON
     (no NaN or Infinity tokens): they go through ``scm_core.jsondoc.dumps``, json.dumps with
@@ -942,6 +943,7 @@ def test_a_stopped_run_says_it_is_not_a_posterior(work: Path, reference: Path) -
     assert done["is_posterior"] is True and done["final_exponent"] == 1.0
 
 
+@pytest.mark.slow  # a second calibration of the reference case (CI's slow tier)
 def test_seed_option_overrides_the_case_seed(work: Path, reference: Path) -> None:
     """--seed 4 is the case's own seed: the same bits (its first stages); another seed gives
     another population, recorded in the summary's case."""

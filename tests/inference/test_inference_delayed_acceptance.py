@@ -153,7 +153,7 @@ def test_update_with_surrogate_and_early_rejection_exact_answer(da: TMCMCSetting
     assert abs(old.log_evidence + res.log_evidence - log_z) < 0.2
 
 
-@pytest.mark.parametrize("steps", [1, 10])
+@pytest.mark.parametrize("steps", [1, pytest.param(10, marks=pytest.mark.slow)])
 @pytest.mark.parametrize("moves", ["resample-move", "leader", "waste-free", "waste-free-jumps"])
 def test_batches_do_not_change_results(moves: str, steps: int) -> None:
     """The surrogate is a function of the stage plan: any batch split gives the same bits."""

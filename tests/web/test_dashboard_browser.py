@@ -243,7 +243,16 @@ def _set_token(page, token: str = TOKEN) -> None:
     page.wait_for_selector("#token-state:has-text('token set')")
 
 
-def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> None:
+@pytest.mark.parametrize(
+    "size_name",
+    [
+        "1280x800",
+        # the other sizes in the slow tier (CI runs both tiers)
+        pytest.param("1920x1080", marks=pytest.mark.slow),
+        pytest.param("400x800", marks=pytest.mark.slow),
+    ],
+)
+def test_every_page_renders_with_its_figures_at_each_size(server, browser, size_name) -> None:
     base = server["base"]
     pages = {
         "studies": f"{base}/",
@@ -264,39 +273,39 @@ def test_every_page_renders_with_its_figures_at_both_sizes(server, browser) -> N
         "dataset": 1,
     }
     timings = {}
-    for size_name, size in SIZES.items():
-        for name, url in pages.items():
-            w = Watched(browser, size)
-            try:
-                shell = w.goto(url)
-                n = w.figures_loaded()
-                timings[(name, size_name)] = (shell, w.elapsed_ms())
-                assert n == expected_figures.get(name, 0), (name, n)
-                for img in w.page.locator("img[data-src]").all():
-                    assert (img.get_attribute("alt") or "").strip(), name
-                for chart in w.page.locator("[data-chart]").all():
-                    assert (chart.get_attribute("aria-label") or "").strip(), name
-                for table in w.page.locator("table").all():
-                    assert table.locator("th").count() > 0, name
-                # a phone's width: no sideways scroll of the page (wide tables scroll in place)
-                width = w.page.evaluate("document.documentElement.scrollWidth")
-                assert width <= size[0], (name, size_name, width)
-                w.shoot(f"{name}_{size_name}")
-                # the forms behind the page's disclosures (new study, case file, update and
-                # prediction) fit as well
-                # (a form may bring its own disclosure: each poll opens what is closed)
-                w.page.wait_for_function(
-                    "() => { const shut = document.querySelectorAll('details:not([open])');"
-                    " shut.forEach(d => { d.open = true; });"
-                    " return shut.length === 0 && !document.querySelector('.htmx-request')"
-                    " && !/Loading/.test(document.querySelector('main').innerText); }",
-                    timeout=60_000,
-                )
-                width = w.page.evaluate("document.documentElement.scrollWidth")
-                assert width <= size[0], (name, "forms open", size_name, width)
-                w.clean()
-            finally:
-                w.close()
+    size = SIZES[size_name]
+    for name, url in pages.items():
+        w = Watched(browser, size)
+        try:
+            shell = w.goto(url)
+            n = w.figures_loaded()
+            timings[(name, size_name)] = (shell, w.elapsed_ms())
+            assert n == expected_figures.get(name, 0), (name, n)
+            for img in w.page.locator("img[data-src]").all():
+                assert (img.get_attribute("alt") or "").strip(), name
+            for chart in w.page.locator("[data-chart]").all():
+                assert (chart.get_attribute("aria-label") or "").strip(), name
+            for table in w.page.locator("table").all():
+                assert table.locator("th").count() > 0, name
+            # a phone's width: no sideways scroll of the page (wide tables scroll in place)
+            width = w.page.evaluate("document.documentElement.scrollWidth")
+            assert width <= size[0], (name, size_name, width)
+            w.shoot(f"{name}_{size_name}")
+            # the forms behind the page's disclosures (new study, case file, update and
+            # prediction) fit as well
+            # (a form may bring its own disclosure: each poll opens what is closed)
+            w.page.wait_for_function(
+                "() => { const shut = document.querySelectorAll('details:not([open])');"
+                " shut.forEach(d => { d.open = true; });"
+                " return shut.length === 0 && !document.querySelector('.htmx-request')"
+                " && !/Loading/.test(document.querySelector('main').innerText); }",
+                timeout=60_000,
+            )
+            width = w.page.evaluate("document.documentElement.scrollWidth")
+            assert width <= size[0], (name, "forms open", size_name, width)
+            w.clean()
+        finally:
+            w.close()
     print("\npage load times (ms from navigation start: load event, all fragments and figures):")
     for (name, size_name), (shell, full) in sorted(timings.items()):
         print(f"  {name:20s} {size_name:9s} {shell:8.0f} {full:8.0f}")
@@ -507,6 +516,7 @@ def test_hovering_a_figure_reads_out_the_data_under_the_pointer(server, browser)
         w.close()
 
 
+@pytest.mark.slow  # the fast tier keeps the compare page's other tests
 def test_compare_page_of_two_runs_shows_their_agreement_and_rank_plots(server, browser) -> None:
     """Two runs of case A: the R-hat table, and ArviZ's rank plots as a figure, a rank
     histogram per run and parameter."""
@@ -1163,6 +1173,7 @@ def test_reads_need_the_token_when_the_server_says_so(browser, tmp_path) -> None
             w.close()
 
 
+@pytest.mark.slow  # the fast tier follows a running study's page (keeps_up)
 def test_polling_stops_while_hidden_and_once_the_study_has_ended(server, browser) -> None:
     """A running study's page polls its live fragments (with If-None-Match) while visible,
     sends nothing while the tab is hidden, and stops for good once the study has ended."""

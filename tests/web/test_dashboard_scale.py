@@ -125,6 +125,7 @@ def browser():
         b.close()
 
 
+@pytest.mark.slow  # a scale check: a big study's pages (CI's slow tier)
 def test_pages_load_and_a_big_study_page_stays_small(big, browser) -> None:
     base, big_id, other = big
     sizes: dict[str, int] = {}
