@@ -664,6 +664,7 @@ def _children(pid: int) -> list[int]:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.slow  # fault injection (CI's slow tier, with the other killed-process tests)
 def test_a_killed_worker_is_replaced_and_the_run_ends_the_same(work: Path, reference: Path) -> None:
     """A --workers process killed mid-run (a signal, the kernel's out-of-memory killer) is
     replaced and its batch given back at once (the embedded server's supervised pool): the

@@ -138,6 +138,7 @@ def test_bad_comparisons_are_refused(models, needle) -> None:
         ModelEvidence("c", (math.nan,), (0.1,))
 
 
+@pytest.mark.slow  # the command end to end (four calibrations); the logic stays fast
 def test_the_command_runs_cases_and_reads_results_folders(tmp_path: Path) -> None:
     """`compare` on two case files runs each twice (run groups under OUT, as `calibrate
     --runs 2`), ranks the classes by the mean of their runs' ln Z and writes compare.json;

@@ -82,6 +82,7 @@ def _screened(res) -> int:
     return sum(s.surrogate_steps - s.out_of_support - s.model_runs for s in res.stages[1:])
 
 
+@pytest.mark.slow  # the heaviest; the 1-D, bimodal, curved and update checks stay fast
 def test_linear_gaussian_5d_exact_answer_with_fewer_model_runs(da: TMCMCSettings) -> None:
     f = parted_5d()
     plain = run_tmcmc(f, PRIOR5, seed=0, settings=TMCMCSettings(early_rejection=False))
