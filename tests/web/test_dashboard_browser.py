@@ -245,12 +245,8 @@ def _set_token(page, token: str = TOKEN) -> None:
 
 @pytest.mark.parametrize(
     "size_name",
-    [
-        "1280x800",
-        # the other sizes in the slow tier (CI runs both tiers)
-        pytest.param("1920x1080", marks=pytest.mark.slow),
-        pytest.param("400x800", marks=pytest.mark.slow),
-    ],
+    # the first size in the fast tier, the others in the slow tier (CI runs both)
+    [pytest.param(name, marks=() if i == 0 else pytest.mark.slow) for i, name in enumerate(SIZES)],
 )
 def test_every_page_renders_with_its_figures_at_each_size(server, browser, size_name) -> None:
     base = server["base"]
